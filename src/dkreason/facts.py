@@ -1,0 +1,92 @@
+"""Model → Datalog facts.  Every relation the rules read is produced here, keyed by platform.
+
+Entities are IRIs (strings); feature arguments are 1-based positions; topic arguments carry
+their kind ('object', 'some', 'every') and id field ('' for an implicit object).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from .datalog import Row
+from .model import ArgKind, Ontology
+
+THING = "http://www.w3.org/2002/07/owl#Thing"
+
+Facts = dict[str, list[Row]]
+
+# Constants the rules join against: argument positions of the ternary-padded tuples, and the
+# topic argument kinds that name a sort.
+STATIC: Facts = {"position": [(1,), (2,), (3,)], "sort_kind": [("some",), ("every",)]}
+
+
+@dataclass(frozen=True, slots=True)
+class ResolvedArg:
+    kind: ArgKind
+    iri: str
+    id_field: str  # '' for an implicit object
+
+
+@dataclass(frozen=True, slots=True)
+class ResolvedFeature:
+    iri: str
+    field: str
+    args: tuple[ResolvedArg, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ResolvedSpec:
+    """A topic spec with every name resolved to an IRI of its platform."""
+
+    name: str
+    msgtype: str
+    features: tuple[ResolvedFeature, ...]
+    entity: ResolvedArg | None
+
+
+def ontology_facts(ont: Ontology) -> Facts:
+    p = ont.platform
+    out: Facts = defaultdict(list)
+    sorts = ont.sorts
+    out["sort"] = [(p, s) for s in sorted(sorts)]
+    has_super = {a for a, b in ont.subclass_of if b in sorts}
+    out["subclass_of"] = [(p, a, b) for a, b in ont.subclass_of]
+    out["subclass_of"] += [(p, s, THING) for s in sorted(sorts - has_super - {THING})]
+    out["equivalent_class"] = [(p, a, b) for a, b in ont.equivalent]
+    for f, sig in sorted(ont.features.items()):
+        out["feature"].append((p, f, sig.arity))
+        out["feature_arg"] += [(p, f, i, s) for i, allowed in enumerate(sig.arg_sorts, 1)
+                               for s in allowed]
+    out["individual"] = [(p, o) for o in sorted(ont.individuals)]
+    typed = {o for o, _ in ont.types}
+    out["type_of"] = [(p, o, c) for o, c in ont.types]
+    out["type_of"] += [(p, o, THING) for o in sorted(ont.individuals - typed)]
+    out["same_as"] = [(p, a, b) for a, b in ont.same_as]
+    return out
+
+
+def spec_facts(platform: str, spec: ResolvedSpec) -> Facts:
+    out: Facts = defaultdict(list)
+    out["topic"] = [(platform, spec.name, spec.msgtype)]
+    for k, f in enumerate(spec.features, 1):
+        out["topic_feature"].append((platform, spec.name, k, f.iri, f.field))
+        out["topic_arg"] += [(platform, spec.name, k, i, a.kind, a.iri, a.id_field)
+                             for i, a in enumerate(f.args, 1)]
+    if spec.entity is not None:
+        e = spec.entity
+        out["topic_entity"] = [(platform, spec.name, e.kind, e.iri, e.id_field)]
+    return out
+
+
+def merge(*parts: Facts) -> Facts:
+    out: Facts = defaultdict(list)
+    for part in parts:
+        for pred, rows in part.items():
+            out[pred] += rows
+    return out
+
+
+def rows_of(facts: Facts) -> Iterable[tuple[str, list[Row]]]:
+    return ((pred, rows) for pred, rows in facts.items() if rows)

@@ -1,0 +1,204 @@
+"""Frozen data passed between the stages: parse → check → expand → match → request.
+
+Names inside specs and formulas stay as written (`uav1`, `hr:Heading`, `<http://…#UAV>`) so a
+spec file can be written back unchanged; the check stage resolves them to IRIs per platform.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+from .errors import Span
+
+ArgKind = Literal["object", "some", "every"]
+IdValue = int | str
+
+
+# ---- topic specifications (SSL_T, thesis listing 4.2) -------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class TopicArg:
+    """One argument of a topic feature, or the entity of a sort/object topic.
+
+    `id_field` is the message field holding the object's id; None means an implicit object
+    (the topic carries that object only, no filter needed).
+    """
+
+    kind: ArgKind
+    name: str
+    id_field: str | None
+    span: Span = field(default=Span("<api>"), compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class TopicFeature:
+    name: str
+    field: str
+    args: tuple[TopicArg, ...]
+    span: Span = field(default=Span("<api>"), compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class TopicSpec:
+    """A topic and what it carries: features, or the objects of a sort, or one object."""
+
+    name: str
+    msgtype: str
+    features: tuple[TopicFeature, ...] = ()
+    entity: TopicArg | None = None
+    span: Span = field(default=Span("<api>"), compare=False)
+
+    @property
+    def kind(self) -> Literal["features", "sort", "object"]:
+        if self.features:
+            return "features"
+        assert self.entity is not None
+        return "object" if self.entity.kind == "object" else "sort"
+
+
+# ---- ontologies and mappings ----------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class Signature:
+    """A feature's arity and, per argument, the sorts allowed (a unionOf gives several)."""
+
+    iri: str
+    arg_sorts: tuple[tuple[str, ...], ...]
+
+    @property
+    def arity(self) -> int:
+        return len(self.arg_sorts)
+
+
+@dataclass(frozen=True, slots=True)
+class Ontology:
+    """One platform's told axioms, read without inference (signatures must stay as asserted)."""
+
+    platform: str
+    file: str
+    classes: frozenset[str]
+    features: Mapping[str, Signature]
+    subclass_of: tuple[tuple[str, str], ...]
+    equivalent: tuple[tuple[str, str], ...]
+    individuals: frozenset[str]
+    types: tuple[tuple[str, str], ...]
+    same_as: tuple[tuple[str, str], ...]
+    ids: Mapping[str, IdValue]
+    prefixes: Mapping[str, str]
+
+    @property
+    def sorts(self) -> frozenset[str]:
+        return self.classes - self.features.keys()
+
+
+BridgeType = Literal["equiv", "into", "onto", "incompat", "compat", "same"]
+BRIDGE_TYPES: tuple[BridgeType, ...] = ("equiv", "into", "onto", "incompat", "compat", "same")
+
+
+@dataclass(frozen=True, slots=True)
+class BridgeRule:
+    """A COWL bridge rule between an entity of the source and one of the target platform."""
+
+    type: BridgeType
+    source: str
+    target: str
+    span: Span = field(compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class Mapping_:
+    source: str
+    target: str
+    file: str
+    rules: tuple[BridgeRule, ...]
+
+
+# ---- formulas: the features they need -------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class Arg:
+    """A feature argument in a formula: a constant object, or a variable bound to a sort."""
+
+    name: str
+    sort: str | None = None  # the quantifier's sort for a variable, None for a constant
+    span: Span = field(default=Span("<formula>"), compare=False)
+
+    @property
+    def is_variable(self) -> bool:
+        return self.sort is not None
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureRef:
+    """A feature as written in a formula, before expansion (`Altitude[x]` with x in UAV)."""
+
+    name: str
+    args: tuple[Arg, ...]
+    span: Span = field(default=Span("<formula>"), compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class GroundFeature:
+    """A feature over objects of the local platform: the unit a stream request is made of.
+
+    `name` and `args` are local names as the formula (or the expansion) writes them; `iri` and
+    `arg_iris` are what they resolve to.
+    """
+
+    name: str
+    args: tuple[str, ...]
+    iri: str
+    arg_iris: tuple[str, ...]
+
+    @property
+    def key(self) -> str:
+        return f"{self.name}[{', '.join(self.args)}]" if self.args else self.name
+
+
+# ---- the stream request (thesis 5.6: state stream → features → topics → arguments) ---------
+
+@dataclass(frozen=True, slots=True)
+class TopicMatch:
+    """A topic to merge for a feature: where to read the value, which messages to keep."""
+
+    platform: str
+    topic: str
+    msgtype: str
+    field: str
+    filter: tuple[tuple[str, IdValue], ...]
+    as_feature: str
+    as_args: tuple[str, ...]
+
+    def to_json(self, local: str) -> dict[str, object]:
+        out: dict[str, object] = {
+            "platform": self.platform, "topic": self.topic, "msgtype": self.msgtype,
+            "field": self.field, "filter": dict(self.filter)}
+        if self.platform != local:
+            out["as"] = {"feature": self.as_feature, "args": list(self.as_args)}
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureRequest:
+    feature: GroundFeature
+    topics: tuple[TopicMatch, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class StreamRequest:
+    """What the Stream Processor must subscribe to for one formula."""
+
+    formula: str
+    local: str
+    features: tuple[FeatureRequest, ...]
+    warnings: tuple[str, ...] = ()
+
+    def to_json(self) -> dict[str, object]:
+        out: dict[str, object] = {"formula": self.formula, "features": [
+            {"feature": f.feature.name, "args": list(f.feature.args),
+             "topics": [t.to_json(self.local) for t in f.topics]} for f in self.features]}
+        if self.warnings:
+            out["warnings"] = list(self.warnings)
+        return out

@@ -1,0 +1,73 @@
+"""Local names → IRIs, per platform, through an index (the thesis scanned the ontology instead).
+
+A name may be written three ways wherever one may stand: `Heading` (local name, must be unique
+among the platform's entities of the expected kind), `hr:Heading` (prefix declared in that
+platform's ontology file) or `<http://…#Heading>`.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections import defaultdict
+from collections.abc import Iterable, Mapping
+from typing import Literal
+
+from .errors import NameError_, Span
+
+Kind = Literal["feature", "sort", "object"]
+
+
+def local_name(iri: str) -> str:
+    for sep in ("#", "/", ":"):
+        if sep in iri:
+            iri = iri.rsplit(sep, 1)[1] or iri
+    return iri
+
+
+class NameIndex:
+    def __init__(self, platform: str, prefixes: Mapping[str, str],
+                 entities: Mapping[Kind, Iterable[str]]) -> None:
+        self.platform = platform
+        self.prefixes = dict(prefixes)
+        self._kind_of: dict[str, Kind] = {}
+        self._by_local: dict[str, list[str]] = defaultdict(list)
+        for kind, iris in entities.items():
+            for iri in iris:
+                self._kind_of[iri] = kind
+                self._by_local[local_name(iri)].append(iri)
+
+    def kind(self, iri: str) -> Kind | None:
+        return self._kind_of.get(iri)
+
+    def resolve(self, written: str, kinds: tuple[Kind, ...], span: Span) -> str:
+        """The IRI `written` names among entities of `kinds`, or a NameError_ saying why not."""
+        wanted = " or ".join(kinds)
+        if written.startswith("<") and written.endswith(">"):
+            candidates = [written[1:-1]]
+        elif ":" in written:
+            prefix, _, rest = written.partition(":")
+            if prefix not in self.prefixes:
+                raise NameError_(f"unknown prefix {prefix!r} in {written!r} on {self.platform} "
+                                 f"(declared: {', '.join(sorted(self.prefixes)) or 'none'})", span)
+            candidates = [self.prefixes[prefix] + rest]
+        else:
+            candidates = self._by_local.get(written, [])
+        fitting = [iri for iri in candidates if self._kind_of.get(iri) in kinds]
+        if len(fitting) == 1:
+            return fitting[0]
+        if len(fitting) > 1:
+            both = " and ".join(f"<{iri}>" for iri in sorted(fitting))
+            raise NameError_(f"ambiguous {wanted} {written!r} on {self.platform}: {both}; "
+                             f"write a prefixed name or a full <IRI>", span)
+        other = [self._kind_of[iri] for iri in candidates if iri in self._kind_of]
+        if other:
+            raise NameError_(f"{written!r} is a{'n' if other[0][0] == 'o' else ''} {other[0]} "
+                             f"on {self.platform}, not a {wanted}", span)
+        close = difflib.get_close_matches(written, [n for n, iris in self._by_local.items()
+                                                    if any(self._kind_of[i] in kinds for i in iris)],
+                                          n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise NameError_(f"unknown {wanted} {written!r} on {self.platform}{hint}", span)
+
+    def names(self, kind: Kind) -> list[str]:
+        return sorted(local_name(i) for i, k in self._kind_of.items() if k == kind)

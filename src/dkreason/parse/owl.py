@@ -1,0 +1,129 @@
+"""OWL ontology (any RDF syntax rdflib reads) → `Ontology` of told axioms.
+
+No OWL reasoning here: a feature's signature must come from its own asserted
+`subClassOf (UnaryRelation ⊓ ∀arg1.S …)`, or GroundSpeed ≡ Speed would give both features both
+signatures (thesis 6.1).  The closures the matcher needs are Datalog rules (rules/ontology.dl).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from ..errors import DkError, ParseError, Span
+from ..model import IdValue, Ontology, Signature
+from ..names import local_name
+from .files import read_bytes
+
+ARITY = {"UnaryRelation": 1, "BinaryRelation": 2, "TernaryRelation": 3}
+ARG = re.compile(r"arg([1-9])$")
+THING = "http://www.w3.org/2002/07/owl#Thing"
+
+
+def read_ontology(path: Path, platform: str) -> Ontology:
+    from rdflib import BNode, Graph, Literal, URIRef
+    from rdflib.collection import Collection
+    from rdflib.namespace import OWL, RDF, RDFS
+    from rdflib.util import guess_format
+
+    file = str(path)
+    data = read_bytes(path)
+    fmt = guess_format(file) or "xml"
+    if fmt == "xml":
+        from .. import xmlsafe
+        xmlsafe.check(data, file)
+    graph = Graph(bind_namespaces="none")
+    try:
+        graph.parse(data=data, format=fmt, publicID=path.resolve().as_uri())
+    except Exception as exc:  # rdflib raises many types; all mean "this file is not RDF"
+        raise _rdf_error(exc, file) from None
+
+    def named(node: object) -> bool:
+        return isinstance(node, URIRef)
+
+    def members(node: object) -> list[object]:
+        return list(Collection(graph, node)) if isinstance(node, BNode) else []
+
+    meta = {OWL.Class, RDFS.Class, OWL.NamedIndividual, OWL.ObjectProperty,
+            OWL.DatatypeProperty, OWL.AnnotationProperty, OWL.Ontology, OWL.Restriction,
+            RDF.Property}
+    classes = {s for s in graph.subjects(RDF.type, OWL.Class) if named(s)}
+    classes |= {s for s in graph.subjects(RDF.type, RDFS.Class) if named(s)}
+    for pred in (RDFS.subClassOf, OWL.equivalentClass):
+        for s, o in graph.subject_objects(pred):
+            classes |= {n for n in (s, o) if named(n)}
+    typed = [(s, o) for s, o in graph.subject_objects(RDF.type)
+             if named(s) and named(o) and o not in meta]
+    classes |= {o for _, o in typed}
+    classes.add(URIRef(THING))
+
+    features: dict[str, Signature] = {}
+    for cls, sup in graph.subject_objects(RDFS.subClassOf):
+        if not named(cls):
+            continue
+        parts = members(graph.value(sup, OWL.intersectionOf)) if isinstance(sup, BNode) else []
+        arity = next((ARITY[local_name(str(p))] for p in parts
+                      if named(p) and local_name(str(p)) in ARITY), None)
+        if arity is None:
+            continue
+        sorts: dict[int, tuple[str, ...]] = {}
+        for part in parts:
+            prop, filler = graph.value(part, OWL.onProperty), graph.value(part, OWL.allValuesFrom)
+            match = ARG.search(str(prop)) if prop is not None else None
+            if match is None or filler is None:
+                continue
+            index = int(match.group(1))
+            if index > arity:
+                raise ParseError(f"feature <{cls}> restricts arg{index} but is a "
+                                 f"{arity}-ary relation", Span(file))
+            union = members(graph.value(filler, OWL.unionOf))
+            sorts[index] = tuple(str(u) for u in union if named(u)) if union else (str(filler),)
+        if str(cls) in features:
+            raise ParseError(f"feature <{cls}> has two relation signatures", Span(file))
+        features[str(cls)] = Signature(
+            str(cls), tuple(sorts.get(i, (THING,)) for i in range(1, arity + 1)))
+
+    individuals = {s for s in graph.subjects(RDF.type, OWL.NamedIndividual) if named(s)}
+    individuals |= {s for s, _ in typed if s not in classes}
+    same = [(str(a), str(b)) for a, b in graph.subject_objects(OWL.sameAs)
+            if named(a) and named(b)]
+    individuals |= {URIRef(x) for pair in same for x in pair}
+
+    ids: dict[str, IdValue] = {}
+    for ind in individuals:
+        values = {o for p, o in graph.predicate_objects(ind)
+                  if isinstance(o, Literal) and local_name(str(p)) == "id"}
+        if len(values) > 1:
+            shown = ", ".join(sorted(str(v) for v in values))
+            raise ParseError(f"object <{ind}> has several id values ({shown})", Span(file))
+        if values:
+            (lit,) = values
+            value = lit.toPython()
+            ids[str(ind)] = value if isinstance(value, int) and not isinstance(value, bool) \
+                else str(lit)
+
+    return Ontology(
+        platform=platform, file=file,
+        classes=frozenset(str(c) for c in classes),
+        features=features,
+        subclass_of=tuple(sorted((str(s), str(o)) for s, o in
+                                 graph.subject_objects(RDFS.subClassOf) if named(s) and named(o))),
+        equivalent=tuple(sorted((str(s), str(o)) for s, o in
+                                graph.subject_objects(OWL.equivalentClass)
+                                if named(s) and named(o))),
+        individuals=frozenset(str(i) for i in individuals),
+        types=tuple(sorted((str(s), str(o)) for s, o in typed if s in individuals)),
+        same_as=tuple(sorted(same)),
+        ids=ids,
+        prefixes={p: str(ns) for p, ns in graph.namespaces() if p},
+    )
+
+
+def _rdf_error(exc: Exception, file: str) -> DkError:
+    line = 0
+    if hasattr(exc, "getLineNumber"):
+        line = int(exc.getLineNumber())
+    elif hasattr(exc, "lines"):
+        line = int(exc.lines) + 1
+    text = str(getattr(exc, "getMessage", lambda: str(exc))()).splitlines()
+    return ParseError(f"malformed RDF: {text[0] if text else type(exc).__name__}", Span(file, line))

@@ -1,0 +1,313 @@
+"""SSL_T topic specifications: text (thesis listing 4.2) and XML (listing 4.5/4.6), both ways.
+
+Text → XML → text keeps every topic, feature, argument kind, name and field; aliases exist in
+text only (XML arguments are positional), so the writer invents `argN` aliases exactly where a
+name repeats within one feature and binding by name would be ambiguous to a reader.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import cache
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+from lark import Lark, Token, Transformer, v_args
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, VisitError
+from lark.tree import Meta
+
+from ..errors import DkError, ParseError, Span
+from ..model import ArgKind, TopicArg, TopicFeature, TopicSpec
+from .files import read_bytes, read_text
+
+
+@cache
+def _parser() -> Lark:
+    return Lark.open_from_package("dkreason.parse", "sslt.lark", parser="lalr",
+                                  propagate_positions=True, maybe_placeholders=False)
+
+
+@dataclass(frozen=True, slots=True)
+class SpecFile:
+    """Specs with the line range each came from, so edits can touch only their own lines."""
+
+    specs: tuple[TopicSpec, ...]
+    lines: tuple[tuple[int, int], ...]
+
+
+# ---- text ------------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class _Entry:
+    kind: ArgKind
+    name: str
+    field: str
+    span: Span
+
+
+@dataclass(frozen=True, slots=True)
+class _Arg:
+    name: str
+    alias: str | None
+    span: Span
+
+
+@dataclass(frozen=True, slots=True)
+class _Feature:
+    name: str
+    args: tuple[_Arg, ...]
+    field: str
+    span: Span
+
+
+class _ToModel(Transformer[Token, Any]):
+    def __init__(self, file: str) -> None:
+        super().__init__()
+        self.file = file
+
+    def _span(self, meta: Meta) -> Span:
+        return Span(self.file, meta.line, meta.column)
+
+    def name(self, children: list[Token]) -> str:
+        return str(children[0])
+
+    @v_args(meta=True)
+    def arg(self, meta: Meta, children: list[Any]) -> _Arg:
+        return _Arg(children[0], str(children[1]) if len(children) > 1 else None,
+                    self._span(meta))
+
+    @v_args(meta=True)
+    def sort_entry(self, meta: Meta, children: list[Any]) -> _Entry:
+        kind, name, field = children
+        return _Entry(str(kind), name, str(field), self._span(meta))  # type: ignore[arg-type]
+
+    @v_args(meta=True)
+    def object_entry(self, meta: Meta, children: list[Any]) -> _Entry:
+        name, field = children
+        return _Entry("object", name, str(field), self._span(meta))
+
+    @v_args(meta=True)
+    def feature(self, meta: Meta, children: list[Any]) -> list[Any]:
+        name, *rest = children
+        args = tuple(c for c in rest if isinstance(c, _Arg))
+        field = next(str(c) for c in rest if isinstance(c, Token))
+        entries = [c for c in rest if isinstance(c, _Entry)]
+        return [_Feature(name, args, field, self._span(meta)), *entries]
+
+    @v_args(meta=True)
+    def topic(self, meta: Meta, children: list[Any]) -> tuple[TopicSpec, int, int]:
+        name, msgtype, *items = children
+        flat = [x for item in items for x in (item if isinstance(item, list) else [item])]
+        span = self._span(meta)
+        if isinstance(flat[0], _Entry):
+            if len(flat) > 1:
+                raise ParseError(f"topic {name} lists {len(flat)} entities; a sort or object "
+                                 f"topic carries exactly one", span)
+            entry = flat[0]
+            entity = TopicArg(entry.kind, entry.name, entry.field, entry.span)
+            return TopicSpec(str(name), str(msgtype), (), entity, span), meta.line, meta.end_line
+        features: list[TopicFeature] = []
+        pending: list[_Entry] = []
+        current: _Feature | None = None
+        for x in [*flat, None]:
+            if isinstance(x, _Entry):
+                pending.append(x)
+                continue
+            if current is not None:
+                features.append(_bind(current, pending))
+            current, pending = x, []
+        return (TopicSpec(str(name), str(msgtype), tuple(features), None, span),
+                meta.line, meta.end_line)
+
+
+def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
+    """Bind `for` entries to arguments: by alias, else the first unbound argument of that name."""
+    bound: dict[int, _Entry] = {}
+    for entry in entries:
+        slot = next((i for i, a in enumerate(feature.args) if a.alias == entry.name), None)
+        if slot is None:
+            slot = next((i for i, a in enumerate(feature.args)
+                         if a.name == entry.name and a.alias is None and i not in bound), None)
+        if slot is None:
+            raise ParseError(f"'for {entry.name}' names no unbound argument of {feature.name}",
+                             entry.span)
+        if slot in bound:
+            raise ParseError(f"argument {slot + 1} of {feature.name} bound twice", entry.span)
+        bound[slot] = entry
+    args = []
+    for i, a in enumerate(feature.args):
+        entry = bound.get(i)
+        args.append(TopicArg(entry.kind, a.name, entry.field, a.span) if entry
+                    else TopicArg("object", a.name, None, a.span))
+    return TopicFeature(feature.name, feature.field, tuple(args), feature.span)
+
+
+def parse_text(text: str, file: str = "<sslt>") -> SpecFile:
+    try:
+        tree = _parser().parse(text)
+        rows = _ToModel(file).transform(tree).children
+    except UnexpectedInput as exc:
+        raise _syntax_error(exc, file) from None
+    except VisitError as exc:
+        raise exc.orig_exc from None
+    specs = tuple(r[0] for r in rows)
+    _no_duplicates(specs)
+    return SpecFile(specs, tuple((r[1], r[2]) for r in rows))
+
+
+def _syntax_error(exc: UnexpectedInput, file: str) -> ParseError:
+    span = Span(file, getattr(exc, "line", 0) or 0, getattr(exc, "column", 0) or 0)
+    expected = sorted(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or ())
+    wanted = ", ".join(_TERMINALS.get(e, e.lower()) for e in expected[:8])
+    if isinstance(exc, UnexpectedEOF):
+        return ParseError(f"syntax error: unexpected end of input, expected {wanted}", span)
+    if isinstance(exc, UnexpectedCharacters):
+        return ParseError(f"syntax error: unexpected character {exc.char!r}"
+                          + (f", expected {wanted}" if wanted else ""), span)
+    token = getattr(exc, "token", None)
+    return ParseError(f"syntax error: unexpected {str(token)!r}, expected {wanted}", span)
+
+
+_TERMINALS = {"NAME": "a name", "PNAME": "a prefixed name", "IRI": "an <IRI>",
+              "FIELD": "a message field like msg.id", "SORT_TYPE": "'some' or 'every'",
+              "COMMA": "','", "EQUAL": "'='", "LPAR": "'('", "RPAR": "')'", "COLON": "':'",
+              "TOPIC": "'topic'", "CONTAINS": "'contains'", "FOR": "'for'", "AS": "'as'",
+              "SORT": "'sort'", "$END": "end of input"}
+
+
+def _no_duplicates(specs: tuple[TopicSpec, ...]) -> None:
+    seen: dict[str, TopicSpec] = {}
+    for spec in specs:
+        if spec.name in seen:
+            raise ParseError(f"topic {spec.name} is specified twice (first at "
+                             f"line {seen[spec.name].span.line})", spec.span)
+        seen[spec.name] = spec
+
+
+def format_spec(spec: TopicSpec) -> str:
+    """One line of SSL_T text for `spec` (the inverse of `parse_text`)."""
+    head = f"topic {spec.name}:{spec.msgtype} contains "
+    if spec.entity is not None:
+        e = spec.entity
+        return head + (f"{e.name} = {e.id_field}" if e.kind == "object"
+                       else f"{e.kind} {e.name} = {e.id_field}")
+    parts = []
+    for f in spec.features:
+        repeated = {a.name for a in f.args if sum(b.name == a.name for b in f.args) > 1}
+        labels = [f"arg{i + 1}" if a.name in repeated else a.name for i, a in enumerate(f.args)]
+        args = ", ".join(f"{a.name} as {lab}" if a.name in repeated else a.name
+                         for a, lab in zip(f.args, labels, strict=True))
+        entries = [(f"{lab} = {a.id_field}" if a.kind == "object"
+                    else f"{a.kind} {lab} = {a.id_field}")
+                   for a, lab in zip(f.args, labels, strict=True) if a.id_field is not None]
+        parts.append(f"{f.name}({args}) = {f.field}" + (f" for {', '.join(entries)}"
+                                                           if entries else ""))
+    return head + ", ".join(parts)
+
+
+# ---- XML (DTD of listing 4.5, cleaned: specs/topic_specs.dtd) ------------------------------
+
+def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
+    from .. import xmlsafe
+    root, where = xmlsafe.parse(data, file)
+
+    def span(elem: Any) -> Span:
+        return Span(file, where.get(elem, (0, 0))[0])
+
+    if root.tag != "Topic_specs":
+        raise ParseError(f"root element is <{root.tag}>, expected <Topic_specs>",
+                         span(root))
+    specs, lines = [], []
+    for topic in root:
+        tspan = span(topic)
+        if topic.tag != "Topic":
+            raise ParseError(f"unexpected <{topic.tag}> in <Topic_specs>", tspan)
+        name, msgtype = _attr(topic, "name", tspan), _attr(topic, "msgtype", tspan)
+        children = [c for c in topic if c.tag != "SSL"]
+        features = []
+        for child in children:
+            cspan = span(child)
+            if child.tag == "feature":
+                args = tuple(_xml_arg(a, span(a), in_feature=True) for a in child)
+                if not args:
+                    raise ParseError(f"feature {_attr(child, 'name', cspan)} in topic {name} "
+                                     f"has no arguments", cspan)
+                features.append(TopicFeature(_attr(child, "name", cspan),
+                                             _attr(child, "value", cspan), args, cspan))
+            elif child.tag not in ("sort", "object"):
+                raise ParseError(f"unexpected <{child.tag}> in topic {name}", cspan)
+        if features and len(features) != len(children):
+            raise ParseError(f"topic {name} mixes features with a sort or object", tspan)
+        if not features and len(children) != 1:
+            raise ParseError(f"topic {name} must hold features, or one sort, or one object",
+                             tspan)
+        entity = None if features else _xml_arg(children[0], span(children[0]), in_feature=False)
+        specs.append(TopicSpec(name, msgtype, tuple(features), entity, tspan))
+        lines.append(where[topic])
+    out = tuple(specs)
+    _no_duplicates(out)
+    return SpecFile(out, tuple(lines))
+
+
+def _attr(elem: Any, name: str, span: Span) -> str:
+    value = elem.get(name)
+    if value is None or not value.strip():
+        raise ParseError(f"<{elem.tag}> lacks the {name!r} attribute", span)
+    return str(value).strip()
+
+
+def _xml_arg(elem: Any, span: Span, *, in_feature: bool) -> TopicArg:
+    if elem.tag == "object":
+        value = elem.get("value")
+        if value is None and not in_feature:
+            raise ParseError("an object topic needs the object's id field (value)", span)
+        return TopicArg("object", _attr(elem, "name", span), value, span)
+    if elem.tag == "sort":
+        every = _attr(elem, "all_objects", span)
+        if every not in ("true", "false"):
+            raise ParseError(f"all_objects must be true or false, not {every!r}", span)
+        return TopicArg("every" if every == "true" else "some", _attr(elem, "name", span),
+                        _attr(elem, "value", span), span)
+    raise ParseError(f"unexpected <{elem.tag}>, expected <object> or <sort>", span)
+
+
+def format_xml_topic(spec: TopicSpec, indent: str = "  ") -> str:
+    def arg(a: TopicArg, pad: str) -> str:
+        if a.kind == "object":
+            value = "" if a.id_field is None else f" value={quoteattr(a.id_field)}"
+            return f"{pad}<object name={quoteattr(a.name)}{value}/>"
+        every = "true" if a.kind == "every" else "false"
+        return (f"{pad}<sort all_objects=\"{every}\" name={quoteattr(a.name)} "
+                f"value={quoteattr(a.id_field or '')}/>")
+
+    lines = [f"{indent}<Topic msgtype={quoteattr(spec.msgtype)} name={quoteattr(spec.name)}>"]
+    if spec.entity is not None:
+        lines.append(arg(spec.entity, indent * 2))
+    for f in spec.features:
+        lines.append(f"{indent * 2}<feature name={quoteattr(f.name)} value={quoteattr(f.field)}>")
+        lines += [arg(a, indent * 3) for a in f.args]
+        lines.append(f"{indent * 2}</feature>")
+    lines.append(f"{indent}</Topic>")
+    return "\n".join(lines)
+
+
+def format_xml(specs: tuple[TopicSpec, ...]) -> str:
+    body = "\n".join(format_xml_topic(s) for s in specs)
+    return ('<?xml version="1.0" encoding="UTF-8"?>\n<Topic_specs>\n'
+            + (body + "\n" if body else "") + "</Topic_specs>\n")
+
+
+# ---- files -------------------------------------------------------------------------------------
+
+def read_specs(path: Path) -> SpecFile:
+    if path.suffix.lower() == ".xml":
+        return parse_xml(read_bytes(path), str(path))
+    if path.suffix.lower() != ".sslt":
+        raise DkError(f"{path}: topic specifications must be .sslt (SSL_T text) or .xml")
+    return parse_text(read_text(path), str(path))
+
+
+def without_spans(spec: TopicSpec) -> TopicSpec:
+    """`spec` with API spans, for comparing specs read from different files."""
+    return replace(spec, span=Span("<api>"))
