@@ -33,12 +33,21 @@ class Rule:
     span: Span
 
 
+_MATERIALIZED = re.compile(r"^#\s*materialized:\s*(.+)$", re.M)
+
+
 class Datalog:
+    """One engine.  Rule files may declare `# materialized: name/arity, …`: those relations
+    depend only on the knowledge base (not on a formula), so `materialize()` computes them once
+    and keeps their rows as facts; pyDatalog would otherwise re-derive them on every query."""
+
     def __init__(self) -> None:
         from pyDatalog import Logic
 
         self._logic = Logic()  # a fresh engine, current in this thread
         self.rules: list[Rule] = []
+        self.views: dict[str, int] = {}
+        self._frozen: dict[str, tuple[list[object], list[Row]]] = {}
 
     def _activate(self) -> None:
         from pyDatalog import Logic
@@ -55,6 +64,13 @@ class Datalog:
         from pyDatalog.util import DatalogError
 
         rules = _clauses(text, file)
+        for line in _MATERIALIZED.findall(text):
+            for item in filter(None, (x.strip() for x in line.split(","))):
+                name, _, arity = item.partition("/")
+                if not arity.isdigit():
+                    raise RuleError(f"materialized: expected name/arity, got {item!r}",
+                                    Span(file, text[: text.find(line)].count("\n") + 1))
+                self.views[name] = int(arity)
         self._activate()
         try:
             pyParser.load(text, newglobals={})
@@ -81,6 +97,32 @@ class Datalog:
         for row in rows:
             pyEngine.retract(pyEngine.Clause(
                 pyEngine.Literal(predicate, [pyEngine.Const(v) for v in row]), []))
+
+    def materialize(self) -> None:
+        """Replace each declared view's rules by its rows (call `thaw` before the facts it
+        depends on change)."""
+        from pyDatalog import Logic, pyEngine
+
+        rows = {name: self.query(name, *[None] * arity) for name, arity in self.views.items()
+                if name not in self._frozen}
+        db = Logic.tl.logic.Db
+        for name, found in rows.items():
+            pred = db.get(f"{name}/{self.views[name]}")
+            rules = list(pred.clauses.values()) if pred is not None else []
+            for clause in rules:  # Pred.reset_clauses() mutates what it iterates over
+                pyEngine.retract(clause)
+            self.assert_rows(name, found)
+            self._frozen[name] = (rules, found)
+
+    def thaw(self) -> None:
+        """Put the views' rules back (their rows go), so they follow changed facts."""
+        from pyDatalog import pyEngine
+
+        for name, (rules, found) in self._frozen.items():
+            self.retract_rows(name, found)
+            for clause in rules:
+                pyEngine.assert_(clause)
+        self._frozen.clear()
 
     def query(self, predicate: str, *args: Value | None) -> list[Row]:
         """All rows of `predicate` matching `args` (None = any value)."""

@@ -24,7 +24,7 @@ from .facts import (
     spec_facts,
 )
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
-from .names import NameIndex, local_name
+from .names import NameIndex, _a, local_name
 from .parse.config import RULES_HOME, Config, read_config
 
 RULES_DIR = RULES_HOME / "rules"
@@ -73,6 +73,7 @@ class KnowledgeBase:
                         for s in p.resolved.values()))
         for pred, rows in rows_of(facts):
             self.engine.assert_rows(pred, rows)
+        self.engine.materialize()
         for p in platforms.values():
             self._check_specs(p, list(p.resolved))
         joined = {m.source for m in mappings if m.target == local} | \
@@ -190,10 +191,6 @@ class KnowledgeBase:
                                      f"in {ont.platform} ({ont.file}), expected {article(want)}",
                                      rule.span)
         return m.rules
-
-
-def article(word: str) -> str:
-    return f"{'an' if word[0] in 'aeiou' else 'a'} {word}"
 
 
 def _name_index(ont: Ontology) -> NameIndex:

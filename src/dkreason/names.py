@@ -61,13 +61,13 @@ class NameIndex:
                              f"write a prefixed name or a full <IRI>", span)
         other = [self._kind_of[iri] for iri in candidates if iri in self._kind_of]
         if other:
-            raise NameError_(f"{written!r} is a{'n' if other[0][0] == 'o' else ''} {other[0]} "
-                             f"on {self.platform}, not a {wanted}", span)
+            raise NameError_(f"{written!r} is {article(other[0])} on {self.platform}, "
+                             f"not {article(wanted)}", span)
         close = difflib.get_close_matches(written, [n for n, iris in self._by_local.items()
                                                     if any(self._kind_of[i] in kinds for i in iris)],
                                           n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise NameError_(f"unknown {wanted} {written!r} on {self.platform}{hint}", span)
 
-    def names(self, kind: Kind) -> list[str]:
-        return sorted(local_name(i) for i, k in self._kind_of.items() if k == kind)
+def article(noun: str) -> str:
+    return f"{'an' if noun[0] in 'aeiou' else 'a'} {noun}"

@@ -16,6 +16,7 @@ directory holding dkreason's own `rules/`).
 
 from __future__ import annotations
 
+import re
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,9 +55,10 @@ def read_config(path: Path) -> Config:
     file = str(path)
     try:
         data = tomllib.loads(read_text(path))
-    except tomllib.TOMLDecodeError as exc:
-        line, col = getattr(exc, "lineno", 0), getattr(exc, "colno", 0)
-        message = getattr(exc, "msg", str(exc).split(" (at ")[0])
+    except tomllib.TOMLDecodeError as exc:  # position only in the message before Python 3.14
+        where = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
+        line, col = (int(where.group(1)), int(where.group(2))) if where else (0, 0)
+        message = str(exc).split(" (at ")[0]
         raise ParseError(f"TOML syntax error: {message}", Span(file, line, col)) from None
     base = path.parent
 

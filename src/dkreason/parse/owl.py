@@ -120,10 +120,13 @@ def read_ontology(path: Path, platform: str) -> Ontology:
 
 
 def _rdf_error(exc: Exception, file: str) -> DkError:
-    line = 0
-    if hasattr(exc, "getLineNumber"):
-        line = int(exc.getLineNumber())
-    elif hasattr(exc, "lines"):
+    """rdflib's errors carry positions in different places; find one, keep one line."""
+    line = column = 0
+    text = (str(getattr(exc, "_why", "")) or str(exc)).strip()
+    if hasattr(exc, "lines"):  # Turtle/N3 BadSyntax
         line = int(exc.lines) + 1
-    text = str(getattr(exc, "getMessage", lambda: str(exc))()).splitlines()
-    return ParseError(f"malformed RDF: {text[0] if text else type(exc).__name__}", Span(file, line))
+    where = re.match(r"\S*?:(\d+):(\d+): (.*)", text, re.S)  # RDF/XML "file:line:col: why"
+    if where:
+        line, column, text = int(where.group(1)), int(where.group(2)) + 1, where.group(3)
+    first = text.splitlines()[0] if text else type(exc).__name__
+    return ParseError(f"malformed RDF: {first}", Span(file, line, column))

@@ -1,0 +1,57 @@
+"""Check a formula's features against the local ontology (thesis 5.4): the feature exists,
+the arity fits, each constant names an object and each variable a sort, and every argument fits
+the feature's signature.  Errors point into the formula."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .errors import SortError
+from .facts import ResolvedArg
+from .kb import KnowledgeBase
+from .model import FeatureRef
+from .names import local_name
+from .parse.formula import Formula, features, quantifiers
+
+
+@dataclass(frozen=True, slots=True)
+class CheckedFeature:
+    """A formula feature with IRIs: objects for constants, sorts for variables."""
+
+    ref: FeatureRef
+    iri: str
+    arg_iris: tuple[str, ...]
+
+
+def check_formula(kb: KnowledgeBase, formula: Formula) -> list[CheckedFeature]:
+    local = kb.platform(kb.local)
+    for q in quantifiers(formula):
+        local.names.resolve(q.sort, ("sort",), q.span)
+    checked: list[CheckedFeature] = []
+    for ref in features(formula):
+        iri = local.names.resolve(ref.name, ("feature",), ref.span)
+        arity = local.ontology.features[iri].arity
+        if len(ref.args) != arity:
+            raise SortError(f"{ref.name} takes {arity} argument{'s' if arity != 1 else ''}, "
+                            f"not {len(ref.args)}", ref.span)
+        args = tuple(local.names.resolve(a.sort, ("sort",), a.span) if a.is_variable
+                     else local.names.resolve(a.name, ("object",), a.span) for a in ref.args)
+        checked.append(CheckedFeature(ref, iri, args))
+    asks = [(n, c.iri, i, x, "sort" if a.is_variable else "object")
+            for n, c in enumerate(checked) for i, (a, x) in enumerate(zip(c.ref.args, c.arg_iris,
+                                                                         strict=True), 1)]
+    if asks:
+        kb.engine.assert_rows("check_arg", asks)
+        try:
+            fitting = {row[0] for row in kb.engine.query("arg_fits", None)}
+        finally:
+            kb.engine.retract_rows("check_arg", asks)
+        for n, f, i, x, _kind in asks:
+            if n not in fitting:
+                arg = checked[n].ref.args[i - 1]
+                how = kb.misfit(local, f, i, x) if not arg.is_variable else \
+                    f"variable {arg.name} ranges over {local_name(x)}, " + \
+                    kb.misfit(local, f, i, ResolvedArg("some", x, "")).removeprefix(
+                        f"sort {local_name(x)} ").replace("is not", "which is not", 1)
+                raise SortError(f"argument {i} of {checked[n].ref.name}: {how}", arg.span)
+    return checked

@@ -1,0 +1,125 @@
+"""`KnowledgeManager`: the façade of thesis 5.3 over parse → check → expand → match → request."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .errors import DkError, NameError_, ParseError, Span
+from .kb import KnowledgeBase, Platform
+from .model import StreamRequest, TopicSpec
+from .parse.files import read_text, write_atomic
+
+
+class KnowledgeManager:
+    def __init__(self, kb: KnowledgeBase) -> None:
+        self.kb = kb
+
+    @classmethod
+    def from_config(cls, path: str | Path) -> KnowledgeManager:
+        return cls(KnowledgeBase.from_config(Path(path)))
+
+    @property
+    def local(self) -> str:
+        return self.kb.local
+
+    def check_formula(self, formula: str) -> StreamRequest:
+        """The stream request for `formula`: every ground feature and the topics to merge."""
+        from .check import check_formula
+        from .expand import expand
+        from .match import match
+        from .parse.formula import parse_formula
+        from .request import build_request
+
+        ground = expand(self.kb, check_formula(self.kb, parse_formula(formula)))
+        matches, rejected = match(self.kb, ground)
+        return build_request(self.kb, formula, ground, matches, rejected)
+
+    # ---- topic specifications ----------------------------------------------------------
+
+    def add_topic(self, spec: str | TopicSpec, platform: str | None = None) -> TopicSpec:
+        """Add a topic (SSL_T text or a TopicSpec), checked against the ontology; persisted."""
+        p = self.kb.platform(platform or self.local)
+        if isinstance(spec, str):
+            from .parse.sslt import parse_text
+            parsed = parse_text(spec, "<topic>").specs
+            if len(parsed) != 1:
+                raise DkError(f"add_topic takes one topic specification, got {len(parsed)}")
+            spec = parsed[0]
+        self.kb.add_spec(p.name, spec)
+        try:
+            self._persist(p, added=spec)
+        except BaseException:
+            self.kb.remove_spec(p.name, spec.name)
+            raise
+        return spec
+
+    def remove_topic(self, name: str, platform: str | None = None) -> TopicSpec:
+        p = self.kb.platform(platform or self.local)
+        spec = self.kb.remove_spec(p.name, name)
+        try:
+            self._persist(p, removed=name)
+        except BaseException:
+            self.kb.add_spec(p.name, spec)
+            raise
+        return spec
+
+    def get_topic_specification(self, name: str, platform: str | None = None) -> TopicSpec:
+        p = self.kb.platform(platform or self.local)
+        if name not in p.specs:
+            raise NameError_(f"no topic {name!r} on {p.name} (topics: "
+                             f"{', '.join(p.specs) or 'none'})", Span("<api>"))
+        return p.specs[name]
+
+    def list_topic_specifications(self, platform: str | None = None) -> list[TopicSpec]:
+        return list(self.kb.platform(platform or self.local).specs.values())
+
+    def list_topics(self, platform: str | None = None) -> list[str]:
+        return list(self.kb.platform(platform or self.local).specs)
+
+    def list_sort(self, sort: str, platform: str | None = None) -> list[str]:
+        """Local names of the objects of `sort`, subsorts and sameAs included."""
+        from .names import local_name
+
+        p = self.kb.platform(platform or self.local)
+        iri = p.names.resolve(sort, ("sort",), Span("<sort>"))
+        rows = self.kb.engine.query("instance_of", p.name, None, iri)
+        return sorted({local_name(str(o)) for _, o, _ in rows})
+
+    @property
+    def platforms(self) -> list[str]:
+        return list(self.kb.platforms)
+
+    # ---- persistence: edit only the lines of the topic concerned -----------------------
+
+    def _persist(self, p: Platform, *, added: TopicSpec | None = None,
+                 removed: str | None = None) -> None:
+        path = p.specs_path
+        if path is None:
+            return
+        from .parse import sslt
+
+        xml = path.suffix.lower() == ".xml"
+        if not path.exists():
+            text = sslt.format_xml(()) if xml else ""
+        else:
+            text = read_text(path)
+        current = sslt.parse_xml(text.encode(), str(path)) if xml else \
+            sslt.parse_text(text, str(path))
+        lines = text.splitlines(keepends=True)
+        if removed is not None:
+            index = [s.name for s in current.specs].index(removed)
+            first, last = current.lines[index]
+            del lines[first - 1:last]
+        if added is not None:
+            if xml:
+                close = max((i for i, line in enumerate(lines) if "</Topic_specs>" in line),
+                            default=None)
+                if close is None:
+                    raise ParseError("cannot add a topic: no </Topic_specs> closing tag",
+                                     Span(str(path)))
+                lines.insert(close, sslt.format_xml_topic(added) + "\n")
+            else:
+                if lines and not lines[-1].endswith("\n"):
+                    lines[-1] += "\n"
+                lines.append(sslt.format_spec(added) + "\n")
+        write_atomic(path, "".join(lines))

@@ -1,0 +1,312 @@
+"""MTL formulas (mtl.lark) → a small frozen AST, and the features a formula needs.
+
+One grammar serves the matcher (which only needs the features) and the progression engine
+(which needs everything).  Interval bounds are exact `Fraction`s of seconds, so `250ms` is 1/4.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from fractions import Fraction
+from functools import cache
+from typing import Any
+
+from lark import Lark, Token, Transformer, v_args
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, VisitError
+from lark.tree import Meta
+
+from ..errors import ParseError, Span
+from ..model import Arg, FeatureRef
+
+FILE = "<formula>"
+UNITS = {"ms": Fraction(1, 1000), "s": Fraction(1), "min": Fraction(60), "h": Fraction(3600)}
+
+
+@dataclass(frozen=True, slots=True)
+class Interval:
+    lo: Fraction
+    hi: Fraction | None  # None: unbounded
+
+    def __str__(self) -> str:
+        return f"[{self.lo}, {'oo' if self.hi is None else self.hi}]"
+
+
+ANY = Interval(Fraction(0), None)
+
+
+# ---- expressions (numeric or boolean values of features) ------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class Num:
+    value: int | float
+
+
+@dataclass(frozen=True, slots=True)
+class Ref:
+    feature: FeatureRef
+
+
+@dataclass(frozen=True, slots=True)
+class Arith:
+    op: str  # + - * /
+    left: Expr
+    right: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class Neg:
+    arg: Expr
+
+
+Expr = Num | Ref | Arith | Neg
+
+
+# ---- formulas --------------------------------------------------------------------------------
+
+@dataclass(frozen=True, slots=True)
+class BoolConst:
+    value: bool
+
+
+@dataclass(frozen=True, slots=True)
+class Atom:
+    feature: FeatureRef
+
+
+@dataclass(frozen=True, slots=True)
+class Compare:
+    op: str  # < <= > >= == !=
+    left: Expr
+    right: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class Not:
+    arg: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Connective:
+    op: str  # and or -> <->
+    left: Formula
+    right: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Temporal:
+    op: str  # always eventually next historically once previous
+    interval: Interval
+    arg: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Until:
+    op: str  # until since
+    interval: Interval
+    left: Formula
+    right: Formula
+
+
+@dataclass(frozen=True, slots=True)
+class Quant:
+    op: str  # forall exists
+    var: str
+    sort: str
+    body: Formula
+    span: Span
+
+
+Formula = BoolConst | Atom | Compare | Not | Connective | Temporal | Until | Quant
+
+_PREFIX = {"□": "always", "◇": "eventually"}
+_WORD = {"U": "until", "¬": "not", "∧": "and", "∨": "or", "→": "->", "↔": "<->",
+         "∀": "forall", "∃": "exists", "=": "=="}
+
+
+@cache
+def _parser() -> Lark:
+    return Lark.open_from_package("dkreason.parse", "mtl.lark", parser="lalr",
+                                  propagate_positions=True, maybe_placeholders=False)
+
+
+class _ToAst(Transformer[Token, Any]):
+    @staticmethod
+    def _span(meta: Meta | Token) -> Span:
+        return Span(FILE, meta.line or 1, meta.column or 1)
+
+    def name(self, children: list[Token]) -> Token:
+        return children[0]
+
+    @v_args(meta=True)
+    def feature(self, meta: Meta, children: list[Token]) -> Ref:
+        name, *args = children
+        return Ref(FeatureRef(str(name), tuple(Arg(str(a), None, self._span(a)) for a in args),
+                              self._span(meta)))
+
+    def number(self, children: list[Token]) -> Num:
+        text = str(children[0])
+        return Num(int(text) if text.isdigit() else float(text))
+
+    def boolean(self, children: list[Token]) -> BoolConst:
+        return BoolConst(str(children[0]) == "true")
+
+    def neg(self, children: list[Any]) -> Expr:
+        return Neg(_expr(children[0]))
+
+    def expr(self, children: list[Any]) -> Arith:
+        return Arith(str(children[1]), _expr(children[0]), _expr(children[2]))
+
+    term = expr
+
+    def comparison(self, children: list[Any]) -> Compare:
+        op = str(children[1])
+        return Compare(_WORD.get(op, op), _expr(children[0]), _expr(children[2]))
+
+    def not_(self, children: list[Any]) -> Not:
+        return Not(_formula(children[1]))
+
+    def temporal(self, children: list[Any]) -> Temporal:
+        op = str(children[0])
+        interval = children[1] if len(children) == 3 else ANY
+        return Temporal(_PREFIX.get(op, op), interval, _formula(children[-1]))
+
+    def until(self, children: list[Any]) -> Until:
+        left, op, *rest = children
+        interval = rest[0] if len(rest) == 2 else ANY
+        return Until(_WORD.get(str(op), str(op)), interval, _formula(left), _formula(rest[-1]))
+
+    def _connective(self, children: list[Any]) -> Connective:
+        op = str(children[1])
+        return Connective(_WORD.get(op, op), _formula(children[0]), _formula(children[2]))
+
+    iff = imp = or_ = and_ = _connective
+
+    @v_args(meta=True)
+    def interval(self, meta: Meta, children: list[Fraction | None]) -> Interval:
+        lo, hi = children
+        if lo is None:
+            raise ParseError("an interval cannot start at infinity", self._span(meta))
+        if hi is not None and hi < lo:
+            raise ParseError(f"empty interval: {lo} > {hi}", self._span(meta))
+        return Interval(lo, hi)
+
+    def bound(self, children: list[Token]) -> Fraction | None:
+        token = children[0]
+        if token.type == "INFINITY":
+            return None
+        text = str(token)
+        unit = text.lstrip("0123456789.")
+        return Fraction(text[: len(text) - len(unit)]) * UNITS[unit or "s"]
+
+    def binding(self, children: list[Any]) -> tuple[str, str, Span]:
+        return str(children[0]), str(children[1]), self._span(children[1])
+
+    def quant(self, children: list[Any]) -> Formula:
+        op = _WORD.get(str(children[0]), str(children[0]))
+        return _nest(op, children[1:-1], _formula(children[-1]))
+
+    def forall(self, children: list[Any]) -> Formula:
+        return _nest("forall", children[:-1], _formula(children[-1]))
+
+
+def _nest(op: str, bindings: list[tuple[str, str, Span]], body: Formula) -> Formula:
+    for var, sort, span in reversed(bindings):
+        body = Quant(op, var, sort, body, span)
+    return body
+
+
+def _expr(node: Any) -> Expr:
+    if isinstance(node, Num | Ref | Arith | Neg):
+        return node
+    if isinstance(node, BoolConst):
+        return Num(int(node.value))
+    raise ParseError("a formula cannot be used as a number here", _where(node))
+
+
+def _formula(node: Any) -> Formula:
+    if isinstance(node, Ref):
+        return Atom(node.feature)
+    if isinstance(node, Num | Arith | Neg):
+        raise ParseError("a number is not a formula: compare it with something",
+                         _where(node))
+    return node  # type: ignore[no-any-return]
+
+
+def _where(node: Any) -> Span:
+    for f in _feature_refs(node):
+        return f.span
+    return Span(FILE, 1, 1)
+
+
+def parse_formula(text: str) -> Formula:
+    try:
+        tree = _parser().parse(text)
+        return _formula(_ToAst().transform(tree))
+    except UnexpectedInput as exc:
+        raise _syntax_error(exc, text) from None
+    except VisitError as exc:
+        raise exc.orig_exc from None
+
+
+def _syntax_error(exc: UnexpectedInput, text: str) -> ParseError:
+    span = Span(FILE, getattr(exc, "line", 1) or 1, getattr(exc, "column", 1) or 1)
+    if isinstance(exc, UnexpectedEOF) or getattr(getattr(exc, "token", None), "type", "") == "$END":
+        lines = text.splitlines() or [""]
+        return ParseError("syntax error: the formula ends too early",
+                          Span(FILE, len(lines), len(lines[-1].rstrip()) + 2))
+    if isinstance(exc, UnexpectedCharacters):
+        return ParseError(f"syntax error: unexpected character {exc.char!r}", span)
+    token = getattr(exc, "token", "")
+    expected = sorted(getattr(exc, "expected", ()) or ())
+    names = [_EXPECTED[e] for e in expected if e in _EXPECTED]
+    hint = f", expected {', '.join(dict.fromkeys(names))}" if names else ""
+    return ParseError(f"syntax error at {str(token)!r}{hint}", span)
+
+
+_EXPECTED = {"NAME": "a feature name", "NUMBER": "a number", "RPAR": "')'", "RSQB": "']'",
+             "LPAR": "'('", "CMP": "a comparison", "AND": "'and'", "OR": "'or'",
+             "DURATION": "a time bound", "IN": "'in'", "BVAR": "a variable", "$END": "the end"}
+
+
+# ---- what the matcher needs: the features, with variables typed by their quantifier -------
+
+def features(formula: Formula) -> list[FeatureRef]:
+    """Every feature occurrence, in order, arguments marked as constants or sorted variables."""
+    return list(_walk(formula, {}))
+
+
+def _walk(node: Any, env: dict[str, str]) -> Iterator[FeatureRef]:
+    if isinstance(node, Quant):
+        yield from _walk(node.body, {**env, node.var: node.sort})
+    elif isinstance(node, Atom | Ref):
+        f = node.feature
+        yield FeatureRef(f.name, tuple(Arg(a.name, env.get(a.name), a.span) for a in f.args),
+                         f.span)
+    else:
+        for child in _children(node):
+            yield from _walk(child, env)
+
+
+def _children(node: Any) -> tuple[Any, ...]:
+    if isinstance(node, Compare | Connective | Arith | Until):
+        return node.left, node.right
+    if isinstance(node, Not | Temporal | Neg):
+        return (node.arg,)
+    if isinstance(node, Quant):
+        return (node.body,)
+    return ()
+
+
+def _feature_refs(node: Any) -> Iterator[FeatureRef]:
+    if isinstance(node, Atom | Ref):
+        yield node.feature
+    for child in _children(node):
+        yield from _feature_refs(child)
+
+
+def quantifiers(formula: Formula) -> Iterator[Quant]:
+    if isinstance(formula, Quant):
+        yield formula
+    for child in _children(formula):
+        yield from quantifiers(child)

@@ -1,0 +1,65 @@
+"""Matches → the stream request of thesis 5.6: per feature, the topics to merge, each with the
+field to read and the id filter that selects the feature's objects in the topic's messages."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+from .errors import MissingIdError, Span
+from .kb import KnowledgeBase
+from .match import Match, Rejected
+from .model import FeatureRequest, GroundFeature, IdValue, StreamRequest, TopicMatch
+from .names import local_name
+
+
+def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
+                  matches: list[Match], rejected: list[Rejected]) -> StreamRequest:
+    per_feature: dict[int, list[TopicMatch]] = defaultdict(list)
+    for m in matches:
+        topic = _topic_match(kb, m)
+        if topic is not None and topic not in per_feature[m.query]:
+            per_feature[m.query].append(topic)
+    order = {(p, t): i for p, plat in kb.platforms.items() for i, t in enumerate(plat.specs)}
+    features = tuple(
+        FeatureRequest(g, tuple(sorted(per_feature[q], key=lambda t: (
+            t.platform != kb.local, t.platform, order.get((t.platform, t.topic), 0), t.filter))))
+        for q, g in enumerate(ground))
+    warnings = [*kb.warnings, *_warnings(kb, ground, rejected)]
+    return StreamRequest(formula, kb.local, features, tuple(dict.fromkeys(warnings)))
+
+
+def _topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
+    platform = kb.platforms[m.platform]
+    spec = platform.resolved[m.topic]
+    feature = spec.features[m.feature_index - 1]
+    filter_: dict[str, IdValue] = {}
+    for arg, obj in zip(feature.args, m.objects, strict=True):
+        if not arg.id_field:
+            continue
+        value = platform.object_id(obj)
+        if value is None:
+            raise MissingIdError(f"object {local_name(obj)} on {m.platform} has no id (no id "
+                                 f"property and no digits ending its name), but topic {m.topic} "
+                                 f"filters on {arg.id_field}",
+                                 Span(platform.ontology.file))
+        if filter_.setdefault(arg.id_field, value) != value:
+            return None  # one field would need two values: this topic cannot carry the tuple
+    return TopicMatch(m.platform, m.topic, spec.msgtype, feature.field,
+                      tuple(filter_.items()), local_name(feature.iri),
+                      tuple(local_name(o) for o in m.objects))
+
+
+def _warnings(kb: KnowledgeBase, ground: list[GroundFeature],
+              rejected: list[Rejected]) -> list[str]:
+    """Remote candidates the remote ontology rejects: a mapping error to tell the user about."""
+    out = []
+    for r in rejected:
+        platform = kb.platforms[r.platform]
+        fits = {i for i, o in enumerate(r.objects, 1)
+                if kb.engine.query("fits", r.platform, r.feature, i, o)}
+        why = "; ".join(kb.misfit(platform, r.feature, i, o)
+                        for i, o in enumerate(r.objects, 1) if i not in fits)
+        mapped = f"{local_name(r.feature)}[{', '.join(local_name(o) for o in r.objects)}]"
+        out.append(f"{ground[r.query].key}: maps to {mapped} on {r.platform}, which "
+                   f"{r.platform}'s ontology rejects: {why}")
+    return out

@@ -1,0 +1,57 @@
+"""Shared fixtures: the thesis scenarios (../shared/scenarios/thesis) and comparison helpers."""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _scenarios() -> Path | None:
+    for candidate in (os.environ.get("DKREASON_SCENARIOS"),
+                      REPO.parent / "shared" / "scenarios" / "thesis",
+                      Path("/work/shared/scenarios/thesis")):
+        if candidate and Path(candidate, "README.md").is_file():
+            return Path(candidate)
+    return None
+
+
+SCENARIOS = _scenarios()
+needs_scenarios = pytest.mark.skipif(SCENARIOS is None,
+                                     reason="thesis scenarios (../shared/scenarios/thesis) absent")
+
+
+def formulas() -> dict[str, str]:
+    """formulas.txt: id → formula text."""
+    assert SCENARIOS is not None
+    out = {}
+    for line in (SCENARIOS / "formulas.txt").read_text(encoding="utf-8").splitlines():
+        if line.strip() and not line.startswith("#"):
+            key, text = line.split(None, 1)
+            out[key] = text.strip()
+    return out
+
+
+def topic_sets(request_json: dict[str, Any]) -> dict[tuple[str, tuple[str, ...]], set[Any]]:
+    """Per (feature, args): the set of (platform, topic, msgtype, field, filter), as the
+    scenario README says outputs are compared."""
+    return {(f["feature"], tuple(f["args"])): {
+        (t["platform"], t["topic"], t["msgtype"], t["field"], tuple(sorted(t["filter"].items())))
+        for t in f["topics"]} for f in request_json["features"]}
+
+
+@pytest.fixture
+def scenario(tmp_path: Path) -> Path:
+    """A writable copy of the thesis scenario folder."""
+    if SCENARIOS is None:
+        pytest.skip("thesis scenarios absent")
+    target = tmp_path / "thesis"
+    shutil.copytree(SCENARIOS, target)
+    for path in target.rglob("*"):
+        path.chmod(0o755 if path.is_dir() else 0o644)
+    return target

@@ -1,0 +1,88 @@
+"""Ontologies → told axioms (signatures as asserted, no OWL RL closure)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from dkreason.errors import ParseError
+from dkreason.names import local_name
+from dkreason.parse.owl import read_ontology
+
+from .conftest import SCENARIOS, needs_scenarios
+
+HEAD = """<?xml version="1.0"?>
+<rdf:RDF xmlns="http://x.org/o#" xml:base="http://x.org/o"
+  xmlns:owl="http://www.w3.org/2002/07/owl#" xmlns:rdfs="http://www.w3.org/2000/01/rdf-schema#"
+  xmlns:xsd="http://www.w3.org/2001/XMLSchema#"
+  xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">
+"""
+
+
+def signature(ont, name: str) -> list[list[str]]:
+    (sig,) = [s for iri, s in ont.features.items() if local_name(iri) == name]
+    return [sorted(local_name(x) for x in arg) for arg in sig.arg_sorts]
+
+
+@needs_scenarios
+def test_signatures_come_from_told_axioms_so_equivalent_features_keep_their_own():
+    ont = read_ontology(SCENARIOS / "ontologies" / "platform1.owl", "p1")
+    assert signature(ont, "GroundSpeed") == [["UAV"]]
+    assert signature(ont, "Speed") == [["MovingObject"]]
+    assert signature(ont, "Between") == [["Object"]] * 3
+
+
+@needs_scenarios
+def test_union_of_sorts_per_argument():
+    ont = read_ontology(SCENARIOS / "ontologies" / "chapter4.owl", "ch4")
+    assert signature(ont, "Behind") == [["Car", "UAV"], ["Car", "UAV"]]
+
+
+@needs_scenarios
+def test_any_rdf_syntax_rdflib_reads(tmp_path: Path):
+    from rdflib import Graph
+
+    turtle = tmp_path / "platform1.ttl"
+    Graph().parse(SCENARIOS / "ontologies" / "platform1.owl").serialize(turtle, format="turtle")
+    xml = read_ontology(SCENARIOS / "ontologies" / "platform1.owl", "p1")
+    ttl = read_ontology(turtle, "p1")
+    assert (ttl.features, ttl.individuals, set(ttl.types)) == (
+        xml.features, xml.individuals, set(xml.types))
+
+
+def test_id_data_property_numeric_or_string_in_any_namespace(tmp_path: Path):
+    path = tmp_path / "o.owl"
+    path.write_text(HEAD + """
+      <owl:Class rdf:about="http://x.org/o#Ship"/>
+      <owl:NamedIndividual rdf:about="http://x.org/o#alpha">
+        <rdf:type rdf:resource="http://x.org/o#Ship"/>
+        <id xmlns="http://other.org/p#" rdf:datatype="http://www.w3.org/2001/XMLSchema#integer">7</id>
+      </owl:NamedIndividual>
+      <owl:NamedIndividual rdf:about="http://x.org/o#beta">
+        <rdf:type rdf:resource="http://x.org/o#Ship"/><id>B-2</id>
+      </owl:NamedIndividual>
+    </rdf:RDF>""")
+    ids = read_ontology(path, "p").ids
+    assert ids == {"http://x.org/o#alpha": 7, "http://x.org/o#beta": "B-2"}
+
+
+def test_several_id_values_are_an_error_naming_the_object(tmp_path: Path):
+    path = tmp_path / "o.owl"
+    path.write_text(HEAD + """<owl:NamedIndividual rdf:about="http://x.org/o#alpha">
+        <id>1</id><id>2</id></owl:NamedIndividual></rdf:RDF>""")
+    with pytest.raises(ParseError, match="alpha> has several id values"):
+        read_ontology(path, "p")
+
+
+@pytest.mark.parametrize(("name", "text", "says"), [
+    ("bad.ttl", "@prefix : <http://x#> .\n:a :b :c ;;; ]\n", "bad.ttl:2: malformed RDF"),
+    ("bad.owl", HEAD + "<rdf:Description rdf:about='http://x#a'>", "bad.owl:7:1: malformed XML"),
+])
+def test_malformed_rdf_names_file_and_line(tmp_path: Path, name, text, says):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ParseError) as err:
+        read_ontology(path, "p")
+    assert str(err.value).startswith(str(tmp_path / says.split(":")[0])) and \
+        says.split(": ", 1)[1] in str(err.value)
