@@ -24,7 +24,7 @@ from .facts import (
     spec_facts,
 )
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
-from .names import NameIndex, _a, local_name
+from .names import NameIndex, article, local_name
 from .parse.config import RULES_HOME, Config, read_config
 
 RULES_DIR = RULES_HOME / "rules"
