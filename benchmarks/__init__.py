@@ -1,0 +1,1 @@
+"""Benchmarks: print figures from fixed inputs; never assert timings (see README)."""

@@ -1,0 +1,11 @@
+"""The public API is what `dkreason.__all__` says, and nothing else by accident."""
+
+import dkreason
+
+
+def test_public_names_are_pinned():
+    assert dkreason.__all__ == [
+        "DkError", "FeatureRequest", "GroundFeature", "KnowledgeManager", "ParseError",
+        "SourceError", "Span", "StreamRequest", "TopicArg", "TopicFeature", "TopicMatch",
+        "TopicSpec"]
+    assert all(hasattr(dkreason, name) for name in dkreason.__all__)

@@ -1,0 +1,152 @@
+"""Federated matching across platforms joined by COWL bridge rules (thesis 4.3, 5.5, 6.2)."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from dkreason import KnowledgeManager
+from dkreason.errors import ParseError
+
+from .conftest import topic_sets
+
+P1, P2 = "http://www.example.com/ontology#", "http://www.semanticweb.org/ontologies/2011/5/Distributed.owl#"
+P3 = "http://www.semanticweb.org/ontologies/2011/6/distributed_uavs.owl#"
+ONT = "http://www.co-ode.org/ontologies/ont.owl#"
+
+
+def rule(kind: str, source: str, target: str) -> str:
+    return (f'  <cowl:bridgeRule cowl:br-type="{kind}">\n'
+            f'    <cowl:sourceConcept rdf:resource="{source}"/>\n'
+            f'    <cowl:targetConcept rdf:resource="{target}"/>\n  </cowl:bridgeRule>\n')
+
+
+def add_rules(path: Path, *rules: str) -> None:
+    text = path.read_text()
+    path.write_text(text.replace("</cowl:mapping>", "".join(rules) + "</cowl:mapping>"))
+
+
+def drop_rule(path: Path, source: str) -> None:
+    text = path.read_text()
+    path.write_text(re.sub(r'  <cowl:bridgeRule[^>]*>\s*<cowl:sourceConcept rdf:resource="'
+                           + re.escape(source) + r'"/>.*?</cowl:bridgeRule>\n', "", text,
+                           flags=re.S))
+
+
+def add_to_ontology(path: Path, xml: str) -> None:
+    text = path.read_text()
+    path.write_text(text.replace("</rdf:RDF>", xml + "\n</rdf:RDF>"))
+
+
+def topics(km: KnowledgeManager, formula: str) -> dict[str, set[tuple[str, str]]]:
+    got = km.check_formula(formula).to_json()
+    return {f"{f['feature']}[{', '.join(f['args'])}]": {(t["platform"], t["topic"])
+                                                        for t in f["topics"]}
+            for f in got["features"]}
+
+
+def test_a_mapping_into_the_wrong_sort_gives_no_topic_and_a_warning(scenario: Path):
+    add_to_ontology(scenario / "ontologies" / "platform2.owl",
+                    f'<owl:NamedIndividual rdf:about="{P2}truck1">'
+                    f'<rdf:type rdf:resource="{P2}GroundVehicle"/></owl:NamedIndividual>')
+    add_rules(scenario / "mappings" / "platform1-platform2.cowl.xml",
+              rule("same", ONT + "car3", P2 + "truck1"))
+    request = KnowledgeManager.from_config(scenario / "federation.toml").check_formula(
+        "always (Speed[car3] > 60)")
+    assert {t.platform for t in request.features[0].topics} == {"platform1"}
+    (warning,) = request.warnings
+    assert "Speed[car3]" in warning and "platform2" in warning
+    assert "truck1 is a GroundVehicle, Speed needs Automobile" in warning
+
+
+def test_incompat_excludes_the_far_end_of_an_equivalence_chain_only(scenario: Path):
+    add_rules(scenario / "mappings" / "platform1-platform3.cowl.xml",
+              rule("incompat", P1 + "Altitude", P3 + "Alt"))
+    got = topics(KnowledgeManager.from_config(scenario / "federation.toml"),
+                 "Altitude[uav1] > Altitude[uav2]")
+    assert ("platform3", "uastopic4") in got["Altitude[uav1]"]  # Height: bridged, stays
+    assert ("platform3", "uastopic5") not in got["Altitude[uav2]"]  # Alt ≡ Height, excluded
+
+
+def test_a_mapping_file_written_from_the_remote_side_works_the_same(scenario: Path):
+    forward = scenario / "mappings" / "platform1-platform3.cowl.xml"
+    text = forward.read_text()
+    swapped = re.sub(r"sourceConcept(.*?)\n(\s*)<cowl:targetConcept", r"TMP\1\n\2<cowl:SRC", text)
+    swapped = swapped.replace("cowl:targetConcept", "cowl:sourceConcept")
+    swapped = swapped.replace("cowl:TMP", "cowl:targetConcept").replace("cowl:SRC",
+                                                                       "cowl:sourceConcept")
+    (scenario / "mappings" / "platform3-platform1.cowl.xml").write_text(swapped)
+    config = scenario / "federation.toml"
+    config.write_text(config.read_text().replace(
+        'source = "platform1"\ntarget = "platform3"\nfile = "mappings/platform1-platform3.cowl.xml"',
+        'source = "platform3"\ntarget = "platform1"\nfile = "mappings/platform3-platform1.cowl.xml"'))
+    want = json.loads((scenario / "expected" / "federation-F1.json").read_text())
+    got = KnowledgeManager.from_config(config).check_formula(want["formula"]).to_json()
+    assert topic_sets(got) == topic_sets(want)
+
+
+def test_subsumption_extension_adds_topics_of_more_specific_features(scenario: Path):
+    # Replace the bridge Altitude ≡ Height by Height ⊑ Altitude, written from platform 3's side,
+    # and add a local feature AirSpeed ⊑ Speed with a topic of its own.
+    drop_rule(scenario / "mappings" / "platform1-platform3.cowl.xml", P1 + "Altitude")
+    (scenario / "mappings" / "platform3-platform1.cowl.xml").write_text(
+        '<cowl:mapping xmlns:cowl="http://www.itc.it/cowl#" '
+        'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n'
+        + rule("into", P3 + "Height", P1 + "Altitude") + "</cowl:mapping>\n")
+    add_to_ontology(scenario / "ontologies" / "platform1.owl", f"""
+    <Class rdf:about="{P1}AirSpeed"><rdfs:subClassOf rdf:resource="{P1}Speed"/>
+      <rdfs:subClassOf><Class><intersectionOf rdf:parseType="Collection">
+        <rdf:Description rdf:about="{P1}UnaryRelation"/>
+        <Restriction><onProperty rdf:resource="{P1}arg1"/>
+          <allValuesFrom rdf:resource="{P1}UAV"/></Restriction>
+      </intersectionOf></Class></rdfs:subClassOf></Class>""")
+    with (scenario / "specs" / "platform1.sslt").open("a") as specs:
+        specs.write("topic topic10:UavMsg contains AirSpeed(uav1) = msg.as for uav1 = msg.id\n")
+    config = scenario / "federation.toml"
+    config.write_text(config.read_text() + '\n[[mappings]]\nsource = "platform3"\n'
+                      'target = "platform1"\nfile = "mappings/platform3-platform1.cowl.xml"\n')
+    formula = "Altitude[uav1] > Altitude[uav2] and Speed[uav1] > 50"
+    default = topics(KnowledgeManager.from_config(config), formula)
+    assert ("platform3", "uastopic4") not in default["Altitude[uav1]"]
+    assert ("platform1", "topic10") not in default["Speed[uav1]"]
+
+    config.write_text('rules = ["rules/extensions/subsumption.dl"]\n' + config.read_text())
+    extended = topics(KnowledgeManager.from_config(config), formula)
+    assert extended["Altitude[uav1]"] - default["Altitude[uav1]"] == {("platform3", "uastopic4")}
+    assert extended["Altitude[uav2]"] - default["Altitude[uav2]"] == {("platform3", "uastopic5")}
+    assert extended["Speed[uav1]"] - default["Speed[uav1]"] == {("platform1", "topic10")}
+
+
+def test_expected_files_still_hold_with_the_extension_enabled(scenario: Path):
+    config = scenario / "federation.toml"
+    config.write_text('rules = ["rules/extensions/subsumption.dl"]\n' + config.read_text())
+    km = KnowledgeManager.from_config(config)
+    for n in (1, 2, 3):
+        want = json.loads((scenario / "expected" / f"federation-F{n}.json").read_text())
+        assert topic_sets(km.check_formula(want["formula"]).to_json()) == topic_sets(want)
+
+
+def test_a_platform_without_mappings_contributes_nothing_and_says_so(scenario: Path):
+    config = scenario / "federation.toml"
+    text = config.read_text()
+    config.write_text(text[: text.index("[[mappings]]")])
+    request = KnowledgeManager.from_config(config).check_formula("Speed[car1] > 3")
+    assert {t.platform for t in request.features[0].topics} == {"platform1"}
+    assert any("platform2 is joined to platform1 by no mapping file" in w
+               for w in request.warnings)
+
+
+@pytest.mark.parametrize(("bad_rule", "says"), [
+    (rule("equiv", P1 + "Nothing", P2 + "Speed"), "bridge rule 7 (equiv): source"),
+    (rule("same", ONT + "car3", P2 + "Automobile"), "is a class in platform2"),
+    (rule("sameish", ONT + "car3", P2 + "car11"), "br-type 'sameish' is not one of"),
+])
+def test_bad_bridge_rules_name_the_file_and_the_rule(scenario: Path, bad_rule, says):
+    mapping = scenario / "mappings" / "platform1-platform2.cowl.xml"
+    add_rules(mapping, bad_rule)
+    with pytest.raises(ParseError) as err:
+        KnowledgeManager.from_config(scenario / "federation.toml")
+    assert str(err.value).startswith(str(mapping)) and says in str(err.value)
