@@ -37,6 +37,13 @@ def formulas() -> dict[str, str]:
     return out
 
 
+def entity_bomb(root: str) -> str:
+    """A billion-laughs document: nine levels of ten-fold entity expansion."""
+    levels = "".join(f'<!ENTITY l{i} "{f"&l{i - 1};" * 10}">' for i in range(1, 10))
+    return (f'<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY l0 "lol">{levels}]>\n'
+            f"<{root}>&l9;</{root}>\n")
+
+
 def topic_sets(request_json: dict[str, Any]) -> dict[tuple[str, tuple[str, ...]], set[Any]]:
     """Per (feature, args): the set of (platform, topic, msgtype, field, filter), as the
     scenario README says outputs are compared."""

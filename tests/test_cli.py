@@ -11,7 +11,7 @@ import pytest
 
 from dkreason.cli import main
 
-from .conftest import SCENARIOS, needs_scenarios, topic_sets
+from .conftest import SCENARIOS, entity_bomb, needs_scenarios, topic_sets
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str]:
@@ -56,9 +56,7 @@ def test_specs_add_show_list_remove_and_sort(capsys, scenario: Path):
 
 BAD_SSLT = "topic t1:M contains Speed(uav1 = msg.spd\n"
 MISFIT_SSLT = "topic t1:M contains Altitude(car1) = msg.alt for car1 = msg.id\n"
-BOMB = ('<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY l0 "lol">'
-        + "".join(f'<!ENTITY l{i} "{("&l%d;" % (i - 1)) * 10}">' for i in range(1, 10))
-        + ']>\n<Topic_specs>&l9;</Topic_specs>\n')
+BOMB = entity_bomb("Topic_specs")
 EXTERNAL = ('<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n'
             "<Topic_specs>&x;</Topic_specs>\n")
 BIRD = ('<NamedIndividual rdf:about="&ont;bird"><rdf:type rdf:resource="&ontology;UAV"/>'

@@ -13,7 +13,8 @@ from dkreason.errors import ParseError
 
 from .conftest import topic_sets
 
-P1, P2 = "http://www.example.com/ontology#", "http://www.semanticweb.org/ontologies/2011/5/Distributed.owl#"
+P1 = "http://www.example.com/ontology#"
+P2 = "http://www.semanticweb.org/ontologies/2011/5/Distributed.owl#"
 P3 = "http://www.semanticweb.org/ontologies/2011/6/distributed_uavs.owl#"
 ONT = "http://www.co-ode.org/ontologies/ont.owl#"
 
@@ -80,9 +81,11 @@ def test_a_mapping_file_written_from_the_remote_side_works_the_same(scenario: Pa
                                                                        "cowl:sourceConcept")
     (scenario / "mappings" / "platform3-platform1.cowl.xml").write_text(swapped)
     config = scenario / "federation.toml"
-    config.write_text(config.read_text().replace(
-        'source = "platform1"\ntarget = "platform3"\nfile = "mappings/platform1-platform3.cowl.xml"',
-        'source = "platform3"\ntarget = "platform1"\nfile = "mappings/platform3-platform1.cowl.xml"'))
+    forward_entry = ('source = "platform1"\ntarget = "platform3"\n'
+                     'file = "mappings/platform1-platform3.cowl.xml"')
+    config.write_text(config.read_text().replace(forward_entry, (
+        'source = "platform3"\ntarget = "platform1"\n'
+        'file = "mappings/platform3-platform1.cowl.xml"')))
     want = json.loads((scenario / "expected" / "federation-F1.json").read_text())
     got = KnowledgeManager.from_config(config).check_formula(want["formula"]).to_json()
     assert topic_sets(got) == topic_sets(want)

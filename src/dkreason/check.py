@@ -34,7 +34,7 @@ def check_formula(kb: KnowledgeBase, formula: Formula) -> list[CheckedFeature]:
         if len(ref.args) != arity:
             raise SortError(f"{ref.name} takes {arity} argument{'s' if arity != 1 else ''}, "
                             f"not {len(ref.args)}", ref.span)
-        args = tuple(local.names.resolve(a.sort, ("sort",), a.span) if a.is_variable
+        args = tuple(local.names.resolve(a.sort, ("sort",), a.span) if a.sort is not None
                      else local.names.resolve(a.name, ("object",), a.span) for a in ref.args)
         checked.append(CheckedFeature(ref, iri, args))
     asks = [(n, c.iri, i, x, "sort" if a.is_variable else "object")

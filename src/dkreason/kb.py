@@ -24,7 +24,7 @@ from .facts import (
     spec_facts,
 )
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
-from .names import NameIndex, article, local_name
+from .names import Kind, NameIndex, article, local_name
 from .parse.config import RULES_HOME, Config, read_config
 
 RULES_DIR = RULES_HOME / "rules"
@@ -173,8 +173,8 @@ class KnowledgeBase:
         """The most specific told sorts of an object, for messages."""
         ont = self.platform(platform).ontology
         told = sorted({c for o, c in ont.types if o == iri})
-        return told or sorted({s for (_, _, s) in self.engine.query("instance_of", platform,
-                                                                      iri, None)})
+        return told or sorted({str(s) for (_, _, s) in self.engine.query("instance_of", platform,
+                                                                           iri, None)})
 
     # ---- mappings ----------------------------------------------------------------------
 
@@ -201,7 +201,7 @@ def _name_index(ont: Ontology) -> NameIndex:
 def resolve_spec(p: Platform, spec: TopicSpec) -> ResolvedSpec:
     """Names → IRIs and arity check; well-sortedness is left to the rules."""
     def arg(a: TopicArg) -> ResolvedArg:
-        kind = ("object",) if a.kind == "object" else ("sort",)
+        kind: tuple[Kind, ...] = ("object",) if a.kind == "object" else ("sort",)
         return ResolvedArg(a.kind, p.names.resolve(a.name, kind, a.span), a.id_field or "")
 
     features = []

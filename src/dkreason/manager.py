@@ -99,10 +99,8 @@ class KnowledgeManager:
         from .parse import sslt
 
         xml = path.suffix.lower() == ".xml"
-        if not path.exists():
-            text = sslt.format_xml(()) if xml else ""
-        else:
-            text = read_text(path)
+        empty = sslt.format_xml(()) if xml else ""
+        text = read_text(path) if path.exists() else empty
         current = sslt.parse_xml(text.encode(), str(path)) if xml else \
             sslt.parse_text(text, str(path))
         lines = text.splitlines(keepends=True)

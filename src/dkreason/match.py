@@ -34,7 +34,8 @@ def padded(objects: tuple[str, ...]) -> tuple[str, ...]:
 
 
 def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], list[Rejected]]:
-    wanted = [(q, g.iri, *padded(g.arg_iris)) for q, g in enumerate(ground)]
+    wanted: list[tuple[int | str, ...]] = [(q, g.iri, *padded(g.arg_iris))
+                                           for q, g in enumerate(ground)]
     if not wanted:
         return [], []
     engine = kb.engine

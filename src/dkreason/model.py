@@ -6,8 +6,9 @@ spec file can be written back unchanged; the check stage resolves them to IRIs p
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 from .errors import Span
@@ -29,7 +30,7 @@ class TopicArg:
     kind: ArgKind
     name: str
     id_field: str | None
-    span: Span = field(default=Span("<api>"), compare=False)
+    span: Span = dataclasses.field(default=Span("<api>"), compare=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,7 +38,7 @@ class TopicFeature:
     name: str
     field: str
     args: tuple[TopicArg, ...]
-    span: Span = field(default=Span("<api>"), compare=False)
+    span: Span = dataclasses.field(default=Span("<api>"), compare=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,7 +49,7 @@ class TopicSpec:
     msgtype: str
     features: tuple[TopicFeature, ...] = ()
     entity: TopicArg | None = None
-    span: Span = field(default=Span("<api>"), compare=False)
+    span: Span = dataclasses.field(default=Span("<api>"), compare=False)
 
     @property
     def kind(self) -> Literal["features", "sort", "object"]:
@@ -104,7 +105,7 @@ class BridgeRule:
     type: BridgeType
     source: str
     target: str
-    span: Span = field(compare=False)
+    span: Span = dataclasses.field(compare=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,7 +124,7 @@ class Arg:
 
     name: str
     sort: str | None = None  # the quantifier's sort for a variable, None for a constant
-    span: Span = field(default=Span("<formula>"), compare=False)
+    span: Span = dataclasses.field(default=Span("<formula>"), compare=False)
 
     @property
     def is_variable(self) -> bool:
@@ -136,7 +137,7 @@ class FeatureRef:
 
     name: str
     args: tuple[Arg, ...]
-    span: Span = field(default=Span("<formula>"), compare=False)
+    span: Span = dataclasses.field(default=Span("<formula>"), compare=False)
 
 
 @dataclass(frozen=True, slots=True)

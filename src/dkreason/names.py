@@ -63,9 +63,9 @@ class NameIndex:
         if other:
             raise NameError_(f"{written!r} is {article(other[0])} on {self.platform}, "
                              f"not {article(wanted)}", span)
-        close = difflib.get_close_matches(written, [n for n, iris in self._by_local.items()
-                                                    if any(self._kind_of[i] in kinds for i in iris)],
-                                          n=1)
+        known = [n for n, iris in self._by_local.items()
+                 if any(self._kind_of[i] in kinds for i in iris)]
+        close = difflib.get_close_matches(written, known, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise NameError_(f"unknown {wanted} {written!r} on {self.platform}{hint}", span)
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import ParseError, Span
-from ..model import BRIDGE_TYPES, BridgeRule, BridgeType
+from ..model import BRIDGE_TYPES, BridgeRule
 from .files import read_bytes
 
 
@@ -47,6 +47,5 @@ def read_bridge_rules(path: Path) -> tuple[BridgeRule, ...]:
         if len(ends) != 2:
             missing = "source" if "source" not in ends else "target"
             raise ParseError(f"bridge rule {n}: no {missing} entity", span)
-        type_: BridgeType = kind  # type: ignore[assignment]
-        rules.append(BridgeRule(type_, ends["source"], ends["target"], span))
+        rules.append(BridgeRule(kind, ends["source"], ends["target"], span))
     return tuple(rules)

@@ -68,6 +68,8 @@ def read_ontology(path: Path, platform: str) -> Ontology:
             continue
         sorts: dict[int, tuple[str, ...]] = {}
         for part in parts:
+            if not isinstance(part, BNode):
+                continue
             prop, filler = graph.value(part, OWL.onProperty), graph.value(part, OWL.allValuesFrom)
             match = ARG.search(str(prop)) if prop is not None else None
             if match is None or filler is None:

@@ -137,8 +137,8 @@ def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
         bound[slot] = entry
     args = []
     for i, a in enumerate(feature.args):
-        entry = bound.get(i)
-        args.append(TopicArg(entry.kind, a.name, entry.field, a.span) if entry
+        found = bound.get(i)
+        args.append(TopicArg(found.kind, a.name, found.field, a.span) if found
                     else TopicArg("object", a.name, None, a.span))
     return TopicFeature(feature.name, feature.field, tuple(args), feature.span)
 
