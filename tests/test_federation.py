@@ -146,6 +146,7 @@ def test_a_platform_without_mappings_contributes_nothing_and_says_so(scenario: P
     (rule("equiv", P1 + "Nothing", P2 + "Speed"), "bridge rule 7 (equiv): source"),
     (rule("same", ONT + "car3", P2 + "Automobile"), "is a class in platform2"),
     (rule("sameish", ONT + "car3", P2 + "car11"), "br-type 'sameish' is not one of"),
+    ('<cowl:bridgeRule cowl:br-type="equiv">\n', "malformed XML: mismatched tag"),
 ])
 def test_bad_bridge_rules_name_the_file_and_the_rule(scenario: Path, bad_rule, says):
     mapping = scenario / "mappings" / "platform1-platform2.cowl.xml"
