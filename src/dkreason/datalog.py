@@ -24,11 +24,33 @@ _BARE_UNDERSCORE = re.compile(r"(?<![\w'\"])_(?![\w])")
 
 
 @dataclass(frozen=True, slots=True)
-class Rule:
-    """A clause as written in a rule file, for explanations that cite file:line."""
+class Var:
+    name: str
 
-    head: str
-    arity: int
+
+Term = Var | Value
+
+
+@dataclass(frozen=True, slots=True)
+class Literal:
+    predicate: str
+    args: tuple[Term, ...]
+    negated: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Comparison:
+    op: str  # < <= > >= == !=
+    left: Term
+    right: Term
+
+
+@dataclass(frozen=True, slots=True)
+class Rule:
+    """A clause as written in a rule file: what explanations replay and cite (file:line)."""
+
+    head: Literal
+    body: tuple[Literal | Comparison, ...]
     text: str
     span: Span
 
@@ -152,6 +174,36 @@ def _clauses(text: str, file: str) -> list[Rule]:
         if len(_BARE_UNDERSCORE.findall(source)) > 1:
             raise RuleError("bare `_` is one shared variable in pyDatalog; name each "
                             "don't-care variable (_Field, _Arity, …)", Span(file, node.lineno))
-        rules.append(Rule(expr.left.func.id, len(expr.left.args), source.strip(),
-                          Span(file, node.lineno)))
+        span = Span(file, node.lineno)
+        body = tuple(_body(expr.comparators[0], span))
+        rules.append(Rule(_literal(expr.left, span), body, source.strip(), span))
     return rules
+
+
+_OPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
+
+
+def _body(node: ast.expr, span: Span) -> list[Literal | Comparison]:
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.BitAnd):
+        return _body(node.left, span) + _body(node.right, span)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Invert):
+        lit = _literal(node.operand, span)
+        return [Literal(lit.predicate, lit.args, negated=True)]
+    if isinstance(node, ast.Compare) and len(node.ops) == 1 and type(node.ops[0]) in _OPS:
+        return [Comparison(_OPS[type(node.ops[0])], _term(node.left, span),
+                           _term(node.comparators[0], span))]
+    return [_literal(node, span)]
+
+
+def _literal(node: ast.expr, span: Span) -> Literal:
+    if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)):
+        raise RuleError("expected a literal `name(args)`", span)
+    return Literal(node.func.id, tuple(_term(a, span) for a in node.args))
+
+
+def _term(node: ast.expr, span: Span) -> Term:
+    if isinstance(node, ast.Name):
+        return Var(node.id)
+    if isinstance(node, ast.Constant) and isinstance(node.value, str | int):
+        return node.value
+    raise RuleError(f"unsupported term {ast.unparse(node)!r}", span)
