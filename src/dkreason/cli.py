@@ -50,6 +50,14 @@ def _build() -> _Parser:
     p.add_argument("formula")
     p.set_defaults(run=_match)
 
+    p = sub.add_parser("explain", help="why each topic matched, or why one did not")
+    config(p)
+    p.add_argument("formula")
+    p.add_argument("--feature", help='only this ground feature, e.g. "Altitude[uav2]"')
+    p.add_argument("--topic", help="only this topic; explains why it was not chosen if not")
+    p.add_argument("--format", choices=("text", "json", "dot"), default="text")
+    p.set_defaults(run=_explain)
+
     p = sub.add_parser("specs", help="list, show, add or remove topic specifications")
     specs = p.add_subparsers(required=True, metavar="ACTION", parser_class=_Parser)
     for action, helptext in (("list", "every topic specification"),
@@ -88,6 +96,19 @@ def _match(args: argparse.Namespace) -> int:
         print(json.dumps(request.to_json(), ensure_ascii=False))
     else:
         print(render_text(request))
+    return 0
+
+
+def _explain(args: argparse.Namespace) -> int:
+    from . import explain
+
+    result = _km(args).explain(args.formula, args.feature, args.topic)
+    if args.format == "json":
+        print(json.dumps(explain.to_json(result), ensure_ascii=False))
+    elif args.format == "dot":
+        print(explain.to_dot(result))
+    else:
+        print(explain.to_text(result))
     return 0
 
 

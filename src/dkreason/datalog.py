@@ -9,6 +9,7 @@ rule files with errors that name the file and line.
 from __future__ import annotations
 
 import ast
+import os
 import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -79,7 +80,8 @@ class Datalog:
             self._logic = Logic(True)
 
     def load_file(self, path: Path) -> None:
-        self.load_text(read_text(path), str(path))
+        shown = os.path.relpath(path) if not os.path.relpath(path).startswith("..") else path
+        self.load_text(read_text(path), str(shown))
 
     def load_text(self, text: str, file: str) -> None:
         from pyDatalog import pyParser

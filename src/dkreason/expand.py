@@ -28,7 +28,7 @@ def expand(kb: KnowledgeBase, checked: list[CheckedFeature]) -> list[GroundFeatu
                          for a, iri in zip(c.ref.args, c.arg_iris, strict=True))
             names = tuple(local_name(env[a.name]) if a.is_variable else a.name
                           for a in c.ref.args)
-            out.setdefault((c.iri, iris), GroundFeature(c.ref.name, names, c.iri, iris))
+            out.setdefault((c.iri, iris), GroundFeature(c.ref.name, names, c.iri, iris, c.ref.span))
     return list(out.values())
 
 

@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import DkError, NameError_, ParseError, Span
 from .kb import KnowledgeBase, Platform
 from .model import StreamRequest, TopicSpec
 from .parse.files import read_text, write_atomic
+
+if TYPE_CHECKING:
+    from .explain import Explanation
 
 
 class KnowledgeManager:
@@ -33,6 +37,20 @@ class KnowledgeManager:
         ground = expand(self.kb, check_formula(self.kb, parse_formula(formula)))
         matches, rejected = match(self.kb, ground)
         return build_request(self.kb, formula, ground, matches, rejected)
+
+    def explain(self, formula: str, feature: str | None = None,
+                topic: str | None = None) -> Explanation:
+        """Why each topic of the request matched; for a feature without topics, or a named
+        topic that was not chosen, the closest candidates and the first condition that failed."""
+        from .check import check_formula
+        from .expand import expand
+        from .explain import explain
+        from .match import match
+        from .parse.formula import parse_formula
+
+        ground = expand(self.kb, check_formula(self.kb, parse_formula(formula)))
+        matches, _ = match(self.kb, ground)
+        return explain(self.kb, formula, ground, matches, feature, topic)
 
     # ---- topic specifications ----------------------------------------------------------
 

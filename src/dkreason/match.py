@@ -33,9 +33,13 @@ def padded(objects: tuple[str, ...]) -> tuple[str, ...]:
     return objects + ("",) * (3 - len(objects))
 
 
+def wanted_rows(ground: list[GroundFeature]) -> list[tuple[int | str, ...]]:
+    """wanted(Q, F, O1, O2, O3): the facts through which a formula asks the rules."""
+    return [(q, g.iri, *padded(g.arg_iris)) for q, g in enumerate(ground)]
+
+
 def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], list[Rejected]]:
-    wanted: list[tuple[int | str, ...]] = [(q, g.iri, *padded(g.arg_iris))
-                                           for q, g in enumerate(ground)]
+    wanted = wanted_rows(ground)
     if not wanted:
         return [], []
     engine = kb.engine

@@ -152,6 +152,7 @@ class GroundFeature:
     args: tuple[str, ...]
     iri: str
     arg_iris: tuple[str, ...]
+    span: Span = dataclasses.field(default=Span("<formula>"), compare=False)
 
     @property
     def key(self) -> str:

@@ -16,7 +16,7 @@ def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
                   matches: list[Match], rejected: list[Rejected]) -> StreamRequest:
     per_feature: dict[int, list[TopicMatch]] = defaultdict(list)
     for m in matches:
-        topic = _topic_match(kb, m)
+        topic = topic_match(kb, m)
         if topic is not None and topic not in per_feature[m.query]:
             per_feature[m.query].append(topic)
     order = {(p, t): i for p, plat in kb.platforms.items() for i, t in enumerate(plat.specs)}
@@ -28,7 +28,7 @@ def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
     return StreamRequest(formula, kb.local, features, tuple(dict.fromkeys(warnings)))
 
 
-def _topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
+def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
     platform = kb.platforms[m.platform]
     spec = platform.resolved[m.topic]
     feature = spec.features[m.feature_index - 1]

@@ -16,6 +16,7 @@ directory holding dkreason's own `rules/`).
 
 from __future__ import annotations
 
+import os
 import re
 import tomllib
 from dataclasses import dataclass
@@ -62,6 +63,9 @@ def read_config(path: Path) -> Config:
         raise ParseError(f"TOML syntax error: {message}", Span(file, line, col)) from None
     base = path.parent
 
+    def at(value: str) -> Path:  # normalised, so messages say ontologies/x.owl, not a/../x.owl
+        return Path(os.path.normpath(base / value))
+
     def fail(message: str) -> DkError:
         return ParseError(message, Span(file))
 
@@ -82,8 +86,8 @@ def read_config(path: Path) -> Config:
         _only(table, {"ontology", "specs"}, f"[platforms.{name}]", fail)
         specs = table.get("specs")
         platforms.append(PlatformFiles(
-            name, base / text(table, "ontology", f"[platforms.{name}]"),
-            base / text(table, "specs", f"[platforms.{name}]") if specs is not None else None))
+            name, at(text(table, "ontology", f"[platforms.{name}]")),
+            at(text(table, "specs", f"[platforms.{name}]")) if specs is not None else None))
     names = [p.name for p in platforms]
     local = data.get("local", names[0] if len(names) == 1 else None)
     if local not in names:
@@ -101,7 +105,7 @@ def read_config(path: Path) -> Config:
                 raise fail(f"[[mappings]] {i}: platform {side!r} is not configured")
         if src == tgt:
             raise fail(f"[[mappings]] {i}: source and target are both {src!r}")
-        mappings.append(MappingFiles(src, tgt, base / text(table, "file", f"[[mappings]] {i}")))
+        mappings.append(MappingFiles(src, tgt, at(text(table, "file", f"[[mappings]] {i}"))))
     rules = data.get("rules", [])
     if not isinstance(rules, list) or not all(isinstance(r, str) for r in rules):
         raise fail("rules must be a list of rule file paths")

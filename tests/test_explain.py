@@ -1,0 +1,217 @@
+"""Explanations (why / why not), checked against the rules and the knowledge base."""
+
+from __future__ import annotations
+
+import ast
+import json
+from pathlib import Path
+
+import pytest
+
+from dkreason import KnowledgeManager
+from dkreason.cli import main
+from dkreason.explain import Failure, Proof, to_dot, to_json
+
+from .conftest import SCENARIOS, needs_scenarios
+from .test_federation import ONT, P2, add_rules, add_to_ontology, rule
+
+FORMULAS = {
+    "F1": "□((Altitude[uav1] > Altitude[uav2]) and (Speed[uav1] > 50))",
+    "F2": "for all x in UAV y in Car □(Altitude[x] > 10 and Speed[x] > Speed[y])",
+    "F3": "for all x in UAV □(Close[uav1, x])",
+}
+
+
+@pytest.fixture(scope="module")
+def federation() -> KnowledgeManager:
+    assert SCENARIOS is not None
+    return KnowledgeManager.from_config(SCENARIOS / "federation.toml")
+
+
+@needs_scenarios
+def test_uastopic5_is_explained_by_the_bridge_the_remote_axiom_and_same_as(capsys):
+    assert SCENARIOS is not None
+    code = main(["explain", "--config", str(SCENARIOS / "federation.toml"),
+                 "always (Altitude[uav2] > 10)", "--feature", "Altitude[uav2]"])
+    out = capsys.readouterr().out
+    assert code == 0
+    block = out[out.index("✔ uastopic5"):]
+    summary = block.split("proof:")[0]
+    assert "Altitude ≡ Height (bridge platform1→platform3, " in summary
+    assert "platform1-platform3.cowl.xml:21)" in summary
+    assert "≡ Alt (platform3 axiom, " in summary and "platform3.owl)" in summary
+    assert "uav2 = uas21 (bridge platform1→platform3, " in summary
+    assert "platform1-platform3.cowl.xml:29)" in summary
+
+
+@needs_scenarios
+def test_why_not_a_topic_whose_argument_names_another_object(federation):
+    e = federation.explain(FORMULAS["F3"], feature="Close[uav1, uav1]", topic="uastopic7")
+    (why_not,) = e.features[0].why_not
+    check_failure(federation, why_not.trace)
+    assert why_not.platform == "platform3"
+    assert "argument 2 is uas21" in why_not.reason and "not uas20" in why_not.reason
+    assert "Close[uav1, uav1] maps to Near[uas20, uas20]" in why_not.reason
+
+
+@needs_scenarios
+def test_why_not_a_platform_where_the_object_has_no_counterpart(federation):
+    e = federation.explain("always (Speed[car3] > 60)", topic="carstopic1")
+    (why_not,) = e.features[0].why_not
+    check_failure(federation, why_not.trace)
+    assert why_not.platform == "platform2"
+    assert "car3 has no counterpart on platform2" in why_not.reason
+
+
+@needs_scenarios
+def test_why_not_a_local_equivalent_with_another_signature(federation):
+    e = federation.explain("always (Speed[car1] > 60)", topic="topic9")
+    reasons = [w.reason for w in e.features[0].why_not]
+    assert "GroundSpeed[car1] rejected: car1 is a Car, GroundSpeed needs UAV" in reasons
+
+
+def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path):
+    add_to_ontology(scenario / "ontologies" / "platform2.owl",
+                    f'<owl:NamedIndividual rdf:about="{P2}truck1">'
+                    f'<rdf:type rdf:resource="{P2}GroundVehicle"/></owl:NamedIndividual>')
+    add_rules(scenario / "mappings" / "platform1-platform2.cowl.xml",
+              rule("same", ONT + "car3", P2 + "truck1"))
+    km = KnowledgeManager.from_config(scenario / "federation.toml")
+    e = km.explain("always (Speed[car3] > 60)", topic="carstopic1")
+    (why_not,) = e.features[0].why_not
+    assert why_not.reason == ("Speed[truck1] rejected: truck1 is a GroundVehicle, "
+                              "Speed needs Automobile")
+
+
+def test_a_rule_from_an_extension_file_is_cited_with_its_file_and_line(scenario: Path):
+    extension = scenario / "alias.dl"
+    extension.write_text("# my policy: Altitude also reads Size topics\n\n"
+                         "feature_candidate(L, F, G) <= local(L) & feature(L, F, _N) & "
+                         "feature(L, G, _M) & alias(F, G)\n"
+                         "alias('http://www.example.com/ontology#Altitude', "
+                         "'http://www.example.com/ontology#Size') <= local(_L)\n")
+    with (scenario / "specs" / "platform1.sslt").open("a") as specs:
+        specs.write("topic topic10:UavMsg contains Size(uav1) = msg.size for uav1 = msg.id\n")
+    config = scenario / "single.toml"
+    config.write_text('rules = ["alias.dl"]\n' + config.read_text())
+    e = KnowledgeManager.from_config(config).explain("Altitude[uav1] > 1", topic="topic10")
+    (why,) = e.features[0].why
+    cited = {str(p.rule.span) for p in _nodes(why.proof) if p.rule}
+    assert any(c.endswith(f"{extension.name}:3") for c in cited), cited
+
+
+def _nodes(p: Proof):
+    yield p
+    for c in p.children:
+        yield from _nodes(c)
+
+
+# ---- the mechanical check: leaves are told facts, inner steps are instances of rules --------
+
+def _rule_at(file: str, line: int) -> ast.Compare:
+    tree = ast.parse(Path(file).read_text(encoding="utf-8"))
+    (stmt,) = [s for s in tree.body if s.lineno == line]
+    assert isinstance(stmt, ast.Expr) and isinstance(stmt.value, ast.Compare)
+    return stmt.value
+
+
+def _flatten(node: ast.expr) -> list[ast.expr]:
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.BitAnd):
+        return _flatten(node.left) + _flatten(node.right)
+    return [node]
+
+
+def _match(terms: list[ast.expr], values: tuple, env: dict) -> bool:
+    if len(terms) != len(values):
+        return False
+    for term, value in zip(terms, values, strict=True):
+        if isinstance(term, ast.Name):
+            if env.setdefault(term.id, value) != value:
+                return False
+        elif not (isinstance(term, ast.Constant) and term.value == value):
+            return False
+    return True
+
+
+def check_proof(km: KnowledgeManager, p: Proof, derived: set[str]) -> int:
+    """Assert `p` is sound; return the number of steps checked."""
+    engine = km.kb.engine
+    if p.rule is None:
+        kind = p.fact[0]
+        if kind == "compare":
+            return 1
+        if kind == "not":
+            assert not engine.query(*p.fact[1:]), p.text
+            return 1
+        assert kind not in derived, f"leaf {p.fact} is a derived relation"
+        assert engine.query(*p.fact), f"leaf {p.fact} is not in the knowledge base"
+        return 1
+    clause = _rule_at(p.rule.span.file, p.rule.span.line)
+    head = clause.left
+    assert isinstance(head, ast.Call) and isinstance(head.func, ast.Name)
+    env: dict = {}
+    assert head.func.id == p.fact[0] and _match(head.args, p.fact[1:], env), p.text
+    body = _flatten(clause.comparators[0])
+    assert len(body) == len(p.children), p.text
+    for item, child in zip(body, p.children, strict=True):
+        if isinstance(item, ast.UnaryOp):  # negation
+            call = item.operand
+            assert isinstance(call, ast.Call) and child.fact[:2] == ("not", call.func.id)
+            assert _match(call.args, child.fact[2:], env)
+        elif isinstance(item, ast.Compare):
+            assert child.fact[0] == "compare"
+        else:
+            assert isinstance(item, ast.Call) and child.fact[0] == item.func.id, child.text
+            assert _match(item.args, child.fact[1:], env), f"{child.text} ≠ {ast.unparse(item)}"
+    return 1 + sum(check_proof(km, c, derived) for c in p.children)
+
+
+def check_failure(km: KnowledgeManager, f: Failure) -> None:
+    """Every goal on a why-not trace really fails (goals mentioning the formula's own
+    `wanted` facts are checked by the callers' expectations instead)."""
+    if "wanted" not in str(f.rule.text if f.rule else ""):
+        assert not km.kb.engine.query(*f.goal), f.text
+    if isinstance(f.because, Failure):
+        check_failure(km, f.because)
+
+
+@needs_scenarios
+@pytest.mark.parametrize("config", ["single.toml", "federation.toml"])
+@pytest.mark.parametrize("name", list(FORMULAS))
+def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(config, name):
+    assert SCENARIOS is not None
+    km = KnowledgeManager.from_config(SCENARIOS / config)
+    request = km.check_formula(FORMULAS[name])
+    e = km.explain(FORMULAS[name])
+    derived = {r.head.predicate for r in km.kb.engine.rules}
+    proofs = [w for f in e.features for w in f.why]
+    assert len(proofs) == sum(len(f.topics) for f in request.features)
+    wanted = [(q, g.feature.iri, *g.feature.arg_iris, *[""] * (3 - len(g.feature.arg_iris)))
+              for q, g in enumerate(request.features)]
+    km.kb.engine.assert_rows("wanted", wanted)  # the formula's facts, as during explanation
+    try:
+        steps = sum(check_proof(km, w.proof, derived) for w in proofs)
+    finally:
+        km.kb.engine.retract_rows("wanted", wanted)
+    assert steps > 20 * len(proofs)
+
+
+@needs_scenarios
+def test_json_and_dot_forms(federation):
+    e = federation.explain("always (Altitude[uav2] > 10)")
+    data = json.loads(json.dumps(to_json(e)))
+    why = data["features"][0]["why"]
+    assert {w["topic"] for w in why} == {"topic2", "uastopic5"}
+    assert why[0]["proof"]["rule"].startswith("rules/matching.dl:")
+    dot = to_dot(e)
+    assert dot.startswith("digraph explanation {") and dot.rstrip().endswith("}")
+
+
+@needs_scenarios
+def test_unknown_feature_or_topic_is_a_one_line_error(capsys):
+    assert SCENARIOS is not None
+    for extra in (["--feature", "Altitude[uav9]"], ["--topic", "nope"]):
+        code = main(["explain", "--config", str(SCENARIOS / "federation.toml"),
+                     "Altitude[uav2] > 1", *extra])
+        out = capsys.readouterr()
+        assert code == 2 and (out.out + out.err).count("\n") == 1
