@@ -13,7 +13,7 @@ from dkreason.cli import main
 from dkreason.explain import Failure, Proof, to_dot, to_json
 
 from .conftest import SCENARIOS, needs_scenarios
-from .test_federation import ONT, P2, add_rules, add_to_ontology, rule
+from .test_federation import map_car3_to_a_truck
 
 FORMULAS = {
     "F1": "□((Altitude[uav1] > Altitude[uav2]) and (Speed[uav1] > 50))",
@@ -71,11 +71,7 @@ def test_why_not_a_local_equivalent_with_another_signature(federation):
 
 
 def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path):
-    add_to_ontology(scenario / "ontologies" / "platform2.owl",
-                    f'<owl:NamedIndividual rdf:about="{P2}truck1">'
-                    f'<rdf:type rdf:resource="{P2}GroundVehicle"/></owl:NamedIndividual>')
-    add_rules(scenario / "mappings" / "platform1-platform2.cowl.xml",
-              rule("same", ONT + "car3", P2 + "truck1"))
+    map_car3_to_a_truck(scenario)
     km = KnowledgeManager.from_config(scenario / "federation.toml")
     e = km.explain("always (Speed[car3] > 60)", topic="carstopic1")
     (why_not,) = e.features[0].why_not

@@ -49,12 +49,18 @@ def topics(km: KnowledgeManager, formula: str) -> dict[str, set[tuple[str, str]]
             for f in got["features"]}
 
 
-def test_a_mapping_into_the_wrong_sort_gives_no_topic_and_a_warning(scenario: Path):
+def map_car3_to_a_truck(scenario: Path) -> None:
+    """The issue's mis-mapping: platform 2 gains truck1 (a GroundVehicle, not an Automobile)
+    and a bridge rule car3 same truck1."""
     add_to_ontology(scenario / "ontologies" / "platform2.owl",
                     f'<owl:NamedIndividual rdf:about="{P2}truck1">'
                     f'<rdf:type rdf:resource="{P2}GroundVehicle"/></owl:NamedIndividual>')
     add_rules(scenario / "mappings" / "platform1-platform2.cowl.xml",
               rule("same", ONT + "car3", P2 + "truck1"))
+
+
+def test_a_mapping_into_the_wrong_sort_gives_no_topic_and_a_warning(scenario: Path):
+    map_car3_to_a_truck(scenario)
     request = KnowledgeManager.from_config(scenario / "federation.toml").check_formula(
         "always (Speed[car3] > 60)")
     assert {t.platform for t in request.features[0].topics} == {"platform1"}
