@@ -504,9 +504,14 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
         seen.add((start, end))
         lines.append(f"object: {_chain(reader, node, str(start), str(end), ('same_as', 'bridge'))}")
     for node in proof.find("accepts"):
-        for leaf in node.leaves():
-            if leaf.fact[0] == "type_of":
-                lines.append(f"sort: {leaf.text} [{leaf.source}]")
+        _, _, topic, _, position, obj = node.fact
+        sort_args = [leaf for leaf in node.leaves() if leaf.fact[0] == "topic_arg"
+                     and leaf.fact[5] in ("some", "every")]
+        for told in (leaf for leaf in node.leaves() if leaf.fact[0] == "type_of"):
+            if sort_args:
+                chain = _chain(reader, node, str(told.fact[3]), str(sort_args[0].fact[6]),
+                               ("subclass_of", "equivalent_class"))
+                lines.append(f"argument {position} of {topic}: {reader.name(obj)} : {chain}")
     for leaf in proof.leaves():
         if leaf.fact[0] == "topic_feature":
             lines.append(f"topic: {leaf.text} [{leaf.source}]")
@@ -536,8 +541,8 @@ def _chain(reader: Reader, node: Proof, start: str, end: str, kinds: tuple[str, 
         edges.remove(step)
         current = step[1] if step[0] == current else step[0]
         text += f" {step[2]} {reader.name(current)} ({step[3]})"
-    if current == start and start == end:
-        text += " (as the formula writes it)"
+    if current == start and start == end and not edges:
+        text += " (as the formula writes it)" if "bridge" in kinds else ""
     return text
 
 
