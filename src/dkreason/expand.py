@@ -14,7 +14,7 @@ from .names import local_name
 
 
 def expand(kb: KnowledgeBase, checked: list[CheckedFeature]) -> list[GroundFeature]:
-    members = _members(kb, {iri for c in checked
+    members_of = members(kb, {iri for c in checked
                             for a, iri in zip(c.ref.args, c.arg_iris, strict=True)
                             if a.is_variable})
     out: dict[tuple[str, tuple[str, ...]], GroundFeature] = {}
@@ -22,7 +22,7 @@ def expand(kb: KnowledgeBase, checked: list[CheckedFeature]) -> list[GroundFeatu
         variables = list(dict.fromkeys(a.name for a in c.ref.args if a.is_variable))
         sort_of = {a.name: iri for a, iri in zip(c.ref.args, c.arg_iris, strict=True)
                    if a.is_variable}
-        for values in itertools.product(*(members[sort_of[v]] for v in variables)):
+        for values in itertools.product(*(members_of[sort_of[v]] for v in variables)):
             env = dict(zip(variables, values, strict=True))
             iris = tuple(env[a.name] if a.is_variable else iri
                          for a, iri in zip(c.ref.args, c.arg_iris, strict=True))
@@ -32,7 +32,7 @@ def expand(kb: KnowledgeBase, checked: list[CheckedFeature]) -> list[GroundFeatu
     return list(out.values())
 
 
-def _members(kb: KnowledgeBase, sorts: set[str]) -> dict[str, list[str]]:
+def members(kb: KnowledgeBase, sorts: set[str]) -> dict[str, list[str]]:
     """Each sort's objects, one representative per sameAs class, sorted by local name."""
     if not sorts:
         return {}

@@ -1,0 +1,563 @@
+"""The general progression engine: one node per distinct subformula, shared by every formula.
+
+Demand-driven: a parent *requests* a child's value at the current position and gets True,
+False, None (unknown: a final Kleene value) or PENDING, in which case the child *delivers* the
+value later.  Future operators keep their undecided positions with absolute time windows and
+decide each as soon as the prefix forces it (a window closes at the state whose time equals its
+end); past operators keep the bounded history their windows need.  Kleene logic is monotone, so
+a value computed with pending children read as unknown is final whenever it is True or False.
+
+Every node has a `level` (leaves 0): each state ticks the nodes with open work in level order,
+and `finish` settles the end of the stream the same way, children before parents.
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections import deque
+from collections.abc import Callable
+from fractions import Fraction
+from typing import Any, Protocol
+
+from .state import StateFn, kleene
+
+Time = int | Fraction
+
+
+class _Pending:
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "PENDING"
+
+
+PENDING: Any = _Pending()
+
+
+class Why:
+    """Why a node decided a value at a position: for witnesses, built only on decisions."""
+
+    __slots__ = ("text", "at", "detail", "cause")
+
+    def __init__(self, text: str, at: Time, detail: str, cause: Why | None = None) -> None:
+        self.text, self.at, self.detail, self.cause = text, at, detail, cause
+
+    def render(self) -> str:
+        own = f"{self.text} {self.detail}"
+        return own if self.cause is None else f"{own}, because {self.cause.render()}"
+
+    def __repr__(self) -> str:
+        return f"Why({self.render()!r})"
+
+
+class Waiter(Protocol):
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None: ...
+
+
+class Ctx:
+    """What every node of one graph sees: the current position, time and state."""
+
+    def __init__(self) -> None:
+        self.pos = -1
+        self.now: Time = 0
+        self.values: dict[str, Any] = {}
+        self.start = 0
+        self.ticking: set[Node] = set()
+        self.on_unknown: Callable[[str], None] = lambda key: None
+
+
+def fmt(t: Time | None) -> str:
+    if t is None:
+        return "oo"
+    if isinstance(t, Fraction):
+        if t.denominator == 1:
+            return str(t.numerator)
+        as_float = float(t)
+        return repr(as_float) if Fraction(repr(as_float)) == t else str(t)
+    return str(t)
+
+
+class Node:
+    level = 0
+    text = ""
+
+    def __init__(self, ctx: Ctx) -> None:
+        self.ctx = ctx
+        self.waiters: dict[int, list[tuple[Waiter, Any]]] = {}
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        raise NotImplementedError
+
+    def tick(self) -> None:
+        pass
+
+    def finish(self) -> None:
+        pass
+
+    def _wait(self, i: int, waiter: Waiter, key: Any) -> Any:
+        self.waiters.setdefault(i, []).append((waiter, key))
+        return PENDING
+
+    def _resolve(self, i: int, value: Any, why: Why | None) -> None:
+        for waiter, key in self.waiters.pop(i, ()):
+            waiter.deliver(key, value, why)
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        raise NotImplementedError
+
+
+class StateNode(Node):
+    """A temporal-free subformula: decided at once from the current state."""
+
+    def __init__(self, ctx: Ctx, fn: StateFn, keys: list[str], text: str) -> None:
+        super().__init__(ctx)
+        self.fn, self.keys, self.text = fn, keys, text
+        self.pos, self.value = -1, None
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        if self.pos != i:
+            self.pos, self.value = i, self.fn(self.ctx.values, t)
+            if self.value is None:
+                for k in self.keys:
+                    if self.ctx.values[k] is None:
+                        self.ctx.on_unknown(k)
+        return self.value
+
+    def why(self, t: Time) -> Why:
+        shown = ", ".join(f"{k} = {self.ctx.values[k]}" for k in self.keys)
+        word = {True: "held", False: "was false", None: "was unknown"}[self.value]
+        return Why(self.text, t, f"{word} at {fmt(t)}" + (f" ({shown})" if shown else ""))
+
+
+def why_of(node: Node, t: Time, value: Any) -> Why:
+    """The reason for a value a node returned at once (not delivered)."""
+    if isinstance(node, StateNode):
+        return node.why(t)
+    return Why(node.text, t, f"was {_word(value)} at {fmt(t)}")
+
+
+def _word(value: Any) -> str:
+    return {True: "true", False: "false", None: "unknown"}.get(value, "pending")
+
+
+class NotNode(Node):
+    def __init__(self, ctx: Ctx, child: Node) -> None:
+        super().__init__(ctx)
+        self.child, self.level, self.text = child, child.level + 1, f"not ({child.text})"
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        if i in self.waiters:
+            return self._wait(i, waiter, key)
+        v = self.child.request(i, t, self, (i, t))
+        if v is PENDING:
+            return self._wait(i, waiter, key)
+        return None if v is None else not v
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        self._resolve(key[0], None if value is None else not value, why)
+
+
+class BoolNode(Node):
+    """and, or, <->: short-circuits on a decisive child, waits for pending ones."""
+
+    def __init__(self, ctx: Ctx, op: str, left: Node, right: Node) -> None:
+        super().__init__(ctx)
+        self.op, self.left, self.right = op, left, right
+        self.level = max(left.level, right.level) + 1
+        self.text = f"({left.text}) {op} ({right.text})"
+        self.open: dict[int, list[Any]] = {}
+        self.decisive = {"and": False, "or": True}.get(op)
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        if i in self.waiters:
+            return self._wait(i, waiter, key)
+        a = self.left.request(i, t, self, (i, 0))
+        if a is self.decisive:
+            return a
+        b = self.right.request(i, t, self, (i, 1))
+        value = self._combine(a, b)
+        if value is not PENDING:
+            return value
+        self.open[i] = [a, b, t]
+        return self._wait(i, waiter, key)
+
+    def _combine(self, a: Any, b: Any) -> Any:
+        if self.decisive is not None and (a is self.decisive or b is self.decisive):
+            return self.decisive
+        if a is PENDING or b is PENDING:
+            return PENDING
+        return kleene(self.op, a, b)
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        i, side = key
+        record = self.open.get(i)
+        if record is None:
+            return  # decided already by the other side
+        record[side] = value
+        result = self._combine(record[0], record[1])
+        if result is not PENDING:
+            del self.open[i]
+            self._resolve(i, result, why)
+
+
+class WindowNode(Node):
+    """eventually_[a,b] (decisive True) and always_[a,b] (decisive False) in O(1) amortised:
+    positions wait with absolute windows [t+a, t+b]; a decisive child value settles every
+    waiting position whose window holds it, and a window closes at the state reaching its end."""
+
+    def __init__(self, ctx: Ctx, op: str, lo: Time, hi: Time | None, child: Node,
+                 interval: str) -> None:
+        super().__init__(ctx)
+        self.decisive = op == "eventually"
+        self.lo, self.hi, self.child = lo, hi, child
+        self.level = child.level + 1
+        self.text = f"{op}{interval} ({child.text})"
+        self.times: list[Time] = []  # waiting positions, by time
+        self.entries: list[list[Any]] = []  # [position, time, unknown?]
+        self.child_open: dict[int, Time] = {}  # child positions requested but not delivered
+        self.asked = -1
+        self.asked_value: Any = None
+
+    # the child's value at the current position, asked at most once per position
+    def _child_now(self, j: int, t: Time) -> Any:
+        if self.asked != j:
+            self.asked = j
+            self.asked_value = self.child.request(j, t, self, (j, t))
+            if self.asked_value is PENDING:
+                self.child_open[j] = t
+        return self.asked_value
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        if i in self.waiters:
+            return self._wait(i, waiter, key)
+        unknown = False
+        if self.lo == 0:
+            v = self._child_now(i, t)
+            if v is self.decisive:
+                return v
+            if self.hi == 0 and v is not PENDING:
+                return v
+            unknown = v is None
+        self.times.append(t)
+        self.entries.append([i, t, unknown])
+        self.ctx.ticking.add(self)
+        return self._wait(i, waiter, key)
+
+    def tick(self) -> None:
+        ctx = self.ctx
+        if self.entries:
+            t = ctx.now
+            first = bisect.bisect_left(self.times, t - self.hi) if self.hi is not None else 0
+            if first < len(self.times) and self.times[first] <= t - self.lo:
+                v = self._child_now(ctx.pos, t)
+                if v is not PENDING:
+                    self._apply(t, v, None)
+            self._close()
+        if not self.entries and not self.child_open:
+            ctx.ticking.discard(self)
+
+    def _apply(self, tj: Time, v: Any, why: Why | None) -> None:
+        """Child value v at time tj: settle or mark the waiting positions whose window holds tj."""
+        if v is not self.decisive and v is not None:
+            return
+        first = bisect.bisect_left(self.times, tj - self.hi) if self.hi is not None else 0
+        last = bisect.bisect_right(self.times, tj - self.lo)
+        if first >= last:
+            return
+        if v is None:
+            for entry in self.entries[first:last]:
+                entry[2] = True
+            return
+        settled = self.entries[first:last]
+        del self.entries[first:last], self.times[first:last]
+        cause = why or why_of(self.child, tj, v)
+        for i, ti, _ in settled:
+            self._resolve(i, v, Why(self.text, ti, f"is {_word(v)} at {fmt(ti)}", cause))
+
+    def _close(self, at_end: bool = False) -> None:
+        now, pos = self.ctx.now, self.ctx.pos
+        oldest_open = min(self.child_open.values()) if self.child_open else None
+        while self.entries:
+            i, ti, unknown = self.entries[0]
+            hi = None if self.hi is None else ti + self.hi
+            if not at_end:
+                if hi is None or hi > now or (hi == now and self.asked != pos):
+                    break
+                if oldest_open is not None and oldest_open <= hi:
+                    break
+            del self.entries[0], self.times[0]
+            value = None if unknown else (not self.decisive)
+            within = f"[{fmt(ti + self.lo)}, {fmt(hi)}]"
+            how = "was unknown within" if unknown else "never held within" if self.decisive \
+                else "held throughout"
+            self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {fmt(ti)}",
+                                        Why(self.child.text, ti, f"{how} {within}")))
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        j, tj = key
+        self.child_open.pop(j, None)
+        self._apply(tj, value, why)
+        self._close()
+
+    def finish(self) -> None:
+        self._close(at_end=True)
+
+
+class NextNode(Node):
+    """next_[a,b]: decided when the next state arrives (false if none does)."""
+
+    def __init__(self, ctx: Ctx, lo: Time, hi: Time | None, child: Node, interval: str) -> None:
+        super().__init__(ctx)
+        self.lo, self.hi, self.child = lo, hi, child
+        self.level, self.text = child.level + 1, f"next{interval} ({child.text})"
+        self.waiting: list[tuple[int, Time]] = []
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        if i not in self.waiters:
+            self.waiting.append((i, t))
+            self.ctx.ticking.add(self)
+        return self._wait(i, waiter, key)
+
+    def tick(self) -> None:
+        now, pos = self.ctx.now, self.ctx.pos
+        ready = [(i, ti) for i, ti in self.waiting if i == pos - 1]
+        self.waiting = [(i, ti) for i, ti in self.waiting if i != pos - 1]
+        for i, ti in ready:
+            gap = now - ti
+            if gap < self.lo or (self.hi is not None and gap > self.hi):
+                self._resolve(i, False, Why(self.text, ti, f"is false at {fmt(ti)}: the next "
+                                                           f"state came {fmt(gap)} later"))
+                continue
+            v = self.child.request(pos, now, self, i)
+            if v is not PENDING:
+                self._resolve(i, v, why_of(self.child, now, v))
+        if not self.waiting:
+            self.ctx.ticking.discard(self)
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        self._resolve(key, value, why)
+
+    def finish(self) -> None:
+        for i, ti in self.waiting:
+            self._resolve(i, False, Why(self.text, ti, f"is false at {fmt(ti)}: no next state"))
+        self.waiting = []
+
+
+class UntilNode(Node):
+    """φ until_[a,b] ψ: waiting positions are re-evaluated over the history of (φ, ψ) values
+    with pending values read as unknown; a True or False result is final (Kleene monotony)."""
+
+    def __init__(self, ctx: Ctx, lo: Time, hi: Time | None, left: Node, right: Node,
+                 interval: str) -> None:
+        super().__init__(ctx)
+        self.lo, self.hi, self.left, self.right = lo, hi, left, right
+        self.level = max(left.level, right.level) + 1
+        self.text = f"({left.text}) until{interval} ({right.text})"
+        self.hist: dict[int, list[Any]] = {}  # position → [time, φ, ψ]
+        self.entries: list[tuple[int, Time]] = []
+        self.seen = -1
+
+    def _record(self, j: int, t: Time) -> None:
+        if self.seen == j:
+            return
+        self.seen = j
+        row: list[Any] = [t, PENDING, PENDING]
+        self.hist[j] = row
+        row[1] = self.left.request(j, t, self, (j, 1))
+        row[2] = self.right.request(j, t, self, (j, 2))
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        if i in self.waiters:
+            return self._wait(i, waiter, key)
+        self._record(i, t)
+        value = self._evaluate(i, t, at_end=False)
+        if value is not PENDING:
+            self._trim()
+            return value
+        self.entries.append((i, t))
+        self.ctx.ticking.add(self)
+        return self._wait(i, waiter, key)
+
+    def _evaluate(self, i: int, ti: Time, at_end: bool) -> Any:
+        """Kleene value at i with pending and not-yet-seen positions read as unknown: final if
+        True or False, PENDING if unknown while anything it read may still change."""
+        result: Any = False
+        phi: Any = True
+        open_ = False
+        j = i
+        while True:
+            row = self.hist.get(j)
+            if row is None:  # not recorded yet (this state, or one to come): open unless closed
+                if not at_end and (j <= self.ctx.pos or self.hi is None or
+                                   self.ctx.now < ti + self.hi):
+                    open_ = True
+                    result = kleene("or", result, kleene("and", None, phi))
+                break
+            tj, pj, sj = row
+            if self.hi is not None and tj - ti > self.hi:
+                break
+            open_ = open_ or pj is PENDING or sj is PENDING
+            if tj - ti >= self.lo:
+                result = kleene("or", result, kleene("and", None if sj is PENDING else sj, phi))
+                if result is True:
+                    return True
+            phi = kleene("and", phi, None if pj is PENDING else pj)
+            if phi is False:
+                break
+            j += 1
+        if result is False:
+            return False
+        return PENDING if open_ else None
+
+    def tick(self) -> None:
+        self._record(self.ctx.pos, self.ctx.now)
+        self._settle(at_end=False)
+
+    def _settle(self, at_end: bool) -> None:
+        still = []
+        for i, ti in self.entries:
+            value = self._evaluate(i, ti, at_end)
+            if value is PENDING:
+                still.append((i, ti))
+            else:
+                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {fmt(ti)}"))
+        self.entries = still
+        self._trim()
+        if not self.entries:
+            self.ctx.ticking.discard(self)
+
+    def _trim(self) -> None:
+        keep = min((i for i, _ in self.entries), default=self.ctx.pos)  # requests may come now
+        for j in [j for j in self.hist if j < keep]:
+            del self.hist[j]
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        j, side = key
+        if j in self.hist:
+            self.hist[j][side] = value
+        self._settle(at_end=False)
+
+    def finish(self) -> None:
+        self._settle(at_end=True)
+
+
+class PastNode(Node):
+    """once / historically / since / previous over the history their windows need.
+
+    The children are asked at every position.  A request at position i folds the history
+    backwards (pending values read as unknown) and waits only while that leaves it open.
+    Bounded windows drop rows older than any future window; unbounded ones fold settled rows
+    into a running Kleene aggregate, so memory stays bounded either way."""
+
+    def __init__(self, ctx: Ctx, op: str, lo: Time, hi: Time | None, left: Node | None,
+                 right: Node, interval: str) -> None:
+        super().__init__(ctx)
+        self.op, self.lo, self.hi, self.left, self.right = op, lo, hi, left, right
+        self.level = max(right.level, left.level if left else 0) + 1
+        self.text = (f"({left.text}) since{interval} ({right.text})" if left is not None
+                     else f"{op}{interval} ({right.text})")
+        self.hist: deque[list[Any]] = deque()  # [position, time, φ (since), ψ]
+        self.entries: list[tuple[int, Time]] = []
+        self.decisive = op != "historically"
+        self.folded: Any = not self.decisive  # aggregate over rows dropped from the front
+        ctx.ticking.add(self)
+        self.seen = -1
+
+    def tick(self) -> None:
+        j, t = self.ctx.pos, self.ctx.now
+        if self.seen == j:
+            return
+        self.seen = j
+        row: list[Any] = [j, t, True, PENDING]
+        self.hist.append(row)
+        if self.left is not None:
+            row[2] = self.left.request(j, t, self, (j, 2))
+        row[3] = self.right.request(j, t, self, (j, 3))
+        self._settle()
+        self._forget()
+
+    def _forget(self) -> None:
+        t = self.ctx.now
+        oldest_open = min([t, *(ti for _, ti in self.entries)])  # earliest time still asked
+        if self.op == "previous":
+            first = min([self.ctx.pos, *(i for i, _ in self.entries)]) - 1
+            while self.hist and self.hist[0][0] < first:
+                self.hist.popleft()
+        elif self.hi is not None:  # rows older than every open window are never read again
+            while self.hist and self.hist[0][1] < oldest_open - self.hi:
+                self.hist.popleft()
+        else:  # settled rows inside every open window fold into the aggregate
+            while len(self.hist) > 1 and self.hist[0][1] <= oldest_open - self.lo and \
+                    PENDING not in self.hist[0][2:]:
+                _, _, pj, sj = self.hist.popleft()
+                if self.op == "since":
+                    self.folded = kleene("or", sj, kleene("and", pj, self.folded))
+                else:
+                    self.folded = kleene("or" if self.decisive else "and", self.folded, sj)
+
+    def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
+        if i in self.waiters:
+            return self._wait(i, waiter, key)
+        self.tick()
+        value = self._evaluate(i, t)
+        if value is not PENDING:
+            return value
+        self.entries.append((i, t))
+        return self._wait(i, waiter, key)
+
+    def _evaluate(self, i: int, ti: Time) -> Any:
+        if self.op == "previous":
+            row = next((r for r in self.hist if r[0] == i - 1), None)
+            if i == self.ctx.start or row is None:
+                return False
+            gap = ti - row[1]
+            if gap < self.lo or (self.hi is not None and gap > self.hi):
+                return False
+            return row[3]
+        combine = "or" if self.decisive else "and"
+        result: Any = not self.decisive
+        phi: Any = True
+        open_ = False
+        for j, tj, pj, sj in reversed(self.hist):
+            if j > i:
+                continue
+            if self.hi is not None and ti - tj > self.hi:
+                break
+            open_ = open_ or pj is PENDING or sj is PENDING
+            if ti - tj >= self.lo:
+                s = None if sj is PENDING else sj
+                result = kleene(combine, result, s if self.op != "since" else
+                                kleene("and", s, phi))
+                if result is self.decisive:
+                    return result
+            if self.op == "since":
+                phi = kleene("and", phi, None if pj is PENDING else pj)
+                if phi is False:
+                    break
+        else:
+            if self.hi is None:  # rows folded away all lie in every window
+                tail = self.folded if self.op != "since" else kleene("and", self.folded, phi)
+                result = kleene(combine, result, tail)
+        if result is None and open_:
+            return PENDING
+        return result
+
+    def _settle(self) -> None:
+        still = []
+        for i, ti in self.entries:
+            value = self._evaluate(i, ti)
+            if value is PENDING:
+                still.append((i, ti))
+            else:
+                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {fmt(ti)}"))
+        self.entries = still
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        j, side = key
+        for row in self.hist:
+            if row[0] == j:
+                row[side] = value
+        self._settle()
+
+    def finish(self) -> None:
+        self._settle()

@@ -1,0 +1,266 @@
+"""The Formula Progressor: formulas in, a state stream through, verdicts out as early as the
+stream allows, never retracted.
+
+    p = Progressor()
+    p.add("always (Speed[car1] > 60 -> eventually[0, 300] Speed[car1] <= 60)")
+    for time, values in states:
+        for verdict in p.step(time, values): ...
+    for verdict in p.finish(): ...
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from decimal import Decimal
+from fractions import Fraction
+from typing import Any
+
+from ..errors import DkError
+from ..parse.formula import parse_formula
+from .compile import Expander, Graph, expand, formula_features
+from .fused import Fused, shape
+from .nodes import PENDING, Time, Why, fmt, why_of
+
+
+@dataclass(frozen=True, slots=True)
+class UnknownSpan:
+    feature: str
+    start: Any
+    end: Any
+
+    def to_json(self) -> dict[str, Any]:
+        return {"feature": self.feature, "from": self.start, "to": self.end}
+
+
+@dataclass(frozen=True, slots=True)
+class Verdict:
+    """The value of a formula at the first state, with the state that decided it.
+
+    `at_end` is True when `finish()` settled it; `verdict` is None only then, when the data
+    left it unknown (`unknown` says which features and when)."""
+
+    formula: str
+    verdict: bool | None
+    time: Any
+    at_end: bool
+    witness: str | None = None
+    unknown: tuple[UnknownSpan, ...] = field(default=())
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"formula": self.formula, "verdict": self.verdict,
+                               "time": _json_time(self.time), "at_end": self.at_end,
+                               "witness": self.witness}
+        if self.verdict is None:
+            out["unknown"] = [u.to_json() for u in self.unknown]
+        return out
+
+
+def _json_time(t: Any) -> Any:
+    if isinstance(t, Fraction | Decimal):
+        return int(t) if t == int(t) else float(t)
+    return t
+
+
+def exact_time(t: Any) -> Time:
+    """Times compared without floating-point error: 0.1 is 1/10, as written."""
+    if type(t) is int:
+        return t
+    if isinstance(t, bool) or t is None:
+        raise DkError(f"time must be a number, not {t!r}")
+    if isinstance(t, float):
+        value = Fraction(repr(t))
+    elif isinstance(t, Fraction | Decimal | int | str):
+        try:
+            value = Fraction(t)
+        except (ValueError, ZeroDivisionError):
+            raise DkError(f"time must be a number, not {t!r}") from None
+    else:
+        raise DkError(f"time must be a number, not {t!r}")
+    return value.numerator if value.denominator == 1 else value
+
+
+class _Monitor:
+    """One formula: a fused step function, or the root of a shared node graph."""
+
+    def __init__(self, text: str, keys: list[str]) -> None:
+        self.text, self.keys = text, keys
+        self.value: Any = PENDING
+        self.why: Why | None = None
+        self.reported = False
+        self.started = False
+        self.first: Any = None  # time of the first state it judged
+        self.graph: Graph | None = None
+        self.node: Any = None
+        self.fused: Fused | None = None
+        self.decided: list[_Monitor] = []  # the progressor's list of monitors to report
+
+    def start(self, t: Time) -> None:
+        assert self.graph is not None
+        v = self.node.request(self.graph.ctx.pos, t, self, None)
+        if v is not PENDING:
+            self.deliver(None, v, why_of(self.node, t, v))
+
+    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
+        self.value, self.why = value, why
+        self.decided.append(self)
+
+    def false(self, why: Why) -> None:
+        self.deliver(None, False, why)
+
+
+class Progressor:
+    def __init__(self, objects: Expander | None = None) -> None:
+        self.objects = objects
+        self.monitors: list[_Monitor] = []
+        self.running: list[Callable[[Time, Any], bool]] = []  # fused steps still undecided
+        self.unstarted: list[_Monitor] = []
+        self.decided: list[_Monitor] = []
+        self.graphs: list[Graph] = []
+        self.keys: set[str] = set()
+        self.pos = -1
+        self.last: Time | float = float("-inf")
+        self.last_input: Any = None
+        self.unknown: dict[str, list[list[Any]]] = {}
+
+    @classmethod
+    def with_knowledge(cls, manager: Any) -> Progressor:
+        """Quantifiers range over the local platform's objects, as the matcher expands them."""
+        from ..errors import Span
+        from ..expand import members
+        from ..names import local_name
+
+        local = manager.kb.platform(manager.kb.local)
+
+        def objects(sort: str) -> list[str]:
+            iri = local.names.resolve(sort, ("sort",), Span("<formula>"))
+            return [local_name(o) for o in members(manager.kb, {iri})[iri]]
+        return cls(objects)
+
+    def add(self, formula: str) -> None:
+        """Compile `formula` once; it is judged from the next state on."""
+        parsed = expand(parse_formula(formula), self.objects)
+        monitor = _Monitor(formula, formula_features(parsed))
+        monitor.decided = self.decided
+        fused_shape = shape(parsed)
+        if fused_shape is not None:
+            monitor.fused = Fused(fused_shape, monitor.false, self._note_unknowns)
+            self.running.append(monitor.fused.step)
+        else:
+            if not self.graphs or self.graphs[-1].ctx.pos >= 0:
+                graph = Graph()
+                graph.ctx.on_unknown = self._note_unknown
+                self.graphs.append(graph)
+            monitor.graph = self.graphs[-1]
+            monitor.node = monitor.graph.node(parsed)
+        self.monitors.append(monitor)
+        self.unstarted.append(monitor)
+        self.keys.update(monitor.keys)
+
+    def step(self, time: Any, values: Mapping[str, Any]) -> list[Verdict]:
+        """Feed one state; return the verdicts it decides."""
+        t = time if type(time) is int else exact_time(time)
+        if not t > self.last:
+            raise DkError(f"time {time} is not after the previous state's time "
+                          f"{self.last_input} (times must increase strictly)")
+        if self.graphs and not self.keys <= values.keys():
+            values = self._rekeyed(values, time)
+        self.pos += 1
+        self.last, self.last_input = t, time
+        if self.unstarted:
+            for m in self.unstarted:
+                m.started, m.first = True, t
+        done = 0
+        try:  # a fused step reads all its features before it changes anything
+            for fused_step in self.running:
+                fused_step(t, values)
+                done += 1
+        except KeyError:
+            values = self._rekeyed(values, time)
+            for fused_step in self.running[done:]:
+                fused_step(t, values)
+        for graph in self.graphs:
+            ctx = graph.ctx
+            if ctx.pos < 0:
+                ctx.start = self.pos
+            ctx.pos, ctx.now, ctx.values = self.pos, t, values  # type: ignore[assignment]
+            for node in sorted(ctx.ticking, key=lambda n: n.level):
+                node.tick()
+        if self.unstarted:
+            for m in self.unstarted:
+                if m.node is not None:
+                    m.start(t)
+            self.unstarted = []
+        if not self.decided:
+            return []
+        self.running = [m.fused.step for m in self.monitors
+                        if m.fused is not None and m.value is PENDING]
+        return self._decided(at_end=False)
+
+    def _rekeyed(self, values: Mapping[str, Any], time: Any) -> dict[str, Any]:
+        """Keys compared with whitespace removed (`Close[uav1, uav2]` is `Close[uav1,uav2]`)."""
+        out = {"".join(k.split()): v for k, v in values.items()}
+        missing = sorted(self.keys - out.keys())
+        if missing:
+            raise DkError(f"the state at time {time} has no value for {missing[0]}")
+        return out
+
+    def finish(self) -> list[Verdict]:
+        """End of stream: settle every undecided formula by the finite-trace semantics."""
+        for graph in self.graphs:
+            for node in sorted(set(graph.cache.values()), key=lambda n: n.level):
+                node.finish()
+        for m in self.monitors:
+            if m.value is not PENDING:
+                continue
+            if not m.started:
+                m.deliver(None, None, None)
+            elif m.fused is not None:
+                verdict = m.fused.finish()
+                if verdict is not False:  # False came through on_false already
+                    m.deliver(None, verdict, None)
+        self.running = []
+        return self._decided(at_end=True)
+
+    def _decided(self, at_end: bool) -> list[Verdict]:
+        out = []
+        order = {id(m): n for n, m in enumerate(self.monitors)}
+        ready = sorted(self.decided, key=lambda m: order[id(m)])
+        self.decided.clear()
+        for m in ready:
+            if m.reported:
+                continue
+            if m.value is None and not at_end:  # unknown for good: said at the end
+                self.decided.append(m)
+                continue
+            m.reported = True
+            witness = None
+            if m.value is False and m.why is not None:
+                if m.fused is not None:  # the fused step names the failing part only
+                    witness = Why(m.text, m.first, f"is false at {fmt(m.first)}",
+                                  m.why).render()
+                else:  # the root node's reason, with the formula as the user wrote it
+                    witness = Why(m.text, m.why.at, m.why.detail, m.why.cause).render()
+            unknown: tuple[UnknownSpan, ...] = ()
+            if m.value is None:
+                unknown = tuple(UnknownSpan(k, s[0], s[1]) for k in m.keys
+                                for s in self.unknown.get(k, ()))
+                witness = "the data left it undecided: " + (", ".join(
+                    f"{u.feature} unknown from {u.start} to {u.end}" for u in unknown)
+                    if unknown else "no state was seen" if not m.started else "")
+            out.append(Verdict(m.text, m.value, self.last_input, at_end, witness, unknown))
+        return out
+
+    def _note_unknowns(self, keys: list[str], values: Any) -> None:
+        for k in keys:
+            self._note_unknown(k)
+
+    def _note_unknown(self, key: str) -> None:
+        spans = self.unknown.setdefault(key, [])
+        if spans and spans[-1][2] >= self.pos - 1:
+            spans[-1][1], spans[-1][2] = self.last_input, self.pos
+        elif not spans or spans[-1][2] != self.pos:
+            spans.append([self.last_input, self.last_input, self.pos])
+
+
+__all__ = ["Progressor", "UnknownSpan", "Verdict", "fmt"]

@@ -1,0 +1,197 @@
+"""Temporal-free subformulas ("state formulas") compiled to Python once.
+
+Each compiles to a function of the state's values returning True, False or None (unknown,
+Kleene).  The generated code reads every feature first, then takes a two-valued fast path
+when all are known, and falls back to a three-valued interpreter otherwise.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from ..errors import DkError
+from ..parse.formula import (
+    Arith,
+    Atom,
+    BoolConst,
+    Compare,
+    Connective,
+    Expr,
+    Formula,
+    Neg,
+    Not,
+    Num,
+    Ref,
+)
+
+Value = bool | None
+StateFn = Callable[[Mapping[str, Any]], Value]
+
+_CMP = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
+        "==": operator.eq, "!=": operator.ne}
+_ARITH = {"+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv}
+
+
+def key(feature: Any) -> str:
+    """The state key of a feature reference: `Close[uav1,uav2]`, whitespace removed."""
+    args = ",".join(a.name for a in feature.args)
+    return f"{feature.name}[{args}]" if feature.args else feature.name
+
+
+def is_state(f: Formula) -> bool:
+    if isinstance(f, BoolConst | Atom | Compare):
+        return True
+    if isinstance(f, Not):
+        return is_state(f.arg)
+    if isinstance(f, Connective):
+        return is_state(f.left) and is_state(f.right)
+    return False
+
+
+def features(node: Any) -> list[str]:
+    """Feature keys a state formula or expression reads, in order of appearance."""
+    out: dict[str, None] = {}
+
+    def walk(n: Any) -> None:
+        if isinstance(n, Atom | Ref):
+            out[key(n.feature)] = None
+        for attr in ("arg", "left", "right"):
+            if hasattr(n, attr):
+                walk(getattr(n, attr))
+
+    walk(node)
+    return list(out)
+
+
+def render(f: Any) -> str:
+    """Source-like text of a state formula or expression (for witnesses)."""
+    if isinstance(f, BoolConst):
+        return "true" if f.value else "false"
+    if isinstance(f, Atom | Ref):
+        return key(f.feature)
+    if isinstance(f, Num):
+        return repr(f.value)
+    if isinstance(f, Compare | Arith):
+        return f"{render(f.left)} {f.op} {render(f.right)}"
+    if isinstance(f, Neg):
+        return f"-{render(f.arg)}"
+    if isinstance(f, Not):
+        return f"not ({render(f.arg)})"
+    if isinstance(f, Connective):
+        return f"({render(f.left)}) {f.op} ({render(f.right)})"
+    raise TypeError(type(f).__name__)
+
+
+# ---- three-valued interpreter (the slow path, and the reference for the fast one) ----------
+
+def evaluate(f: Formula, values: Mapping[str, Any], time: object = None) -> Value:
+    if isinstance(f, BoolConst):
+        return f.value
+    if isinstance(f, Atom):
+        v = values[key(f.feature)]
+        if v is None or isinstance(v, bool):
+            return v
+        raise DkError(f"feature {key(f.feature)} is used as a condition but has the value "
+                      f"{v!r} at time {time}")
+    if isinstance(f, Compare):
+        left, right = _number(f.left, values, time), _number(f.right, values, time)
+        return None if left is None or right is None else bool(_CMP[f.op](left, right))
+    if isinstance(f, Not):
+        v = evaluate(f.arg, values, time)
+        return None if v is None else not v
+    if isinstance(f, Connective):
+        a, b = evaluate(f.left, values, time), evaluate(f.right, values, time)
+        return kleene(f.op, a, b)
+    raise TypeError(type(f).__name__)
+
+
+def kleene(op: str, a: Value, b: Value) -> Value:
+    if op == "and":
+        return False if a is False or b is False else None if a is None or b is None else True
+    if op == "or":
+        return True if a is True or b is True else None if a is None or b is None else False
+    if op == "->":
+        return kleene("or", None if a is None else not a, b)
+    if op == "<->":
+        return None if a is None or b is None else a == b
+    raise ValueError(op)
+
+
+def _number(e: Expr, values: Mapping[str, Any], time: object) -> Any:
+    if isinstance(e, Num):
+        return e.value
+    if isinstance(e, Ref):
+        v = values[key(e.feature)]
+        if v is not None and not isinstance(v, int | float) and not hasattr(v, "__truediv__"):
+            raise DkError(f"feature {key(e.feature)} is compared as a number but has the "
+                          f"value {v!r} at time {time}")
+        return v
+    if isinstance(e, Neg):
+        v = _number(e.arg, values, time)
+        return None if v is None else -v
+    if isinstance(e, Arith):
+        a, b = _number(e.left, values, time), _number(e.right, values, time)
+        if a is None or b is None:
+            return None
+        if e.op == "/" and b == 0:
+            return None  # undefined: unknown, never a violation
+        return _ARITH[e.op](a, b)
+    raise TypeError(type(e).__name__)
+
+
+# ---- generated two-valued fast path ------------------------------------------------------------
+
+def compile_state(f: Formula) -> tuple[StateFn, list[str]]:
+    """A fast function for `f` and the feature keys it reads."""
+    keys = features(f)
+    names = {k: f"v{i}" for i, k in enumerate(keys)}
+    bools = _boolean_keys(f)
+    body = _py(f, names)
+    known = " and ".join(
+        (f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None")
+        for k in keys) or "True"
+    reads = "".join(f"    {names[k]} = values[{k!r}]\n" for k in keys)
+    source = (f"def state(values, time=None):\n{reads}"
+              f"    if {known}:\n"
+              f"        try:\n            return {body}\n"
+              f"        except (ZeroDivisionError, TypeError):\n            pass\n"
+              f"    return slow(formula, values, time)\n")
+    scope: dict[str, Any] = {"slow": evaluate, "formula": f}
+    exec(compile(source, f"<state {render(f)}>", "exec"), scope)  # noqa: S102 - our own code
+    return scope["state"], keys
+
+
+def _boolean_keys(f: Any) -> set[str]:
+    if isinstance(f, Atom):
+        return {key(f.feature)}
+    out: set[str] = set()
+    for attr in ("arg", "left", "right"):
+        if hasattr(f, attr):
+            out |= _boolean_keys(getattr(f, attr))
+    return out
+
+
+def _py(n: Any, names: dict[str, str]) -> str:
+    if isinstance(n, BoolConst):
+        return "True" if n.value else "False"
+    if isinstance(n, Atom):
+        return names[key(n.feature)]
+    if isinstance(n, Ref):
+        return names[key(n.feature)]
+    if isinstance(n, Num):
+        return repr(n.value)
+    if isinstance(n, Compare):
+        return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
+    if isinstance(n, Arith):
+        return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
+    if isinstance(n, Neg):
+        return f"(-{_py(n.arg, names)})"
+    if isinstance(n, Not):
+        return f"(not {_py(n.arg, names)})"
+    if isinstance(n, Connective):
+        a, b = _py(n.left, names), _py(n.right, names)
+        return {"and": f"({a} and {b})", "or": f"({a} or {b})",
+                "->": f"((not {a}) or {b})", "<->": f"({a} == {b})"}[n.op]
+    raise TypeError(type(n).__name__)

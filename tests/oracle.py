@@ -1,0 +1,126 @@
+"""A deliberately simple offline evaluator of the MTL semantics (issue 5, item 2), for tests.
+
+Kleene three-valued, point-based, closed intervals, judged at position 0.  `prefix=True`
+treats the trace as a prefix of an unknown continuation (positions after it unknown), which
+is the three-valued prefix evaluation the engine must be at least as early as.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import Any
+
+from dkreason.parse.formula import (
+    Arith,
+    Atom,
+    BoolConst,
+    Compare,
+    Connective,
+    Neg,
+    Not,
+    Num,
+    Ref,
+    Temporal,
+    Until,
+)
+
+Trace = list[tuple[Fraction, dict[str, Any]]]
+
+
+def k_not(a):
+    return None if a is None else not a
+
+
+def k_and(a, b):
+    if a is False or b is False:
+        return False
+    return None if a is None or b is None else True
+
+
+def k_or(a, b):
+    return k_not(k_and(k_not(a), k_not(b)))
+
+
+def key(ref) -> str:
+    return ref.name + (f"[{','.join(a.name for a in ref.args)}]" if ref.args else "")
+
+
+def num(e, values):
+    if isinstance(e, Num):
+        return e.value
+    if isinstance(e, Ref):
+        return values[key(e.feature)]
+    if isinstance(e, Neg):
+        v = num(e.arg, values)
+        return None if v is None else -v
+    if isinstance(e, Arith):
+        a, b = num(e.left, values), num(e.right, values)
+        if a is None or b is None or (e.op == "/" and b == 0):
+            return None
+        return {"+": a + b, "-": a - b, "*": a * b, "/": a / b}[e.op]
+    raise TypeError(e)
+
+
+def inside(d, interval) -> bool:
+    return interval.lo <= d and (interval.hi is None or d <= interval.hi)
+
+
+def holds(f, tr: Trace, i: int, prefix: bool = False):
+    t = tr[i][0]
+    if isinstance(f, BoolConst):
+        return f.value
+    if isinstance(f, Atom):
+        return tr[i][1][key(f.feature)]
+    if isinstance(f, Compare):
+        a, b = num(f.left, tr[i][1]), num(f.right, tr[i][1])
+        if a is None or b is None:
+            return None
+        return {"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b,
+                "!=": a != b}[f.op]
+    if isinstance(f, Not):
+        return k_not(holds(f.arg, tr, i, prefix))
+    if isinstance(f, Connective):
+        a, b = holds(f.left, tr, i, prefix), holds(f.right, tr, i, prefix)
+        return {"and": k_and(a, b), "or": k_or(a, b), "->": k_or(k_not(a), b),
+                "<->": None if a is None or b is None else a == b}[f.op]
+    future_open = prefix and (f.interval.hi is None or tr[-1][0] < t + f.interval.hi)
+    if isinstance(f, Temporal) and f.op in ("eventually", "always"):
+        out = f.op == "always"
+        for j in range(i, len(tr)):
+            if inside(tr[j][0] - t, f.interval):
+                v = holds(f.arg, tr, j, prefix)
+                out = k_and(out, v) if f.op == "always" else k_or(out, v)
+        return (k_and if f.op == "always" else k_or)(out, None) if future_open else out
+    if isinstance(f, Temporal) and f.op == "next":
+        if i + 1 < len(tr):
+            gap = tr[i + 1][0] - t
+            return holds(f.arg, tr, i + 1, prefix) if inside(gap, f.interval) else False
+        return None if prefix else False
+    if isinstance(f, Temporal) and f.op in ("once", "historically"):
+        out = f.op == "historically"
+        for j in range(0, i + 1):
+            if inside(t - tr[j][0], f.interval):
+                v = holds(f.arg, tr, j, prefix)
+                out = k_and(out, v) if f.op == "historically" else k_or(out, v)
+        return out
+    if isinstance(f, Temporal) and f.op == "previous":
+        if i == 0 or not inside(t - tr[i - 1][0], f.interval):
+            return False
+        return holds(f.arg, tr, i - 1, prefix)
+    if isinstance(f, Until) and f.op == "until":
+        out, phi = False, True
+        for j in range(i, len(tr)):
+            if inside(tr[j][0] - t, f.interval):
+                out = k_or(out, k_and(holds(f.right, tr, j, prefix), phi))
+            phi = k_and(phi, holds(f.left, tr, j, prefix))
+        return k_or(out, k_and(None, phi)) if future_open else out
+    if isinstance(f, Until) and f.op == "since":
+        out = False
+        for j in range(0, i + 1):
+            if inside(t - tr[j][0], f.interval):
+                phi = True
+                for k in range(j + 1, i + 1):
+                    phi = k_and(phi, holds(f.left, tr, k, prefix))
+                out = k_or(out, k_and(holds(f.right, tr, j, prefix), phi))
+        return out
+    raise TypeError(f)

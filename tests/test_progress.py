@@ -1,0 +1,195 @@
+"""The progression engine against a simple offline evaluator of the semantics (tests/oracle.py).
+
+Random formulas (every operator, nested, bounded and unbounded intervals, [a, a]) on random
+traces with uneven steps that do not start at 0, with unknown values.
+"""
+
+from __future__ import annotations
+
+import os
+from fractions import Fraction
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from dkreason.errors import DkError
+from dkreason.parse.formula import parse_formula
+from dkreason.progress import Progressor
+
+from .oracle import holds
+
+# DKREASON_EXAMPLES=20000 for a long run; the default keeps the suite quick
+SETTINGS = settings(max_examples=int(os.environ.get("DKREASON_EXAMPLES", "400")), deadline=None,
+                    suppress_health_check=[HealthCheck.too_slow])
+
+intervals = st.one_of(
+    st.just(""),
+    st.tuples(st.integers(0, 3), st.integers(0, 4)).map(lambda p: f"[{p[0]}, {p[0] + p[1]}]"),
+    st.integers(0, 3).map(lambda a: f"[{a}, oo]"),
+    st.integers(0, 3).map(lambda a: f"[{a}, {a}]"),
+)
+atoms = st.sampled_from(["P", "Q", "X > 2", "X <= 1", "true", "false", "X + 1 >= 3"])
+UNARY = ["not", "always", "eventually", "next", "historically", "once", "previous"]
+BINARY = ["and", "or", "->", "<->", "until", "since"]
+
+
+@st.composite
+def formulas(draw, depth: int = 3):
+    if depth == 0 or draw(st.integers(0, 3)) == 0:
+        return draw(atoms)
+    if draw(st.booleans()):
+        op = draw(st.sampled_from(UNARY))
+        sub = draw(formulas(depth - 1))
+        return f"not ({sub})" if op == "not" else f"{op}{draw(intervals)} ({sub})"
+    op = draw(st.sampled_from(BINARY))
+    left, right = draw(formulas(depth - 1)), draw(formulas(depth - 1))
+    interval = draw(intervals) if op in ("until", "since") else ""
+    return f"({left}) {op}{interval} ({right})"
+
+
+@st.composite
+def traces(draw):
+    n = draw(st.integers(1, 7))
+    t = Fraction(draw(st.sampled_from([0, 1, 5])))
+    out = []
+    for _ in range(n):
+        values = {
+            "P": draw(st.sampled_from([True, False, True, False, None])),
+            "Q": draw(st.sampled_from([True, False, False, None])),
+            "X": draw(st.sampled_from([0, 1, 2, 3, 4, None])),
+        }
+        out.append((t, values))
+        t += draw(st.sampled_from([Fraction(1), Fraction(1), Fraction(2), Fraction(3),
+                                   Fraction(1, 2)]))
+    return out
+
+
+def run(formula: str, trace):
+    """(verdict, index of the deciding state or None if settled by finish)."""
+    p = Progressor()
+    p.add(formula)
+    for k, (t, values) in enumerate(trace):
+        for v in p.step(t, values):
+            assert not v.at_end
+            return v.verdict, k
+    (v,) = p.finish()
+    assert v.at_end
+    return v.verdict, None
+
+
+@SETTINGS
+@given(formulas(), traces())
+def test_verdicts_equal_the_offline_semantics(formula, trace):
+    verdict, _ = run(formula, trace)
+    assert verdict == holds(parse_formula(formula), trace, 0)
+
+
+@SETTINGS
+@given(formulas(), traces())
+def test_an_early_verdict_is_final_and_holds_on_the_stream_cut_right_after_it(formula, trace):
+    verdict, k = run(formula, trace)
+    if k is not None:
+        f = parse_formula(formula)
+        assert verdict is not None
+        assert verdict == holds(f, trace, 0) == holds(f, trace[:k + 1], 0)
+
+
+@SETTINGS
+@given(formulas(), traces())
+def test_verdicts_come_no_later_than_a_three_valued_evaluation_of_the_prefix(formula, trace):
+    f = parse_formula(formula)
+    _, k = run(formula, trace)
+    forced = next((n for n in range(len(trace))
+                   if holds(f, trace[:n + 1], 0, prefix=True) is not None), None)
+    if forced is not None:
+        assert k is not None and k <= forced
+
+
+single = st.one_of(
+    st.tuples(st.sampled_from(["always", "eventually", "next", "historically", "once",
+                               "previous"]), intervals, atoms)
+    .map(lambda p: f"{p[0]}{p[1]} ({p[2]})"),
+    st.tuples(atoms, st.sampled_from(["until", "since"]), intervals, atoms)
+    .map(lambda p: f"({p[0]}) {p[1]}{p[2]} ({p[3]})"),
+    st.tuples(atoms, intervals, atoms)
+    .map(lambda p: f"always (({p[0]}) -> eventually{p[1]} ({p[2]}))"),
+    st.tuples(atoms, intervals, atoms)
+    .map(lambda p: f"always (not ({p[0]}) or eventually{p[1]} ({p[2]}))"),
+    st.tuples(intervals, atoms).map(lambda p: f"always not (always{p[0]} ({p[1]}))"),
+    st.tuples(atoms, atoms).map(lambda p: f"always (({p[0]}) and not ({p[1]}))"),
+)
+
+
+@SETTINGS
+@given(single, traces())
+def test_single_operators_and_response_formulas_decide_exactly_at_the_forcing_state(
+        formula, trace):
+    f = parse_formula(formula)
+    _, k = run(formula, trace)
+    forced = next((n for n in range(len(trace))
+                   if holds(f, trace[:n + 1], 0, prefix=True) is not None), None)
+    assert k == forced
+
+
+def test_response_formula_decides_at_the_state_that_closes_the_window():
+    p = Progressor()
+    p.add("always (Speed[car1] > 60 -> eventually[0, 300] Speed[car1] <= 60)")
+    decided = []
+    for t in range(0, 1000, 50):
+        decided += [(t, v) for v in p.step(t, {"Speed[car1]": 70 if t >= 100 else 50})]
+    ((t, verdict),) = decided
+    assert t == 400 and verdict.verdict is False
+    assert "Speed[car1] <= 60 never held within [100, 400]" in verdict.witness
+
+
+def test_end_of_stream_semantics():
+    p = Progressor()
+    for f in ("eventually Q", "next P", "always P", "P until Q", "always[0, 100] P"):
+        p.add(f)
+    assert p.step(0, {"P": True, "Q": False}) == []
+    got = {v.formula: (v.verdict, v.at_end) for v in p.finish()}
+    assert got == {"eventually Q": (False, True), "next P": (False, True),
+                   "always P": (True, True), "P until Q": (False, True),
+                   "always[0, 100] P": (True, True)}
+
+
+def test_times_and_units_are_exact():
+    p = Progressor()
+    p.add("eventually[0.3, 0.3] P")
+    p.add("always[0ms, 250ms] Q")
+    for t, values in ((0.1, {"P": False, "Q": True}), (0.2, {"P": False, "Q": True}),
+                      (0.35, {"P": False, "Q": True}), (0.4, {"P": True, "Q": False})):
+        for v in p.step(t, values):
+            assert (v.formula, v.verdict, v.time) in {("always[0ms, 250ms] Q", True, 0.35),
+                                                     ("eventually[0.3, 0.3] P", True, 0.4)}
+    assert p.finish() == []
+
+
+def test_unknown_values_are_reported_with_their_spans_and_never_as_a_violation():
+    p = Progressor()
+    p.add("always (Speed[car2] > 60 -> eventually[0, 300] Speed[car2] <= 60)")
+    for t in range(0, 600, 100):
+        assert p.step(t, {"Speed[car2]": 70 if t < 200 else None}) == []
+    (v,) = p.finish()
+    assert v.verdict is None and v.at_end
+    assert [(u.feature, u.start, u.end) for u in v.unknown] == [("Speed[car2]", 200, 500)]
+
+
+def test_feature_keys_ignore_whitespace():
+    p = Progressor()
+    p.add("always Close[uav1,uav2]")
+    assert p.step(0, {"Close[uav1, uav2]": False})[0].verdict is False
+
+
+@pytest.mark.parametrize(("steps", "says"), [
+    ([(0, {"P": True}), (0, {"P": True})], "time 0 is not after the previous state's time 0"),
+    ([(0, {"Q": True})], "the state at time 0 has no value for P"),
+    ([(0, {"P": 3})], "P is used as a condition but has the value 3 at time 0"),
+])
+def test_bad_states_are_errors_naming_feature_and_time(steps, says):
+    p = Progressor()
+    p.add("always P")
+    with pytest.raises(DkError, match=says):
+        for t, values in steps:
+            p.step(t, values)
