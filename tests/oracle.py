@@ -98,7 +98,7 @@ def holds(f, tr: Trace, i: int, prefix: bool = False):
         return None if prefix else False
     if isinstance(f, Temporal) and f.op in ("once", "historically"):
         out = f.op == "historically"
-        for j in range(0, i + 1):
+        for j in range(i + 1):
             if inside(t - tr[j][0], f.interval):
                 v = holds(f.arg, tr, j, prefix)
                 out = k_and(out, v) if f.op == "historically" else k_or(out, v)
@@ -116,7 +116,7 @@ def holds(f, tr: Trace, i: int, prefix: bool = False):
         return k_or(out, k_and(None, phi)) if future_open else out
     if isinstance(f, Until) and f.op == "since":
         out = False
-        for j in range(0, i + 1):
+        for j in range(i + 1):
             if inside(t - tr[j][0], f.interval):
                 phi = True
                 for k in range(j + 1, i + 1):

@@ -10,7 +10,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 if TYPE_CHECKING:
     from .manager import KnowledgeManager
@@ -49,6 +49,14 @@ def _build() -> _Parser:
     p.add_argument("--json", action="store_true", help="print the stream request as JSON")
     p.add_argument("formula")
     p.set_defaults(run=_match)
+
+    p = sub.add_parser("progress", help="verdicts of formulas over a JSON-lines state file")
+    p.add_argument("--states", required=True, type=Path,
+                   help='JSON lines: {"time": 0.0, "values": {"P[a]": true, "X[a]": 3.5}}')
+    p.add_argument("--config", type=Path, help="TOML config: quantifiers range over its objects")
+    p.add_argument("--json", action="store_true", help="one JSON line per formula")
+    p.add_argument("formulas", nargs="+", metavar="FORMULA")
+    p.set_defaults(run=_progress)
 
     p = sub.add_parser("explain", help="why each topic matched, or why one did not")
     config(p)
@@ -110,6 +118,39 @@ def _explain(args: argparse.Namespace) -> int:
     else:
         print(explain.to_text(result))
     return 0
+
+
+def _progress(args: argparse.Namespace) -> int:
+    from .progress import Progressor
+    from .progress.states import read_states
+
+    progressor = Progressor.with_knowledge(_km(args)) if args.config else Progressor()
+    for formula in args.formulas:
+        progressor.add(formula)
+    verdicts = []
+
+    def emit(batch: list[Any]) -> None:
+        for v in batch:
+            verdicts.append(v)
+            if args.json:
+                print(json.dumps(v.to_json(), ensure_ascii=False, default=str), flush=True)
+            else:
+                value = {True: "true", False: "FALSE", None: "unknown"}[v.verdict]
+                when = "at end" if v.at_end else "at"
+                print(f"{when} {v.time}: {value}  {v.formula}" +
+                      (f"\n    {v.witness}" if v.witness else ""), flush=True)
+
+    for time, values in read_states(args.states):
+        emit(progressor.step(time, values))
+    emit(progressor.finish())
+    return exit_status([v.verdict for v in verdicts])
+
+
+def exit_status(verdicts: list[bool | None]) -> int:
+    """0: every formula held; 1: one was violated; 3: none violated, one left unknown."""
+    if False in verdicts:
+        return 1
+    return 0 if all(verdicts) else 3
 
 
 def render_text(request: StreamRequest) -> str:

@@ -16,14 +16,11 @@ from ..errors import DkError
 from ..model import Arg, FeatureRef
 from ..parse.formula import (
     ANY,
-    Arith,
     Atom,
     BoolConst,
-    Compare,
     Connective,
     Formula,
     Interval,
-    Neg,
     Not,
     Quant,
     Ref,
@@ -33,8 +30,8 @@ from ..parse.formula import (
 from .nodes import (
     BoolNode,
     Ctx,
-    Node,
     NextNode,
+    Node,
     NotNode,
     PastNode,
     StateNode,
@@ -63,7 +60,7 @@ def expand(f: Formula, objects: Expander | None) -> Formula:
                           f"(give --config)")
         names = list(objects(f.sort))
         body = expand(f.body, objects)
-        parts = [_substitute(body, f.var, name) for name in names]
+        parts: list[Formula] = [_substitute(body, f.var, name) for name in names]
         op = "and" if f.op == "forall" else "or"
         if not parts:
             return BoolConst(op == "and")
@@ -146,5 +143,3 @@ def formula_features(f: Formula) -> list[str]:
     """Every feature key a (quantifier-free) formula reads."""
     return features(f)
 
-
-__all__ = ["Arith", "Compare", "Graph", "Neg", "expand", "formula_features"]

@@ -112,7 +112,8 @@ class StateNode(Node):
     def __init__(self, ctx: Ctx, fn: StateFn, keys: list[str], text: str) -> None:
         super().__init__(ctx)
         self.fn, self.keys, self.text = fn, keys, text
-        self.pos, self.value = -1, None
+        self.pos = -1
+        self.value: Any = None
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         if self.pos != i:

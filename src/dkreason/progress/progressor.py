@@ -30,7 +30,8 @@ class UnknownSpan:
     end: Any
 
     def to_json(self) -> dict[str, Any]:
-        return {"feature": self.feature, "from": self.start, "to": self.end}
+        return {"feature": self.feature, "from": _json_time(self.start),
+                "to": _json_time(self.end)}
 
 
 @dataclass(frozen=True, slots=True)

@@ -27,7 +27,7 @@ from ..parse.formula import (
 )
 
 Value = bool | None
-StateFn = Callable[[Mapping[str, Any]], Value]
+StateFn = Callable[[Mapping[str, Any], Any], Value]  # (values, time)
 
 _CMP = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
         "==": operator.eq, "!=": operator.ne}

@@ -1,0 +1,247 @@
+"""States per second of the Formula Progressor beside rtamt and reelay, on the same traces.
+
+P1 always (X > 10)                      P4 always not (always[0,300] S > 60)
+P2 always (A > 10 and B > C)            P5 always (27-atom conjunction)
+P3 always (P -> eventually[0,10] Q)
+
+Each row runs 1, 10 and 100 formulas of that shape at once (thresholds and windows vary, so
+nothing is shared but the features) over seeded traces with integer times that satisfy every
+formula (no monitor may stop early).  Figures are CPU time, best of ROUNDS runs.  The peers get
+their own hand-written past-time forms (rtamt's pastify() mistranslates P3; reelay is past-time
+only) and, being slower, fewer states per run: the count is printed with each figure.  Reelay's
+atoms compare a field with a constant only, so its P2 trace carries D = B - C precomputed.
+
+Last, memory over a 1,000,000-state run of P3 (bounded windows): traced memory after 10%, 50%
+and 100% of the states.
+
+    python -m benchmarks.bench_progress [--json] [--states N]   (peers: pip install rtamt reelay)
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import random
+import time
+import tracemalloc
+from collections.abc import Callable
+from typing import Any
+
+from dkreason.progress import Progressor
+
+ROUNDS = 3
+TARGET_RTAMT = 10.0  # at least 10x rtamt on every row
+PEER_BUDGET = 0.6  # seconds of peer work per run, to size their traces
+
+
+def formulas(kind: str, n: int) -> list[str]:
+    out = []
+    for k in range(n):
+        c = 10 - k / 10
+        if kind == "P1":
+            out.append(f"always (X > {c})")
+        elif kind == "P2":
+            out.append(f"always (A > {c} and B > C)")
+        elif kind == "P3":
+            out.append(f"always (P -> eventually[0,{10 + k}] Q)")
+        elif kind == "P4":
+            out.append(f"always not (always[0,{300 + k}] S > 60)")
+        else:
+            out.append("always (" + " and ".join(f"X{i} > {c}" for i in range(27)) + ")")
+    return out
+
+
+def rtamt_specs(kind: str, n: int) -> list[tuple[str, list[str]]]:
+    out = []
+    for k in range(n):
+        c = 10 - k / 10
+        if kind == "P1":
+            out.append((f"historically(x > {c})", ["x"]))
+        elif kind == "P2":
+            out.append((f"historically(a > {c} and b > c)", ["a", "b", "c"]))
+        elif kind == "P3":
+            w = 10 + k
+            out.append((f"historically((once[{w},{w}] (p > 0)) -> once[0,{w}] (q > 0))",
+                        ["p", "q"]))
+        elif kind == "P4":
+            out.append((f"historically(not(historically[0,{300 + k}](spd > 60)))", ["spd"]))
+        else:
+            out.append(("historically(" + " and ".join(f"x{i} > {c}" for i in range(27)) + ")",
+                        [f"x{i}" for i in range(27)]))
+    return out
+
+
+def reelay_specs(kind: str, n: int) -> list[str]:
+    out = []
+    for k in range(n):
+        c = 10 - k / 10
+        if kind == "P1":
+            out.append(f"historically{{x > {c}}}")
+        elif kind == "P2":
+            out.append(f"historically({{a > {c}}} and {{d > 0}})")
+        elif kind == "P3":
+            w = 10 + k
+            out.append(f"historically((once[{w}:{w}]{{p}}) -> once[0:{w}]{{q}})")
+        elif kind == "P4":
+            out.append(f"historically(not (historically[0:{300 + k}]{{spd > 60}}))")
+        else:
+            out.append("historically(" + " and ".join(f"{{x{i} > {c}}}" for i in range(27)) + ")")
+    return out
+
+
+def peer_name(feature: str) -> str:
+    """Peers' variable names: lower case, and S is `spd` (`s` is a time unit in rtamt)."""
+    return "spd" if feature == "S" else feature.lower()
+
+
+def trace(kind: str, n: int, seed: int = 7) -> list[dict[str, Any]]:
+    """Seeded states that satisfy every formula of the row."""
+    rnd = random.Random(seed)
+    out: list[dict[str, Any]] = []
+    last_q = 0
+    for t in range(n):
+        if kind == "P1":
+            out.append({"X": rnd.uniform(11, 20)})
+        elif kind == "P2":
+            c = rnd.uniform(0, 10)
+            out.append({"A": rnd.uniform(11, 20), "B": c + rnd.uniform(0.1, 5), "C": c})
+        elif kind == "P3":
+            q = rnd.random() < 0.3 or t - last_q >= 8
+            last_q = t if q else last_q
+            out.append({"P": rnd.random() < 0.5, "Q": q})
+        elif kind == "P4":
+            out.append({"S": 70 if (t // 150) % 2 else 50})
+        else:
+            out.append({f"X{i}": rnd.uniform(11, 20) for i in range(27)})
+    return out
+
+
+def best(fn: Callable[[], int]) -> tuple[float, int]:
+    """(states per CPU second, states) of the best of ROUNDS runs."""
+    rates = []
+    for _ in range(ROUNDS):
+        gc.collect()
+        start = time.process_time()
+        states = fn()
+        rates.append(states / max(time.process_time() - start, 1e-9))
+    return max(rates), states
+
+
+def ours(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float, int]:
+    def run() -> int:
+        p = Progressor()
+        for f in formulas(kind, n):
+            p.add(f)
+        step = p.step
+        for t, values in enumerate(states):
+            if step(t, values):
+                raise AssertionError("a benchmark formula was decided early")
+        return len(states)
+    return best(run)
+
+
+def with_rtamt(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float, int] | None:
+    try:
+        import rtamt
+    except ImportError:
+        return None
+    specs = []
+    for text, variables in rtamt_specs(kind, n):
+        spec = rtamt.StlDiscreteTimeSpecification()
+        for v in variables:
+            spec.declare_var(v, "float")
+        spec.spec = text
+        spec.parse()
+        specs.append((spec, variables))
+    rows = [[(peer_name(k), float(v)) for k, v in s.items()] for s in states]
+
+    def run() -> int:
+        for t, row in enumerate(rows):
+            for spec, _ in specs:
+                spec.update(t, row)
+        return len(rows)
+    return best(run)
+
+
+def with_reelay(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float, int] | None:
+    try:
+        import reelay
+    except ImportError:
+        return None
+    monitors = [reelay.discrete_timed_monitor(pattern=p) for p in reelay_specs(kind, n)]
+    rows = []
+    for t, s in enumerate(states):
+        row = {peer_name(k): v for k, v in s.items()}
+        if kind == "P2":
+            row["d"] = row["b"] - row["c"]
+        row["time"] = t
+        rows.append(row)
+
+    def run() -> int:
+        for row in rows:
+            for m in monitors:
+                m.update(row)
+        return len(rows)
+    return best(run)
+
+
+def memory(states: int) -> list[tuple[int, int]]:
+    """Traced memory (bytes) after 10%, 50% and 100% of a P3 run."""
+    rows = trace("P3", 20_000)
+    p = Progressor()
+    p.add(formulas("P3", 1)[0])
+    marks, out = {states // 10, states // 2, states}, []
+    tracemalloc.start()
+    try:
+        for t in range(states):
+            p.step(t, rows[t % len(rows)] if t % len(rows) or t == 0 else {"P": False, "Q": True})
+            if t + 1 in marks:
+                out.append((t + 1, tracemalloc.get_traced_memory()[0]))
+    finally:
+        tracemalloc.stop()
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--states", type=int, default=100_000)
+    parser.add_argument("--memory-states", type=int, default=1_000_000)
+    args = parser.parse_args()
+    results = []
+    for kind in ("P1", "P2", "P3", "P4", "P5"):
+        full = trace(kind, args.states)
+        for n in (1, 10, 100):
+            mine, count = ours(kind, n, full[: max(args.states // n, 1000)])
+            row: dict[str, Any] = {"row": kind, "formulas": n, "ours": round(mine),
+                                   "ours_states": count}
+            for name, runner, cost in (("rtamt", with_rtamt, 100e-6), ("reelay", with_reelay,
+                                                                          1.5e-6)):
+                peer_states = max(200, min(len(full), int(PEER_BUDGET / (cost * n))))
+                got = runner(kind, n, full[:peer_states])
+                if got is not None:
+                    row[name], row[f"{name}_states"] = round(got[0]), got[1]
+                    row[f"x_{name}"] = round(mine / got[0], 2)
+            results.append(row)
+    mem = memory(args.memory_states)
+    if args.json:
+        print(json.dumps({"rows": results, "memory": mem}, indent=1))
+        return
+    print("states/s (CPU, best of 3); ours/peer ratio; [states per run]")
+    print(f"{'row':<4}{'n':>4}{'dkreason':>12}{'rtamt':>10}{'x rtamt':>9}{'reelay':>11}"
+          f"{'x reelay':>10}  target")
+    for r in results:
+        ok_rtamt = r.get("x_rtamt", TARGET_RTAMT) >= TARGET_RTAMT
+        ok_reelay = r["row"] == "P5" or r.get("x_reelay", 1.0) >= 1.0
+        verdict = "met" if ok_rtamt and ok_reelay else "MISSED"
+        print(f"{r['row']:<4}{r['formulas']:>4}{r['ours']:>12,}{r.get('rtamt', 0):>10,}"
+              f"{r.get('x_rtamt', '-'):>9}{r.get('reelay', 0):>11,}{r.get('x_reelay', '-'):>10}"
+              f"  {verdict}  [{r['ours_states']:,} / {r.get('rtamt_states', '-')} / "
+              f"{r.get('reelay_states', '-')}]")
+    print("memory of P3 over a long run (states: traced bytes): " +
+          ", ".join(f"{n:,}: {b:,}" for n, b in mem))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,76 @@
+"""`dkreason progress`: the thesis formulas over a state file, JSON lines, exit status."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from dkreason.cli import main
+
+from .conftest import SCENARIOS, formulas, needs_scenarios
+
+STATES = Path(__file__).parent / "data" / "thesis-states.jsonl"
+
+# Hand check of tests/data/thesis-states.jsonl (times 0, 1.5, 3, 4, 5):
+# F1 needs Altitude[uav1] > Altitude[uav2]: 90 > 100 fails at time 3.
+# F2 needs every UAV speed above every car speed: Speed[uav2] = 56 < Speed[car3] = 57 at 5.
+# F3 needs Close[uav1, x] for x in {uav1, uav2}: Close[uav1, uav2] is false at 4.
+HAND_CHECK = {"F1": (False, 3), "F2": (False, 5), "F3": (False, 4)}
+
+
+def run(capsys, *argv: str) -> tuple[int, list[dict]]:
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, [json.loads(line) for line in out.out.splitlines()]
+
+
+@needs_scenarios
+@pytest.mark.parametrize("spelling", ["", "-ascii"])
+def test_thesis_formulas_give_the_hand_checked_verdicts(capsys, spelling):
+    assert SCENARIOS is not None
+    table = formulas()
+    argv = [table[f"{name}{spelling}"] for name in HAND_CHECK]
+    code, lines = run(capsys, "progress", "--states", str(STATES), "--config",
+                      str(SCENARIOS / "single.toml"), "--json", *argv)
+    assert code == 1
+    got = {line["formula"]: (line["verdict"], line["time"]) for line in lines}
+    assert got == {argv[n]: HAND_CHECK[name] for n, name in enumerate(HAND_CHECK)}
+    assert all(line["at_end"] is False for line in lines)
+
+
+def test_one_line_per_formula_argument_and_exit_status(capsys, tmp_path: Path):
+    states = tmp_path / "s.jsonl"
+    states.write_text('{"time": 0, "values": {"P": true, "X": 1}}\n'
+                      '{"time": 2.5, "values": {"P": false, "X": null}}\n')
+    code, lines = run(capsys, "progress", "--states", str(states), "--json",
+                      "eventually P", "eventually P", "always (X > 0)")
+    assert code == 3  # nothing violated, one unknown
+    assert [line["formula"] for line in lines] == ["eventually P", "eventually P",
+                                                   "always (X > 0)"]
+    assert lines[0] == {"formula": "eventually P", "verdict": True, "time": 0,
+                        "at_end": False, "witness": None}
+    assert lines[2]["verdict"] is None and lines[2]["at_end"] is True
+    assert lines[2]["time"] == 2.5
+    assert lines[2]["unknown"] == [{"feature": "X", "from": 2.5, "to": 2.5}]
+
+
+@pytest.mark.parametrize(("content", "says"), [
+    ('{"time": 0, "values": {"P": true}}\n{"time": 1, "values": \n', "s.jsonl:2:"),
+    ('{"time": 0}\n', 's.jsonl:1: expected {"time": …, "values": {…}}'),
+    ('{"time": 0, "values": {"Q": true}}\n', "the state at time 0 has no value for P"),
+])
+def test_bad_state_files_are_one_line_errors(capsys, tmp_path: Path, content, says):
+    states = tmp_path / "s.jsonl"
+    states.write_text(content)
+    code = main(["progress", "--states", str(states), "always P"])
+    out = capsys.readouterr()
+    assert code == 2 and out.err.count("\n") == 1 and says in out.err
+
+
+def test_quantifiers_need_a_knowledge_base(capsys, tmp_path: Path):
+    states = tmp_path / "s.jsonl"
+    states.write_text('{"time": 0, "values": {}}\n')
+    code = main(["progress", "--states", str(states), "forall x in UAV: Speed[x] > 1"])
+    assert code == 2 and "needs a knowledge base" in capsys.readouterr().err
