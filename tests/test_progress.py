@@ -193,3 +193,33 @@ def test_bad_states_are_errors_naming_feature_and_time(steps, says):
     with pytest.raises(DkError, match=says):
         for t, values in steps:
             p.step(t, values)
+
+
+families = st.tuples(atoms, atoms, st.integers(0, 2), st.lists(
+    st.one_of(st.integers(0, 5).map(str), st.just("oo")), min_size=1, max_size=4)).map(
+    lambda p: [f"always (({p[0]}) -> eventually[{p[2]}, {max(int(h), p[2]) if h != 'oo' else h}]"
+               f" ({p[1]}))" for h in p[3]])
+
+
+@SETTINGS
+@given(st.lists(st.one_of(formulas(), single), max_size=4), families, traces())
+def test_formulas_sharing_one_progressor_each_keep_their_own_semantics(others, family, trace):
+    batch = [*others, *family]
+    p = Progressor()
+    for f in batch:
+        p.add(f)
+    decided: dict[int, tuple[bool | None, int | None]] = {}
+    for k, (t, values) in enumerate(trace):
+        for v in p.step(t, values):
+            n = next(i for i, f in enumerate(batch) if f == v.formula and i not in decided)
+            decided[n] = (v.verdict, k)
+    for v in p.finish():
+        n = next(i for i, f in enumerate(batch) if f == v.formula and i not in decided)
+        decided[n] = (v.verdict, None)
+    assert sorted(decided) == list(range(len(batch)))
+    for n, f in enumerate(batch):
+        verdict, k = decided[n]
+        parsed = parse_formula(f)
+        assert verdict == holds(parsed, trace, 0), f
+        if k is not None:
+            assert verdict == holds(parsed, trace[:k + 1], 0), f

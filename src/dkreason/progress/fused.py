@@ -1,14 +1,16 @@
-"""Generated code for the shapes monitors run most: one Python function per formula.
+"""Generated code for the shapes monitors run most, all of a progressor's in one function.
 
-    always S                                   (an invariant over a state formula S)
-    always (A -> eventually[a, b] B)           (response; also `not A or …`, A = true, and
-    always not always[a, b] S ≡ always eventually[a, b] not S)
+    always S                                   an invariant over a state formula S
+    always (A -> eventually[a, b] B)           a response (also `not A or …`, A = true, and
+                                               always not always[a, b] S ≡ always eventually[a, b] not S)
 
-A, B and S are temporal-free.  The generated step reads its features once, evaluates them on a
-two-valued fast path when all are known (Kleene otherwise), and keeps the response's waiting
-positions in a deque: a B at time t settles every waiting position whose window holds t, and a
-window closes at the state reaching its end — the same decisions as the general engine
-(nodes.py), checked against the same offline semantics in the tests, several times faster.
+A, B and S are temporal-free.  The generated step reads every feature once and evaluates each
+distinct state formula once (two-valued fast path, Kleene fallback), so formulas share their
+subterms.  Responses that differ only in their window end share one queue of waiting positions
+(`Group`): a B at time t settles every waiting position whose window holds t, a window closes at
+the state reaching its end, and with members sorted by window end each check is amortised O(1)
+however many formulas share the group.  The decisions are those of the general engine
+(nodes.py), checked against the same offline semantics in the tests.
 """
 
 from __future__ import annotations
@@ -24,12 +26,13 @@ from .nodes import Time, Why, fmt
 from .state import _boolean_keys, _py, evaluate, features, is_state, render
 
 TRUE = BoolConst(True)
+INF = float("inf")
 
 
 @dataclass(frozen=True, slots=True)
 class Shape:
     kind: str  # "invariant" | "response"
-    a: Formula  # trigger (response) or the invariant itself
+    a: Formula  # the invariant, or the response's trigger
     b: Formula | None = None
     lo: Time = 0
     hi: Time | None = None
@@ -56,31 +59,25 @@ def shape(f: Formula) -> Shape | None:
     return None
 
 
-class Fused:
-    """A formula compiled to one generated step function.
+class Member:
+    """One fused formula: its shape and how to report it."""
 
-    `on_false(time, why)` and `on_unknown()` are called by the generated code; `finish()`
-    settles what the end of the stream leaves open."""
-
-    def __init__(self, s: Shape, on_false: Callable[[Why], None],
-                 on_unknown: Callable[[list[str], Any], None]) -> None:
-        self.shape = s
-        self.pending: deque[list[Any]] = deque()
+    def __init__(self, s: Shape, on_false: Callable[[Why], None]) -> None:
+        self.shape, self.on_false = s, on_false
+        self.hi: Time | float = INF if s.hi is None else s.hi
         self.unknown = False
-        self._on_false, self._on_unknown = on_false, on_unknown
-        self.step = _generate(s, self)
+        self.done = False
 
-    # called from generated code -----------------------------------------------------
+    def fail(self, why: Why) -> None:
+        self.done = True
+        self.on_false(why)
+
     def fail_now(self, t: Time, values: dict[str, Any]) -> None:
-        s = self.shape
-        shown = ", ".join(f"{k} = {values[k]}" for k in features(s.a))
-        self._on_false(Why(render(s.a), t, f"was false at {fmt(t)}" +
-                           (f" ({shown})" if shown else "")))
+        shown = ", ".join(f"{k} = {values[k]}" for k in features(self.shape.a))
+        self.fail(Why(render(self.shape.a), t, f"was false at {fmt(t)}" +
+                      (f" ({shown})" if shown else "")))
 
-    def expire(self, ti: Time, weak: bool) -> None:
-        if weak:
-            self.unknown = True
-            return
+    def expire(self, ti: Time) -> None:
         s = self.shape
         assert s.b is not None
         within = f"[{fmt(ti + s.lo)}, {fmt(None if s.hi is None else ti + s.hi)}]"
@@ -90,124 +87,208 @@ class Fused:
             text, detail = render(s.b), f"never held within {within}"
         if s.a != TRUE:
             text = f"{render(s.a)} held at {fmt(ti)}, but {text}"
-        self._on_false(Why(text, ti, detail))
-
-    def note_unknown(self, values: dict[str, Any], keys: list[str]) -> None:
-        self._on_unknown([k for k in keys if values[k] is None], values)
-
-    def finish(self) -> bool | None:
-        """The verdict at the end of the stream (False also reported through on_false)."""
-        while self.pending:
-            ti, weak = self.pending.popleft()
-            if not weak:
-                self.expire(ti, weak)
-                return False
-            self.unknown = True
-        return None if self.unknown else True
+        self.fail(Why(text, ti, detail))
 
 
-def _evaluation(f: Formula, var: str, names: dict[str, str], consts: list[Formula],
-                indent: str) -> str:
-    """Code assigning f's Kleene value to `var`: fast two-valued path, slow fallback."""
-    mine = features(f)
-    bools = _boolean_keys(f)
-    known = " and ".join(f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None"
-                         for k in mine) or "True"
-    return (f"{indent}if {known}:\n{indent}    {var} = {_py(f, names)}\n"
-            f"{indent}else:\n{indent}    {var} = slow(consts[{len(consts)}], v, t)\n"
-            f"{indent}    self.note_unknown(v, {mine!r})\n")
+class Group:
+    """Responses with the same trigger, target and window start: one queue of waiting
+    positions [time, weak] (weak: a failure there is unknown, not false), members sorted by
+    window end; `unknown_upto` members (a prefix) have seen a weak window close."""
+
+    def __init__(self, lo: Time) -> None:
+        self.lo = lo
+        self.members: list[Member] = []
+        self.pending: deque[list[Any]] = deque()
+        self.n_weak = 0
+        self.unknown_upto = 0
+
+    def add(self, m: Member) -> None:
+        self.members.append(m)
+        self.members.sort(key=lambda x: x.hi)
+        self.unknown_upto = 0
+        for member in self.members:
+            if not member.unknown:
+                break
+            self.unknown_upto += 1
+
+    def _oldest(self, weak: bool) -> Time | None:
+        if weak and not self.n_weak:
+            return None
+        for ti, w in self.pending:
+            if w is weak:
+                return ti
+        return None
+
+    def _expire(self, t: Time, closing: bool) -> bool:
+        """Members whose window over the oldest strong (weak) position ended before t — or at
+        t when `closing` — fail (turn unknown).  Returns whether one failed."""
+        members, failed = self.members, False
+        strong = self._oldest(False)
+        if strong is not None:
+            while members and (t - strong > members[0].hi or
+                               (closing and t - strong == members[0].hi)):
+                members.pop(0).expire(strong)
+                self.unknown_upto = max(self.unknown_upto - 1, 0)
+                failed = True
+        weak = self._oldest(True)
+        if weak is not None:
+            while self.unknown_upto < len(members) and (
+                    t - weak > members[self.unknown_upto].hi or
+                    (closing and t - weak == members[self.unknown_upto].hi)):
+                members[self.unknown_upto].unknown = True
+                self.unknown_upto += 1
+        return failed
+
+    def step(self, t: Time, a: bool | None, b: bool | None) -> bool:
+        """One state: a and b are the trigger's and target's values.  Returns whether a member
+        was decided (false).  Fast path when every value is known; `_general` otherwise."""
+        if self.n_weak or a is None or b is None:
+            return self._general(t, a, b)
+        pending, members, lo = self.pending, self.members, self.lo
+        failed = False
+        if pending:
+            if t - pending[0][0] > members[0].hi:
+                failed = self._expire(t, closing=False)
+            if b:
+                if lo == 0:
+                    pending.clear()
+                else:
+                    while pending and pending[0][0] <= t - lo:
+                        pending.popleft()
+            if pending and members:
+                if t - pending[0][0] >= members[0].hi:
+                    failed = self._expire(t, closing=True) or failed
+                widest = members[-1].hi if members else -1
+                while pending and t - pending[0][0] >= widest:
+                    pending.popleft()
+        if a and not (b and lo == 0) and members:
+            pending.append([t, False])
+            if members[0].hi == 0:
+                failed = self._expire(t, closing=True) or failed
+                while pending and members and t - pending[0][0] >= members[-1].hi:
+                    pending.popleft()
+        return failed
+
+    def _general(self, t: Time, a: bool | None, b: bool | None) -> bool:
+        pending, lo = self.pending, self.lo
+        failed = self._expire(t, closing=False) if pending else False
+        if pending and b is not False:
+            if b is True:
+                while pending and pending[0][0] <= t - lo:
+                    self.n_weak -= pending.popleft()[1]
+            else:
+                for e in pending:
+                    if e[0] > t - lo:
+                        break
+                    if not e[1]:
+                        e[1] = True
+                        self.n_weak += 1
+        if pending:
+            failed = self._expire(t, closing=True) or failed
+            widest = self.members[-1].hi if self.members else -1
+            while pending and t - pending[0][0] >= widest:  # closed for every member
+                self.n_weak -= pending.popleft()[1]
+        if a is not False and not (lo == 0 and b is True) and self.members:
+            pending.append([t, a is None or (lo == 0 and b is None)])
+            self.n_weak += pending[-1][1]
+            if self.members[0].hi == 0:
+                failed = self._expire(t, closing=True) or failed
+                while pending and self.members and t - pending[0][0] >= self.members[-1].hi:
+                    self.n_weak -= pending.popleft()[1]
+        return failed
+
+    def finish(self) -> None:
+        """End of stream: a waiting position fails every member (unknown if weak)."""
+        strong, weak = self._oldest(False), self._oldest(True)
+        for m in self.members:
+            if strong is not None:
+                m.expire(strong)
+            elif weak is not None:
+                m.unknown = True
+        self.members = [m for m in self.members if not m.done]
 
 
-def _generate(s: Shape, self: Fused) -> Callable[[Time, dict[str, Any]], bool]:
-    """Source for `step(t, v) -> still running?`, compiled once per formula."""
-    keys = features(s.a) + [k for k in (features(s.b) if s.b is not None else [])
-                            if k not in features(s.a)]
+class FusedSet:
+    """Every fused formula of a progressor, run by one generated step function."""
+
+    def __init__(self, on_unknown: Callable[[list[str]], None]) -> None:
+        self.members: list[Member] = []
+        self.on_unknown = on_unknown
+        self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
+        self._step: Callable[[Time, Any], bool] | None = None
+
+    def add(self, s: Shape, on_false: Callable[[Why], None]) -> Member:
+        m = Member(s, on_false)
+        self.members.append(m)
+        if s.kind == "response":
+            assert s.b is not None
+            self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo)).add(m)
+        self._step = None
+        return m
+
+    def step(self, t: Time, values: Any) -> bool:
+        """Run one state; True when some member was decided (the code is then regenerated)."""
+        if self._step is None:
+            self.members = [m for m in self.members if not m.done]
+            self.groups = {k: g for k, g in self.groups.items() if g.members}
+            self._step = _generate(self) if self.members else (lambda t, v: False)
+        if self._step(t, values):
+            self._step = None
+            return True
+        return False
+
+    def finish(self) -> None:
+        for g in self.groups.values():
+            g.finish()
+
+    def note_unknown(self, values: Any, keys: list[str]) -> None:
+        self.on_unknown([k for k in keys if values[k] is None])
+
+
+def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
+    """Source of `step(t, v) -> decided?` for the current members, compiled once."""
+    formulas: dict[Formula, str] = {}
+    for m in fs.members:
+        if not m.done:
+            for f in (m.shape.a, m.shape.b):
+                if f is not None and f != TRUE:
+                    formulas.setdefault(f, f"e{len(formulas)}")
+    keys = list(dict.fromkeys(k for f in formulas for k in features(f)))
     names = {k: f"x{i}" for i, k in enumerate(keys)}
-    consts: list[Formula] = []
+    consts: list[Any] = []
 
-    def evaluation(f: Formula, var: str) -> str:
-        code = _evaluation(f, var, names, consts, "    ")
-        consts.append(f)
-        return code
+    def const(value: Any) -> str:
+        consts.append(value)
+        return f"C[{len(consts) - 1}]"
 
-    reads = "".join(f"    {names[k]} = v[{k!r}]\n" for k in keys)
-    lines = [f"def step(t, v):\n{reads}"]
-    if s.kind == "invariant":
-        mine = features(s.a)
-        bools = _boolean_keys(s.a)
+    lines = ["def step(t, v):"]
+    lines += [f"    {names[k]} = v[{k!r}]" for k in keys]
+    for f, var in formulas.items():
+        mine, bools = features(f), _boolean_keys(f)
         known = " and ".join(f"type({names[k]}) is bool" if k in bools else
                              f"{names[k]} is not None" for k in mine) or "True"
-        lines.append(f"""    if {known}:
-        if {_py(s.a, names)}:
-            return True
-        self.fail_now(t, v)
-        return False
-    r = slow(consts[0], v, t)
-    self.note_unknown(v, {mine!r})
-    if r is False:
-        self.fail_now(t, v)
-        return False
-    if r is None:
-        self.unknown = True
-    return True
-""")
-        consts.append(s.a)
-    else:
-        assert s.b is not None
-        lo, hi = s.lo, s.hi
-        lines.append(evaluation(s.b, "b"))
-        expired = "False" if hi is None else f"t - e[0] > {hi!r}"
-        ends_now = "False" if hi is None else f"e[0] + {hi!r} <= t"
-        lines.append(f"""    pending = self.pending
-    while pending:
-        e = pending[0]
-        if {expired}:
-            pending.popleft()
-            if not e[1]:
-                self.expire(e[0], False)
-                return False
-            self.unknown = True
-            continue
-        break
-    if pending and b is not False:
-        if b is True:
-            while pending and pending[0][0] <= t - {lo!r}:
-                pending.popleft()
-        else:
-            for e in pending:
-                if e[0] > t - {lo!r}:
-                    break
-                e[1] = True
-    while pending:
-        e = pending[0]
-        if {ends_now}:
-            pending.popleft()
-            if not e[1]:
-                self.expire(e[0], False)
-                return False
-            self.unknown = True
-            continue
-        break
-""")
-        if s.a == TRUE:
-            lines.append("    a = True\n")
-        else:
-            lines.append(evaluation(s.a, "a"))
-        now_satisfies = "b is True" if lo == 0 else "False"
-        closes_now = "True" if hi == 0 else "False"
-        lines.append(f"""    if a is not False and not ({now_satisfies}):
-        weak = a is None or ({'b is None' if lo == 0 else 'False'})
-        if {closes_now}:
-            if not weak:
-                self.expire(t, False)
-                return False
-            self.unknown = True
-        else:
-            pending.append([t, weak])
-    return True
-""")
-    source = "".join(lines)
-    scope: dict[str, Any] = {"self": self, "slow": evaluate, "consts": consts}
-    exec(compile(source, f"<fused {s.kind}>", "exec"), scope)  # noqa: S102 - our own code
-    step: Callable[[Time, dict[str, Any]], bool] = scope["step"]
+        lines += [f"    if {known}:", f"        {var} = {_py(f, names)}", "    else:",
+                  f"        {var} = slow({const(f)}, v, t)",
+                  f"        fs.note_unknown(v, {mine!r})"]
+    lines.append("    decided = False")
+
+    def value(f: Formula) -> str:
+        return "True" if f == TRUE else formulas[f]
+
+    for m in fs.members:
+        if m.shape.kind == "invariant" and not m.done:
+            var, me = value(m.shape.a), const(m)
+            lines += [f"    if {var} is not True:",
+                      f"        if {var} is False:",
+                      f"            {me}.fail_now(t, v)",
+                      "            decided = True",
+                      "        else:",
+                      f"            {me}.unknown = True"]
+    for (a, b, _), group in fs.groups.items():
+        lines += [f"    if {const(group.step)}(t, {value(a)}, {value(b)}):",
+                  "        decided = True"]
+    lines.append("    return decided")
+    scope: dict[str, Any] = {"fs": fs, "slow": evaluate, "C": consts}
+    exec(compile("\n".join(lines) + "\n", "<fused monitors>", "exec"), scope)  # noqa: S102
+    step: Callable[[Time, Any], bool] = scope["step"]
     return step

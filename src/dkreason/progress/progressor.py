@@ -10,7 +10,7 @@ stream allows, never retracted.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from decimal import Decimal
 from fractions import Fraction
@@ -19,7 +19,7 @@ from typing import Any
 from ..errors import DkError
 from ..parse.formula import parse_formula
 from .compile import Expander, Graph, expand, formula_features
-from .fused import Fused, shape
+from .fused import FusedSet, Member, shape
 from .nodes import PENDING, Time, Why, fmt, why_of
 
 
@@ -93,7 +93,7 @@ class _Monitor:
         self.first: Any = None  # time of the first state it judged
         self.graph: Graph | None = None
         self.node: Any = None
-        self.fused: Fused | None = None
+        self.member: Member | None = None
         self.decided: list[_Monitor] = []  # the progressor's list of monitors to report
 
     def start(self, t: Time) -> None:
@@ -114,7 +114,7 @@ class Progressor:
     def __init__(self, objects: Expander | None = None) -> None:
         self.objects = objects
         self.monitors: list[_Monitor] = []
-        self.running: list[Callable[[Time, Any], bool]] = []  # fused steps still undecided
+        self.fused = FusedSet(self._note_unknowns)
         self.unstarted: list[_Monitor] = []
         self.decided: list[_Monitor] = []
         self.graphs: list[Graph] = []
@@ -145,8 +145,7 @@ class Progressor:
         monitor.decided = self.decided
         fused_shape = shape(parsed)
         if fused_shape is not None:
-            monitor.fused = Fused(fused_shape, monitor.false, self._note_unknowns)
-            self.running.append(monitor.fused.step)
+            monitor.member = self.fused.add(fused_shape, monitor.false)
         else:
             if not self.graphs or self.graphs[-1].ctx.pos >= 0:
                 graph = Graph()
@@ -171,15 +170,12 @@ class Progressor:
         if self.unstarted:
             for m in self.unstarted:
                 m.started, m.first = True, t
-        done = 0
-        try:  # a fused step reads all its features before it changes anything
-            for fused_step in self.running:
-                fused_step(t, values)
-                done += 1
-        except KeyError:
-            values = self._rekeyed(values, time)
-            for fused_step in self.running[done:]:
-                fused_step(t, values)
+        if self.fused.members:
+            try:  # the fused step reads all its features before it changes anything
+                self.fused.step(t, values)
+            except KeyError:
+                values = self._rekeyed(values, time)
+                self.fused.step(t, values)
         for graph in self.graphs:
             ctx = graph.ctx
             if ctx.pos < 0:
@@ -194,8 +190,6 @@ class Progressor:
             self.unstarted = []
         if not self.decided:
             return []
-        self.running = [m.fused.step for m in self.monitors
-                        if m.fused is not None and m.value is PENDING]
         return self._decided(at_end=False)
 
     def _rekeyed(self, values: Mapping[str, Any], time: Any) -> dict[str, Any]:
@@ -211,16 +205,15 @@ class Progressor:
         for graph in self.graphs:
             for node in sorted(set(graph.cache.values()), key=lambda n: n.level):
                 node.finish()
+        self.fused.finish()
         for m in self.monitors:
             if m.value is not PENDING:
                 continue
             if not m.started:
                 m.deliver(None, None, None)
-            elif m.fused is not None:
-                verdict = m.fused.finish()
-                if verdict is not False:  # False came through on_false already
-                    m.deliver(None, verdict, None)
-        self.running = []
+            elif m.member is not None:
+                m.deliver(None, None if m.member.unknown else True, None)
+        self.fused.members = []
         return self._decided(at_end=True)
 
     def _decided(self, at_end: bool) -> list[Verdict]:
@@ -237,7 +230,7 @@ class Progressor:
             m.reported = True
             witness = None
             if m.value is False and m.why is not None:
-                if m.fused is not None:  # the fused step names the failing part only
+                if m.member is not None:  # the fused step names the failing part only
                     witness = Why(m.text, m.first, f"is false at {fmt(m.first)}",
                                   m.why).render()
                 else:  # the root node's reason, with the formula as the user wrote it
@@ -252,7 +245,7 @@ class Progressor:
             out.append(Verdict(m.text, m.value, self.last_input, at_end, witness, unknown))
         return out
 
-    def _note_unknowns(self, keys: list[str], values: Any) -> None:
+    def _note_unknowns(self, keys: list[str]) -> None:
         for k in keys:
             self._note_unknown(k)
 
