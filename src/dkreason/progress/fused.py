@@ -1,8 +1,9 @@
 """Generated code for the shapes monitors run most, all of a progressor's in one function.
 
     always S                                   an invariant over a state formula S
-    always (A -> eventually[a, b] B)           a response (also `not A or …`, A = true, and
-                                               always not always[a, b] S ≡ always eventually[a, b] not S)
+    always (A -> eventually[a, b] B)           a response (also `not A or …`, A = true,
+                                               and always not always[a, b] S, which is
+                                               always eventually[a, b] not S)
 
 A, B and S are temporal-free.  The generated step reads every feature once and evaluates each
 distinct state formula once (two-valued fast path, Kleene fallback), so formulas share their
@@ -116,7 +117,8 @@ class Group:
             return None
         for ti, w in self.pending:
             if w is weak:
-                return ti
+                found: Time = ti
+                return found
         return None
 
     def _expire(self, t: Time, closing: bool) -> bool:
