@@ -11,10 +11,18 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
 	touch $(STAMP)
 
-demo: $(STAMP)
-	$(BIN)/dkreason match --config examples/federation.toml \
-	    "forall x in UAV, y in Car: always (Altitude[x] > 10 and Speed[x] > Speed[y])"
-	$(BIN)/dkreason specs list --config examples/federation.toml
+RECORDING := examples/traffic/recording
+SPEEDING := forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)
+
+# The traffic example (thesis 1.2): platform 2's data reveals car2's violation (exit status 1).
+demo: $(STAMP) $(RECORDING)/metadata.yaml
+	$(BIN)/dkreason match --config examples/federation.toml "$(SPEEDING)"
+	$(BIN)/dkreason monitor --config examples/federation.toml --source $(RECORDING) --delay 0.1 \
+	    --plot examples/traffic/monitor.png "$(SPEEDING)" || test $$? -eq 1
+
+$(RECORDING)/metadata.yaml: examples/traffic/simulate.py $(STAMP)
+	rm -rf $(RECORDING)
+	$(BIN)/python examples/traffic/simulate.py $(RECORDING)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -10,7 +10,10 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from fractions import Fraction
 from typing import TYPE_CHECKING, Any, NoReturn
+
+from .errors import DkError
 
 if TYPE_CHECKING:
     from .manager import KnowledgeManager
@@ -25,7 +28,6 @@ class _Parser(argparse.ArgumentParser):
 def main(argv: Sequence[str] | None = None) -> int:
     parser = _build()
     args = parser.parse_args(argv)
-    from .errors import DkError
 
     try:
         code: int = args.run(args)
@@ -57,6 +59,30 @@ def _build() -> _Parser:
     p.add_argument("--json", action="store_true", help="one JSON line per formula")
     p.add_argument("formulas", nargs="+", metavar="FORMULA")
     p.set_defaults(run=_progress)
+
+    p = sub.add_parser("monitor", help="verdicts of formulas over a robot recording")
+    config(p)
+    p.add_argument("--source", required=True, type=Path,
+                   help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages")
+    p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
+                   help="pkg/msg/Name.msg definitions for recordings that carry none")
+    p.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
+    p.add_argument("--plot", type=Path, help="draw features, verdicts and violations (PNG)")
+    p.add_argument("--period", type=_seconds, help="state every PERIOD s (default: on change)")
+    p.add_argument("--deviation", type=_seconds, default=Fraction(0),
+                   help="allowed sample period deviation (s)")
+    p.add_argument("--approximation", choices=("recent", "none"), default="recent")
+    p.add_argument("--max-age", type=_seconds_or_inf, default=Fraction(5),
+                   help="oldest sample used, in s (default 5; inf: any)")
+    p.add_argument("--delay", type=_seconds, default=Fraction(0),
+                   help="delay before approximation (s)")
+    p.add_argument("--start", type=_seconds, help="start time (s)")
+    p.add_argument("--end", type=_seconds, help="end time (s)")
+    p.add_argument("--max-delay", type=_seconds, help="largest allowed sample delay (s)")
+    p.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
+    p.add_argument("--unique", action="store_true", help="valid times must be unique")
+    p.add_argument("formulas", nargs="+", metavar="FORMULA")
+    p.set_defaults(run=_monitor)
 
     p = sub.add_parser("explain", help="why each topic matched, or why one did not")
     config(p)
@@ -144,6 +170,110 @@ def _progress(args: argparse.Namespace) -> int:
         emit(progressor.step(time, values))
     emit(progressor.finish())
     return exit_status([v.verdict for v in verdicts])
+
+
+def _seconds(text: str) -> Fraction:
+    try:
+        value = Fraction(text)
+    except (ValueError, ZeroDivisionError):
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must not be negative: {text}")
+    return value
+
+
+def _seconds_or_inf(text: str) -> Fraction | None:
+    return None if text in ("inf", "oo") else _seconds(text)
+
+
+def _monitor(args: argparse.Namespace) -> int:
+    from .monitor import Monitor, Verdict, plot
+    from .stream.processor import StreamPolicy
+    from .stream.sources import open_source
+
+    policy = StreamPolicy(args.period, args.deviation, args.approximation, args.max_age,
+                          args.delay, args.start, args.end, args.max_delay, args.ordered,
+                          args.unique)
+    monitor = Monitor(_km(args), args.formulas, policy)
+    monitor.keep_states = args.plot is not None
+    source = open_source(args.source, args.msg)
+    if getattr(source, "note", None):
+        print(f"note: {source.note}", file=sys.stderr)
+    if not args.json:
+        print(render_text(monitor.request), flush=True)
+    events: list[Any] = []
+    error = None
+    with _progress_bar(source, monitor, enabled=not args.json) as tick:
+        try:
+            for event in monitor.run(source, tick):
+                events.append(event)
+                _print_event(event, args.json)
+        except DkError as exc:
+            error = exc
+    verdicts = [e for e in events if isinstance(e, Verdict)]
+    if not args.json:
+        _summary(verdicts, len(events) - len(verdicts))
+    if args.plot is not None and monitor.states:
+        plot(monitor, events, args.plot)
+        if not args.json:
+            print(f"plot written to {args.plot}")
+    if error is not None:
+        raise error
+    return exit_status([v.verdict for v in verdicts])
+
+
+def _print_event(event: Any, as_json: bool) -> None:
+    from .progress import Verdict
+
+    if as_json:
+        print(json.dumps(event.to_json(), ensure_ascii=False, default=str), flush=True)
+    elif isinstance(event, Verdict):
+        value = {True: "held", False: "VIOLATED", None: "unknown"}[event.verdict]
+        when = "at end" if event.at_end else f"at {event.time} s"
+        print(f"{when}: {value}  {event.formula}" +
+              (f"\n    {event.witness}" if event.witness else ""), flush=True)
+    else:
+        print(f"violation at {event.to_json()['time']} s: {event.constraint} on {event.feature} "
+              f"({event.topic}): {event.detail}", flush=True)
+
+
+def _summary(verdicts: list[Any], violations: int) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    table = Table(title="dkreason monitor", title_justify="left")
+    for column in ("formula", "verdict", "time (s)", "at end"):
+        table.add_column(column)
+    for v in verdicts:
+        table.add_row(escape(v.formula), {True: "held", False: "violated", None: "unknown"}[v.verdict],
+                      str(v.time), "yes" if v.at_end else "no")
+    console = Console(width=120)
+    console.print(table)
+    console.print(f"{violations} stream constraint violation(s)")
+
+
+class _progress_bar:  # noqa: N801 - used as a context manager, reads as one
+    """A progress bar on stderr while a long file is read (only on a terminal)."""
+
+    def __init__(self, source: Any, monitor: Any, enabled: bool) -> None:
+        self.enabled = enabled and sys.stderr.isatty()
+        self.total = source.count(None) if self.enabled else None
+        self.bar: Any = None
+
+    def __enter__(self) -> Any:
+        if not self.enabled:
+            return None
+        from rich.progress import Progress
+
+        self.bar = Progress(transient=True)
+        self.bar.start()
+        task = self.bar.add_task("reading", total=self.total)
+        return lambda n: self.bar.update(task, completed=n)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.bar is not None:
+            self.bar.stop()
 
 
 def exit_status(verdicts: list[bool | None]) -> int:

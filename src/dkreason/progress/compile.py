@@ -91,8 +91,26 @@ def _substitute(node: Any, var: str, name: str) -> Any:
     return replace(node, **changes) if changes else node
 
 
-def interval_text(i: Interval) -> str:
-    return "" if i == ANY else str(i)
+def scaled(f: Formula, factor: Fraction) -> Formula:
+    """The formula with every interval bound multiplied by `factor` (seconds → stream units)."""
+    if factor == 1:
+        return f
+    if isinstance(f, Temporal | Until):
+        hi = None if f.interval.hi is None else f.interval.hi * factor
+        changes: dict[str, Any] = {"interval": Interval(f.interval.lo * factor, hi)}
+    else:
+        changes = {}
+    for attr in ("arg", "left", "right", "body"):
+        if hasattr(f, attr):
+            changes[attr] = scaled(getattr(f, attr), factor)
+    return replace(f, **changes) if changes else f
+
+
+def interval_text(i: Interval, unit: Fraction | int = 1) -> str:
+    """The interval as the formula wrote it (in seconds, whatever the stream's unit)."""
+    if i == ANY:
+        return ""
+    return str(Interval(i.lo * unit, None if i.hi is None else i.hi * unit))
 
 
 class Graph:
@@ -121,7 +139,8 @@ class Graph:
                 return BoolNode(ctx, "or", self.node(Not(f.left)), self.node(f.right))
             return BoolNode(ctx, f.op, self.node(f.left), self.node(f.right))
         if isinstance(f, Temporal):
-            lo, hi, text = exact(f.interval.lo), exact(f.interval.hi), interval_text(f.interval)
+            lo, hi = exact(f.interval.lo), exact(f.interval.hi)
+            text = interval_text(f.interval, ctx.unit)
             child = self.node(f.arg)
             assert lo is not None
             if f.op in ("eventually", "always"):
@@ -130,7 +149,8 @@ class Graph:
                 return NextNode(ctx, lo, hi, child, text)
             return PastNode(ctx, f.op, lo, hi, None, child, text)
         if isinstance(f, Until):
-            lo, hi, text = exact(f.interval.lo), exact(f.interval.hi), interval_text(f.interval)
+            lo, hi = exact(f.interval.lo), exact(f.interval.hi)
+            text = interval_text(f.interval, ctx.unit)
             assert lo is not None
             left, right = self.node(f.left), self.node(f.right)
             if f.op == "until":

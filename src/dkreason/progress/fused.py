@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
 
 from ..parse.formula import ANY, BoolConst, Connective, Formula, Not, Temporal
@@ -63,11 +64,15 @@ def shape(f: Formula) -> Shape | None:
 class Member:
     """One fused formula: its shape and how to report it."""
 
-    def __init__(self, s: Shape, on_false: Callable[[Why], None]) -> None:
-        self.shape, self.on_false = s, on_false
+    def __init__(self, s: Shape, on_false: Callable[[Why], None],
+                 unit: Fraction | int = 1) -> None:
+        self.shape, self.on_false, self.unit = s, on_false, unit
         self.hi: Time | float = INF if s.hi is None else s.hi
         self.unknown = False
         self.done = False
+
+    def fmt(self, t: Time | None) -> str:
+        return fmt(t, self.unit)
 
     def fail(self, why: Why) -> None:
         self.done = True
@@ -75,19 +80,19 @@ class Member:
 
     def fail_now(self, t: Time, values: dict[str, Any]) -> None:
         shown = ", ".join(f"{k} = {values[k]}" for k in features(self.shape.a))
-        self.fail(Why(render(self.shape.a), t, f"was false at {fmt(t)}" +
+        self.fail(Why(render(self.shape.a), t, f"was false at {self.fmt(t)}" +
                       (f" ({shown})" if shown else "")))
 
     def expire(self, ti: Time) -> None:
         s = self.shape
         assert s.b is not None
-        within = f"[{fmt(ti + s.lo)}, {fmt(None if s.hi is None else ti + s.hi)}]"
+        within = f"[{self.fmt(ti + s.lo)}, {self.fmt(None if s.hi is None else ti + s.hi)}]"
         if isinstance(s.b, Not):
             text, detail = render(s.b.arg), f"held throughout {within}"
         else:
             text, detail = render(s.b), f"never held within {within}"
         if s.a != TRUE:
-            text = f"{render(s.a)} held at {fmt(ti)}, but {text}"
+            text = f"{render(s.a)} held at {self.fmt(ti)}, but {text}"
         self.fail(Why(text, ti, detail))
 
 
@@ -219,8 +224,9 @@ class FusedSet:
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
         self._step: Callable[[Time, Any], bool] | None = None
 
-    def add(self, s: Shape, on_false: Callable[[Why], None]) -> Member:
-        m = Member(s, on_false)
+    def add(self, s: Shape, on_false: Callable[[Why], None],
+            unit: Fraction | int = 1) -> Member:
+        m = Member(s, on_false, unit)
         self.members.append(m)
         if s.kind == "response":
             assert s.b is not None

@@ -62,13 +62,17 @@ class Ctx:
         self.now: Time = 0
         self.values: dict[str, Any] = {}
         self.start = 0
+        self.unit: Fraction | int = 1  # seconds per time unit
         self.ticking: set[Node] = set()
         self.on_unknown: Callable[[str], None] = lambda key: None
 
 
-def fmt(t: Time | None) -> str:
+def fmt(t: Time | None, unit: Fraction | int = 1) -> str:
+    """A time for people: in seconds (`unit` is the seconds per time unit of the stream)."""
     if t is None:
         return "oo"
+    if unit != 1:
+        t = Fraction(t) * unit
     if isinstance(t, Fraction):
         if t.denominator == 1:
             return str(t.numerator)
@@ -87,6 +91,9 @@ class Node:
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         raise NotImplementedError
+
+    def fmt(self, t: Time | None) -> str:
+        return fmt(t, self.ctx.unit)
 
     def tick(self) -> None:
         pass
@@ -127,14 +134,14 @@ class StateNode(Node):
     def why(self, t: Time) -> Why:
         shown = ", ".join(f"{k} = {self.ctx.values[k]}" for k in self.keys)
         word = {True: "held", False: "was false", None: "was unknown"}[self.value]
-        return Why(self.text, t, f"{word} at {fmt(t)}" + (f" ({shown})" if shown else ""))
+        return Why(self.text, t, f"{word} at {self.fmt(t)}" + (f" ({shown})" if shown else ""))
 
 
 def why_of(node: Node, t: Time, value: Any) -> Why:
     """The reason for a value a node returned at once (not delivered)."""
     if isinstance(node, StateNode):
         return node.why(t)
-    return Why(node.text, t, f"was {_word(value)} at {fmt(t)}")
+    return Why(node.text, t, f"was {_word(value)} at {node.fmt(t)}")
 
 
 def _word(value: Any) -> str:
@@ -273,7 +280,7 @@ class WindowNode(Node):
         del self.entries[first:last], self.times[first:last]
         cause = why or why_of(self.child, tj, v)
         for i, ti, _ in settled:
-            self._resolve(i, v, Why(self.text, ti, f"is {_word(v)} at {fmt(ti)}", cause))
+            self._resolve(i, v, Why(self.text, ti, f"is {_word(v)} at {self.fmt(ti)}", cause))
 
     def _close(self, at_end: bool = False) -> None:
         now, pos = self.ctx.now, self.ctx.pos
@@ -288,10 +295,10 @@ class WindowNode(Node):
                     break
             del self.entries[0], self.times[0]
             value = None if unknown else (not self.decisive)
-            within = f"[{fmt(ti + self.lo)}, {fmt(hi)}]"
+            within = f"[{self.fmt(ti + self.lo)}, {self.fmt(hi)}]"
             how = "was unknown within" if unknown else "never held within" if self.decisive \
                 else "held throughout"
-            self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {fmt(ti)}",
+            self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {self.fmt(ti)}",
                                         Why(self.child.text, ti, f"{how} {within}")))
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
@@ -326,8 +333,8 @@ class NextNode(Node):
         for i, ti in ready:
             gap = now - ti
             if gap < self.lo or (self.hi is not None and gap > self.hi):
-                self._resolve(i, False, Why(self.text, ti, f"is false at {fmt(ti)}: the next "
-                                                           f"state came {fmt(gap)} later"))
+                self._resolve(i, False, Why(self.text, ti, f"is false at {self.fmt(ti)}: the next "
+                                                           f"state came {self.fmt(gap)} later"))
                 continue
             v = self.child.request(pos, now, self, i)
             if v is not PENDING:
@@ -340,7 +347,7 @@ class NextNode(Node):
 
     def finish(self) -> None:
         for i, ti in self.waiting:
-            self._resolve(i, False, Why(self.text, ti, f"is false at {fmt(ti)}: no next state"))
+            self._resolve(i, False, Why(self.text, ti, f"is false at {self.fmt(ti)}: no next state"))
         self.waiting = []
 
 
@@ -421,7 +428,7 @@ class UntilNode(Node):
             if value is PENDING:
                 still.append((i, ti))
             else:
-                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {fmt(ti)}"))
+                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {self.fmt(ti)}"))
         self.entries = still
         self._trim()
         if not self.entries:
@@ -550,7 +557,7 @@ class PastNode(Node):
             if value is PENDING:
                 still.append((i, ti))
             else:
-                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {fmt(ti)}"))
+                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {self.fmt(ti)}"))
         self.entries = still
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:

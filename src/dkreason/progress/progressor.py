@@ -18,7 +18,7 @@ from typing import Any
 
 from ..errors import DkError
 from ..parse.formula import parse_formula
-from .compile import Expander, Graph, expand, formula_features
+from .compile import Expander, Graph, expand, formula_features, scaled
 from .fused import FusedSet, Member, shape
 from .nodes import PENDING, Time, Why, fmt, why_of
 
@@ -111,8 +111,10 @@ class _Monitor:
 
 
 class Progressor:
-    def __init__(self, objects: Expander | None = None) -> None:
-        self.objects = objects
+    """`unit` is the seconds per unit of the times given to `step` (1; 1/10**9 for ns)."""
+
+    def __init__(self, objects: Expander | None = None, unit: Fraction | int = 1) -> None:
+        self.objects, self.unit = objects, unit
         self.monitors: list[_Monitor] = []
         self.fused = FusedSet(self._note_unknowns)
         self.unstarted: list[_Monitor] = []
@@ -125,7 +127,7 @@ class Progressor:
         self.unknown: dict[str, list[list[Any]]] = {}
 
     @classmethod
-    def with_knowledge(cls, manager: Any) -> Progressor:
+    def with_knowledge(cls, manager: Any, unit: Fraction | int = 1) -> Progressor:
         """Quantifiers range over the local platform's objects, as the matcher expands them."""
         from ..errors import Span
         from ..expand import members
@@ -136,20 +138,21 @@ class Progressor:
         def objects(sort: str) -> list[str]:
             iri = local.names.resolve(sort, ("sort",), Span("<formula>"))
             return [local_name(o) for o in members(manager.kb, {iri})[iri]]
-        return cls(objects)
+        return cls(objects, unit)
 
     def add(self, formula: str) -> None:
         """Compile `formula` once; it is judged from the next state on."""
-        parsed = expand(parse_formula(formula), self.objects)
+        parsed = scaled(expand(parse_formula(formula), self.objects), Fraction(1) / self.unit)
         monitor = _Monitor(formula, formula_features(parsed))
         monitor.decided = self.decided
         fused_shape = shape(parsed)
         if fused_shape is not None:
-            monitor.member = self.fused.add(fused_shape, monitor.false)
+            monitor.member = self.fused.add(fused_shape, monitor.false, self.unit)
         else:
             if not self.graphs or self.graphs[-1].ctx.pos >= 0:
                 graph = Graph()
                 graph.ctx.on_unknown = self._note_unknown
+                graph.ctx.unit = self.unit
                 self.graphs.append(graph)
             monitor.graph = self.graphs[-1]
             monitor.node = monitor.graph.node(parsed)
@@ -231,7 +234,7 @@ class Progressor:
             witness = None
             if m.value is False and m.why is not None:
                 if m.member is not None:  # the fused step names the failing part only
-                    witness = Why(m.text, m.first, f"is false at {fmt(m.first)}",
+                    witness = Why(m.text, m.first, f"is false at {fmt(m.first, self.unit)}",
                                   m.why).render()
                 else:  # the root node's reason, with the formula as the user wrote it
                     witness = Why(m.text, m.why.at, m.why.detail, m.why.cause).render()
@@ -240,7 +243,8 @@ class Progressor:
                 unknown = tuple(UnknownSpan(k, s[0], s[1]) for k in m.keys
                                 for s in self.unknown.get(k, ()))
                 witness = "the data left it undecided: " + (", ".join(
-                    f"{u.feature} unknown from {u.start} to {u.end}" for u in unknown)
+                    f"{u.feature} unknown from {fmt(u.start, self.unit)} to "
+                    f"{fmt(u.end, self.unit)}" for u in unknown)
                     if unknown else "no state was seen" if not m.started else "")
             out.append(Verdict(m.text, m.value, self.last_input, at_end, witness, unknown))
         return out

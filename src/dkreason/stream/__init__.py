@@ -1,0 +1,1 @@
+"""The Stream Processor (thesis 2.3.2, 4.4): topics → merged fluents → synchronised states."""

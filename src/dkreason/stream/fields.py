@@ -1,0 +1,69 @@
+"""Message fields as the specs write them (`msg.alt`, `msg.pose.position.z`, `msg.ids[1]`):
+compiled once to accessors, and checked against message definitions before replay."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import DkError
+
+_PART = re.compile(r"\.([A-Za-z_]\w*)|\[(\d+)\]")
+
+
+def path(field: str) -> list[str | int]:
+    if not field.startswith("msg"):
+        raise DkError(f"field {field!r} must start with msg")
+    parts: list[str | int] = []
+    rest = field[3:]
+    while rest:
+        m = _PART.match(rest)
+        if m is None:
+            raise DkError(f"field {field!r}: cannot read {rest!r}")
+        parts.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
+        rest = rest[m.end():]
+    return parts
+
+
+def accessor(field: str, dicts: bool) -> Callable[[Any], Any]:
+    """A function reading `field` from a message object (rosbags) or a dict (JSON lines)."""
+    code = "m"
+    for p in path(field):
+        code += f"[{p}]" if isinstance(p, int) else (f"[{p!r}]" if dicts else f".{p}")
+    scope: dict[str, Any] = {}
+    exec(f"def get(m):\n    return {code}\n", scope)  # noqa: S102 - built from a checked path
+    get: Callable[[Any], Any] = scope["get"]
+    return get
+
+
+def check(fielddefs: dict[str, Any], msgtype: str, field: str) -> str | None:
+    """Why `field` cannot be read from messages of `msgtype`, or None if it can."""
+    current: Any = ("name", msgtype)
+    walked = "msg"
+    for p in path(field):
+        kind, what = current
+        if isinstance(p, int):
+            if kind != "array":
+                return f"{walked} is not an array"
+            current = what
+        else:
+            if kind != "name" or what not in fielddefs:
+                return f"{walked} has no fields"
+            fields = dict(fielddefs[what][1])
+            if p not in fields:
+                known = ", ".join(fields) or "none"
+                return f"{what} has no field {p!r} (fields: {known})"
+            current = _desc(fields[p])
+        walked += f"[{p}]" if isinstance(p, int) else f".{p}"
+    return None
+
+
+def _desc(desc: Any) -> tuple[str, Any]:
+    nodetype, spec = desc
+    value = int(nodetype)
+    if value == 2:  # NAME
+        return ("name", spec)
+    if value in (3, 4):  # ARRAY, SEQUENCE
+        return ("array", _desc(spec[0]))
+    return ("base", spec)
