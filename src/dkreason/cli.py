@@ -9,8 +9,8 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 from fractions import Fraction
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from .errors import DkError
@@ -187,7 +187,8 @@ def _seconds_or_inf(text: str) -> Fraction | None:
 
 
 def _monitor(args: argparse.Namespace) -> int:
-    from .monitor import Monitor, Verdict, plot
+    from .monitor import Monitor, plot
+    from .progress import Verdict
     from .stream.processor import StreamPolicy
     from .stream.sources import open_source
 
@@ -197,8 +198,9 @@ def _monitor(args: argparse.Namespace) -> int:
     monitor = Monitor(_km(args), args.formulas, policy)
     monitor.keep_states = args.plot is not None
     source = open_source(args.source, args.msg)
-    if getattr(source, "note", None):
-        print(f"note: {source.note}", file=sys.stderr)
+    note = getattr(source, "note", None)
+    if note:
+        print(f"note: {note}", file=sys.stderr)
     if not args.json:
         print(render_text(monitor.request), flush=True)
     events: list[Any] = []
@@ -246,7 +248,8 @@ def _summary(verdicts: list[Any], violations: int) -> None:
     for column in ("formula", "verdict", "time (s)", "at end"):
         table.add_column(column)
     for v in verdicts:
-        table.add_row(escape(v.formula), {True: "held", False: "violated", None: "unknown"}[v.verdict],
+        verdict = {True: "held", False: "violated", None: "unknown"}[v.verdict]
+        table.add_row(escape(v.formula), verdict,
                       str(v.time), "yes" if v.at_end else "no")
     console = Console(width=120)
     console.print(table)

@@ -48,14 +48,19 @@ class Monitor:
                 self.states.append((time, dict(values)))
             out.extend(_seconds(v) for v in progressor.step(time, values))
 
-        processor = StreamProcessor(self.request, self.policy, source, on_state, out.append)
-        for n, (topic, available, valid, msg) in enumerate(source.messages(processor.topics), 1):
-            processor.feed(topic, available, valid, msg)
-            if out:
-                yield from out
-                out.clear()
-            if progress is not None and n % 4096 == 0:
-                progress(n)
+        try:
+            processor = StreamProcessor(self.request, self.policy, source, on_state, out.append)
+            feed = processor.feed
+            for n, (topic, available, valid, values) in enumerate(
+                    source.messages(processor.wanted), 1):
+                feed(topic, available, valid, values)
+                if out:
+                    yield from out
+                    out.clear()
+                if progress is not None and not n & 4095:
+                    progress(n)
+        finally:
+            source.close()
         processor.finish()
         out.extend(_seconds(v) for v in progressor.finish())
         yield from out

@@ -61,6 +61,15 @@ def shape(f: Formula) -> Shape | None:
     return None
 
 
+def shapes(f: Formula) -> list[Shape] | None:
+    """A conjunction of fused shapes (what `forall` over a sort expands to), part by part."""
+    if isinstance(f, Connective) and f.op == "and":
+        left, right = shapes(f.left), shapes(f.right)
+        return left + right if left is not None and right is not None else None
+    one = shape(f)
+    return [one] if one is not None else None
+
+
 class Member:
     """One fused formula: its shape and how to report it."""
 

@@ -347,7 +347,8 @@ class NextNode(Node):
 
     def finish(self) -> None:
         for i, ti in self.waiting:
-            self._resolve(i, False, Why(self.text, ti, f"is false at {self.fmt(ti)}: no next state"))
+            self._resolve(i, False, Why(self.text, ti,
+                                        f"is false at {self.fmt(ti)}: no next state"))
         self.waiting = []
 
 

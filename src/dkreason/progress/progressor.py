@@ -19,7 +19,7 @@ from typing import Any
 from ..errors import DkError
 from ..parse.formula import parse_formula
 from .compile import Expander, Graph, expand, formula_features, scaled
-from .fused import FusedSet, Member, shape
+from .fused import FusedSet, Member, shapes
 from .nodes import PENDING, Time, Why, fmt, why_of
 
 
@@ -93,7 +93,7 @@ class _Monitor:
         self.first: Any = None  # time of the first state it judged
         self.graph: Graph | None = None
         self.node: Any = None
-        self.member: Member | None = None
+        self.members: list[Member] = []  # fused parts; the formula is their conjunction
         self.decided: list[_Monitor] = []  # the progressor's list of monitors to report
 
     def start(self, t: Time) -> None:
@@ -107,7 +107,8 @@ class _Monitor:
         self.decided.append(self)
 
     def false(self, why: Why) -> None:
-        self.deliver(None, False, why)
+        if self.value is PENDING:  # the first failing part decides
+            self.deliver(None, False, why)
 
 
 class Progressor:
@@ -145,9 +146,9 @@ class Progressor:
         parsed = scaled(expand(parse_formula(formula), self.objects), Fraction(1) / self.unit)
         monitor = _Monitor(formula, formula_features(parsed))
         monitor.decided = self.decided
-        fused_shape = shape(parsed)
-        if fused_shape is not None:
-            monitor.member = self.fused.add(fused_shape, monitor.false, self.unit)
+        parts = shapes(parsed)
+        if parts is not None:
+            monitor.members = [self.fused.add(p, monitor.false, self.unit) for p in parts]
         else:
             if not self.graphs or self.graphs[-1].ctx.pos >= 0:
                 graph = Graph()
@@ -214,8 +215,9 @@ class Progressor:
                 continue
             if not m.started:
                 m.deliver(None, None, None)
-            elif m.member is not None:
-                m.deliver(None, None if m.member.unknown else True, None)
+            elif m.members:
+                unknown = any(part.unknown for part in m.members)
+                m.deliver(None, None if unknown else True, None)
         self.fused.members = []
         return self._decided(at_end=True)
 
@@ -233,7 +235,7 @@ class Progressor:
             m.reported = True
             witness = None
             if m.value is False and m.why is not None:
-                if m.member is not None:  # the fused step names the failing part only
+                if m.members:  # the fused step names the failing part only
                     witness = Why(m.text, m.first, f"is false at {fmt(m.first, self.unit)}",
                                   m.why).render()
                 else:  # the root node's reason, with the formula as the user wrote it

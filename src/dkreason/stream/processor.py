@@ -7,10 +7,12 @@ and strings compare alike); its field value becomes a sample ⟨available, valid
 
 Merge (thesis 2.2).  A feature's value at time s comes from its sample with the most recent
 valid time ≤ s, whichever topic it came on; on equal valid times the local platform wins, then
-the order of the stream request.
+the order of the stream request, then the later arrival.
 
 Synchronise.  States are made at a fixed sample period, or at every sample's valid time ("on
-every change"), each once the recording has passed its time plus `delay_before_approximation`.
+every change", plus the instant a sample grows older than `max_age`, so a value that went
+stale between samples shows as unknown), each once the recording has passed its time plus
+`delay_before_approximation`.
 Approximation "recent" takes the most recent sample up to `max_age` old (older: unknown, null);
 "none" takes only a sample at the state's own time (± `sample_period_deviation`).
 
@@ -24,14 +26,15 @@ from __future__ import annotations
 
 import bisect
 import heapq
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
+from operator import itemgetter
 from typing import Any, Literal
 
 from ..errors import DkError
 from ..model import StreamRequest
-from . import fields
 from .sources import NS, Source
 
 
@@ -69,8 +72,10 @@ class Violation:
 
 
 def _ns(value: Fraction | None) -> int | None:
-    if value is None:
-        return None
+    return None if value is None else _ns_given(value)
+
+
+def _ns_given(value: Fraction) -> int:
     ns = value * NS
     if ns.denominator != 1:
         raise DkError(f"time {value} s is finer than a nanosecond")
@@ -78,29 +83,34 @@ def _ns(value: Fraction | None) -> int | None:
 
 
 class _Route:
-    __slots__ = ("q", "get", "prio", "stream")
+    """One topic entry of one feature: a source stream, with its latest valid time."""
+
+    __slots__ = ("q", "get", "prio", "stream", "last")
 
     def __init__(self, q: int, get: Callable[[Any], Any], prio: int, stream: str) -> None:
         self.q, self.get, self.prio, self.stream = q, get, prio, stream
+        self.last: int | None = None
 
 
 class _Group:
     """Routes of one recording topic that filter on the same id fields, indexed by id."""
 
-    def __init__(self, id_fields: tuple[str, ...], dicts: bool) -> None:
+    def __init__(self, id_fields: tuple[str, ...], positions: tuple[int, ...]) -> None:
         self.id_fields = id_fields
-        self.getters = tuple(fields.accessor(f, dicts) for f in id_fields)
-        self.index: dict[tuple[Any, ...], list[_Route]] = {}
+        self.getters = tuple(itemgetter(p) for p in positions)
+        self.index: dict[Any, list[_Route]] = {}
 
     def add(self, ids: tuple[Any, ...], route: _Route) -> None:
-        self.index.setdefault(ids, []).append(route)
-        self.index.setdefault(tuple(str(v) for v in ids), []).append(route)
+        for key in (ids, tuple(str(v) for v in ids)):
+            self.index.setdefault(key[0] if len(key) == 1 else key, []).append(route)
 
     def routes(self, msg: Any) -> list[_Route]:
-        key = tuple(get(msg) for get in self.getters)
+        getters = self.getters
+        key = getters[0](msg) if len(getters) == 1 else tuple(get(msg) for get in getters)
         found = self.index.get(key)
         if found is None:
-            found = self.index.get(tuple(str(v) for v in key), [])
+            text = str(key) if len(getters) == 1 else tuple(str(v) for v in key)
+            found = self.index.get(text, [])
         return found
 
 
@@ -110,8 +120,10 @@ class StreamProcessor:
                  on_violation: Callable[[Violation], None]) -> None:
         self.policy = policy
         self.on_state, self.on_violation = on_state, on_violation
-        self.period, self.deviation = _ns(policy.sample_period), _ns(policy.sample_period_deviation)
-        self.max_age, self.delay = _ns(policy.max_age), _ns(policy.delay_before_approximation)
+        self.period = _ns(policy.sample_period)
+        self.deviation = _ns_given(policy.sample_period_deviation)
+        self.max_age = _ns(policy.max_age)
+        self.delay = _ns_given(policy.delay_before_approximation)
         self.start, self.end = _ns(policy.start_time), _ns(policy.end_time)
         self.max_delay = _ns(policy.max_delay)
         if self.period is not None and self.period <= 0:
@@ -119,12 +131,23 @@ class StreamProcessor:
         self.keys: list[str] = []  # feature keys, as the progressor compares them
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
         self.groups: dict[str, list[_Group]] = {}
-        self.last_valid: dict[str, int] = {}
-        self.pending: list[int] = []  # state times to make (on every change)
+        # on every change: state times to make, in order (samples in valid-time order), as a
+        # heap (the others), and when each feature's latest sample grows stale (rescheduled
+        # lazily: `due` holds the newest time, the heap at most one entry per feature)
+        self.times: deque[int] = deque()
+        self.out_of_order: list[int] = []
+        self.expiries: list[tuple[int, int, bool]] = []  # (time, feature, fixed?)
+        self.due: list[int] = []
+        self.queued: list[bool] = []
+        self.max_valid = -1
+        self.quiet_until: float = float("inf")  # no state is due while times stay at or below
+        self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
+        self.guarded = self.start is not None or self.end is not None or \
+            self.max_delay is not None  # any check every sample must pass
         self.made: int | None = None  # time of the last state made
         self.next_state: int | None = self.start  # next periodic state time
         self.last_seen: int | None = None
-        self.topics: set[str] = set()
+        self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
         self._route(request, source)
 
     # ---- set-up: which recording topic feeds which feature, checked before replay -------
@@ -134,6 +157,8 @@ class StreamProcessor:
         for q, f in enumerate(request.features):
             self.keys.append("".join(f.feature.key.split()))
             self.hist.append([])
+            self.due.append(-1)
+            self.queued.append(False)
             for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
                 names = [f"/{m.platform}/{m.topic}", f"{m.platform}/{m.topic}"]
                 if m.platform == request.local:
@@ -150,28 +175,33 @@ class StreamProcessor:
                             raise DkError(f"{source.name}: topic {present[0]} ({msgtype}) has no "
                                           f"field {field}: {why}")
                 stream = f"{m.platform}/{m.topic}"
-                route = _Route(q, fields.accessor(m.field, source.dicts), prio, stream)
                 ids = tuple(k for k, _ in m.filter)
                 for name in present[:1] if types else present:
-                    self.topics.add(name)
+                    route = _Route(q, itemgetter(self._position(name, m.field)), prio, stream)
                     groups = self.groups.setdefault(name, [])
                     group = next((g for g in groups if g.id_fields == ids), None)
                     if group is None:
-                        group = _Group(ids, source.dicts)
+                        group = _Group(ids, tuple(self._position(name, f) for f in ids))
                         groups.append(group)
                     group.add(tuple(v for _, v in m.filter), route)
 
+    def _position(self, topic: str, field: str) -> int:
+        """Where `field` stands in the values a message of `topic` gives."""
+        fields_ = self.wanted.setdefault(topic, [])
+        if field not in fields_:
+            fields_.append(field)
+        return fields_.index(field)
+
     # ---- replay -------------------------------------------------------------------------
 
-    def feed(self, topic: str, available: int, valid: int, msg: Any) -> None:
-        """One message, in recording order."""
-        try:
-            for group in self.groups[topic]:
-                for route in group.routes(msg):
-                    self._sample(route, available, valid, route.get(msg))
-        except (KeyError, AttributeError, IndexError, TypeError) as exc:
-            raise DkError(f"a message on {topic} at {seconds(available)} s lacks a field the "
-                          f"request reads ({exc})") from None
+    def feed(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
+        """One message's wanted values (see `wanted`), in recording order."""
+        for group in self.groups[topic]:
+            for route in group.routes(values):
+                self._sample(route, available, valid, route.get(values))
+        if available <= self.quiet_until:
+            self.last_seen = available
+            return  # nothing is due yet
         self._emit(available, final=False)
 
     def finish(self) -> None:
@@ -182,77 +212,157 @@ class StreamProcessor:
         self.on_violation(Violation(kind, available, self.keys[route.q], route.stream, detail))
 
     def _sample(self, route: _Route, available: int, valid: int, value: Any) -> None:
-        if hasattr(value, "item"):  # numpy scalars from array fields
-            value = value.item()
+        if self.guarded and not self._guards(route, available, valid):
+            return
+        last = route.last
+        if last is not None and (valid <= last and self.checks or self.period is not None):
+            self._check(route, available, valid, last)
+        if last is None or valid > last:
+            route.last = valid
+            if valid > self.max_valid:
+                self.max_valid = valid
+        made = self.made
+        if made is not None and valid <= made:
+            self._violation("late", available, route,
+                            f"sample valid at {seconds(valid)} s arrived at "
+                            f"{seconds(available)} s, after the state at {seconds(made)} s")
+        hist = self.hist[route.q]
+        rank = -route.prio
+        if hist:
+            newest = hist[-1]
+            if valid > newest[0] or (valid == newest[0] and rank >= newest[1]):
+                hist.append((valid, rank, value))
+            else:
+                bisect.insort(hist, (valid, rank, value), key=lambda e: e[:2])
+        else:
+            hist.append((valid, rank, value))
+        if self.period is not None:
+            if self.next_state is None:
+                self.next_state = valid
+                self.quiet_until = valid + self.delay
+            return
+        if made is None or valid > made:
+            times = self.times
+            if not times or valid > times[-1]:
+                times.append(valid)
+            elif valid != times[-1]:
+                heapq.heappush(self.out_of_order, valid)
+            if valid + self.delay < self.quiet_until:
+                self.quiet_until = valid + self.delay
+        if self.max_age is not None and self.policy.approximation == "recent" and \
+                hist[-1][0] == valid:
+            q = route.q
+            if 0 <= self.due[q] < valid:  # the value went stale before this sample: keep that
+                heapq.heappush(self.expiries, (self.due[q], q, True))
+                self.quiet_until = min(self.quiet_until, self.due[q] + self.delay)
+            self.due[q] = valid + self.max_age + 1
+            if not self.queued[q]:
+                self.queued[q] = True
+                heapq.heappush(self.expiries, (self.due[q], q, False))
+                self.quiet_until = min(self.quiet_until, self.due[q] + self.delay)
+
+    def _guards(self, route: _Route, available: int, valid: int) -> bool:
+        """Start/end time and maximum delay; False drops the sample."""
         if (self.start is not None and valid < self.start) or \
                 (self.end is not None and valid > self.end):
             self._violation("start_end_time", available, route,
                             f"valid time {seconds(valid)} s is outside the requested span")
-            return
+            return False
         if self.max_delay is not None and available - valid > self.max_delay:
             self._violation("max_delay", available, route,
                             f"delay {seconds(available - valid)} s exceeds "
                             f"{seconds(self.max_delay)} s")
-        last = self.last_valid.get(route.stream)
-        if last is not None:
-            if valid < last and self.policy.ordered_on_valid_time:
-                self._violation("ordered_on_valid_time", available, route,
-                                f"valid time {seconds(valid)} s after {seconds(last)} s")
-            if valid == last and self.policy.unique_valid_time:
-                self._violation("unique_valid_time", available, route,
-                                f"second sample at valid time {seconds(valid)} s")
-            if self.period is not None and valid > last and \
-                    abs(valid - last - self.period) > self.deviation:
-                self._violation("sample_period", available, route,
-                                f"{seconds(valid - last)} s since the previous sample, expected "
-                                f"{seconds(self.period)} ± {seconds(self.deviation)} s")
-        if last is None or valid > last:
-            self.last_valid[route.stream] = valid
-        if self.made is not None and valid <= self.made:
-            self._violation("late", available, route,
-                            f"sample valid at {seconds(valid)} s arrived at "
-                            f"{seconds(available)} s, after the state at {seconds(self.made)} s")
-        hist = self.hist[route.q]
-        entry = (valid, -route.prio, value)
-        if not hist or entry[:2] >= hist[-1][:2]:
-            hist.append(entry)
-        else:
-            bisect.insort(hist, entry, key=lambda e: e[:2])
-        if self.period is None:
-            if self.made is None or valid > self.made:
-                heapq.heappush(self.pending, valid)
-        elif self.next_state is None:
-            self.next_state = valid
+        return True
+
+    def _check(self, route: _Route, available: int, valid: int, last: int) -> None:
+        if valid < last and self.policy.ordered_on_valid_time:
+            self._violation("ordered_on_valid_time", available, route,
+                            f"valid time {seconds(valid)} s after {seconds(last)} s")
+        if valid == last and self.policy.unique_valid_time:
+            self._violation("unique_valid_time", available, route,
+                            f"second sample at valid time {seconds(valid)} s")
+        if self.period is not None and valid > last and \
+                abs(valid - last - self.period) > self.deviation:
+            self._violation("sample_period", available, route,
+                            f"{seconds(valid - last)} s since the previous sample, expected "
+                            f"{seconds(self.period)} ± {seconds(self.deviation)} s")
 
     def _emit(self, now: int, final: bool) -> None:
         self.last_seen = now
-        if self.period is None:
-            pending = self.pending
-            while pending and (final or pending[0] + self.delay < now):
-                s = heapq.heappop(pending)
-                if self.made is None or s > self.made:
-                    self._state(s)
+        try:
+            self._make_due(now, final)
+        finally:
+            self.quiet_until = self._next_due()
+
+    def _next_due(self) -> float:
+        """The recording time after which the next state is due (inf: none is pending)."""
+        if self.period is not None:
+            return float("inf") if self.next_state is None else self.next_state + self.delay
+        heads = [h for h in (self.times[0] if self.times else None,
+                             self.out_of_order[0] if self.out_of_order else None,
+                             self.expiries[0][0] if self.expiries else None) if h is not None]
+        return min(heads) + self.delay if heads else float("inf")
+
+    def _make_due(self, now: int, final: bool) -> None:
+        if self.period is not None:
+            while self.next_state is not None and (final or self.next_state + self.delay < now):
+                if final and self.next_state > self.max_valid:
+                    break
+                if self.end is not None and self.next_state > self.end:
+                    break
+                self._state(self.next_state)
+                self.next_state += self.period
             return
-        while self.next_state is not None and (final or self.next_state + self.delay < now):
-            if final and self.next_state > max(self.last_valid.values(), default=-1):
-                break
-            if self.end is not None and self.next_state > self.end:
-                break
-            self._state(self.next_state)
-            self.next_state += self.period
+        limit = None if final else now - self.delay  # make states strictly before this
+        times, late, expiries = self.times, self.out_of_order, self.expiries
+        while True:
+            s = times[0] if times else None
+            if late and (s is None or late[0] < s):
+                s = late[0]
+            if expiries and (s is None or expiries[0][0] < s):
+                s = expiries[0][0]
+            if s is None or (limit is not None and s >= limit):
+                return
+            if times and times[0] == s:
+                times.popleft()
+            elif late and late[0] == s:
+                heapq.heappop(late)
+            else:
+                _, q, fixed = heapq.heappop(expiries)
+                if not fixed:
+                    if self.due[q] > s:  # newer samples moved the deadline: look again then
+                        heapq.heappush(expiries, (self.due[q], q, False))
+                        continue
+                    self.queued[q] = False
+                if (final and s > self.max_valid) or not self._stale(q, s):
+                    continue
+            if self.made is None or s > self.made:
+                self._state(s)
+
+    def _stale(self, q: int, s: int) -> bool:
+        """Whether feature q's newest sample at or before s is older than the maximum age."""
+        hist = self.hist[q]
+        i = bisect.bisect_right(hist, (s, 1)) - 1
+        return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
 
     def _state(self, s: int) -> None:
         values: dict[str, Any] = {}
+        recent = self.policy.approximation == "recent"
+        max_age, deviation = self.max_age, self.deviation
         for q, hist in enumerate(self.hist):
-            i = bisect.bisect_right(hist, (s, 1)) - 1  # the last sample valid at or before s
+            if hist and hist[-1][0] <= s:  # samples in order: the newest one
+                i = len(hist) - 1
+            else:  # the last sample valid at or before s
+                i = bisect.bisect_right(hist, (s, 1)) - 1
             value = None
             if i >= 0:
                 valid, _, v = hist[i]
-                if self.policy.approximation == "none":
-                    value = v if s - valid <= self.deviation else None
-                elif self.max_age is None or s - valid <= self.max_age:
+                if recent:
+                    if max_age is None or s - valid <= max_age:
+                        value = v
+                elif s - valid <= deviation:
                     value = v
-                if i > 0:
+                if i > 32:  # older samples are never read again
                     del hist[:i]
             values[self.keys[q]] = value
         self.made = s

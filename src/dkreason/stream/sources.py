@@ -1,8 +1,10 @@
 """Where messages come from: ROS recordings, JSON lines, or a live push.
 
-Every source yields `(topic, available_ns, valid_ns, message)` in recording order.  The valid
-time is the message's `header.stamp` when it has one, else the record time; the available time
-is the record time.  Times are integer nanoseconds.
+A source is asked for the fields each topic's messages must give (`wanted`) and yields
+`(topic, available_ns, valid_ns, values)` in recording order, `values` in the order asked.
+The valid time is the message's `header.stamp` when it has one, else the record time; the
+available time is the record time.  Times are integer nanoseconds.  ROS messages are read
+field by field where their layout allows (fastread.py) and deserialised in full otherwise.
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ from typing import Any, Protocol
 from ..errors import DkError, ParseError, Span
 from . import fields
 
-Message = tuple[str, int, int, Any]
+Message = tuple[str, int, int, tuple[Any, ...]]
+Wanted = dict[str, list[str]]  # topic → fields, in the order the values are yielded
 NS = 10**9
 
 
@@ -36,7 +39,6 @@ def to_ns(seconds: Any, what: str = "time") -> int:
 
 class Source(Protocol):
     name: str
-    dicts: bool  # messages are dicts (JSON) rather than objects (ROS)
 
     def types(self) -> dict[str, str]:
         """Topic → message type, as far as known before reading."""
@@ -46,10 +48,14 @@ class Source(Protocol):
         """Why `field` is missing from `topic`'s messages (None: present or not knowable)."""
         ...
 
-    def messages(self, topics: set[str]) -> Iterator[Message]: ...
+    def messages(self, wanted: Wanted) -> Iterator[Message]: ...
 
     def count(self, topics: set[str] | None) -> int | None:
         """Messages on `topics` (None: all), when the source knows."""
+        ...
+
+    def close(self) -> None:
+        """Release the file (the monitor calls it however the replay ends)."""
         ...
 
 
@@ -59,7 +65,6 @@ class RosbagSource:
     Message definitions come from the recording; `msg_files` (`pkg/msg/Name.msg`) supply
     custom types for recordings that carry none."""
 
-    dicts = False
 
     def __init__(self, path: Path, msg_files: Sequence[Path] = ()) -> None:
         self.name = str(path)
@@ -88,23 +93,69 @@ class RosbagSource:
         return sum(c.msgcount for c in self.reader.connections
                    if topics is None or c.topic in topics)
 
-    def messages(self, topics: set[str]) -> Iterator[Message]:
-        connections = [c for c in self.reader.connections if c.topic in topics]
+    def messages(self, wanted: Wanted) -> Iterator[Message]:
+        connections = [c for c in self.reader.connections if c.topic in wanted]
         if not connections:
             return
-        deserialize = self.reader.deserialize
+        fielddefs = self.reader.typestore.fielddefs
+        readers = {id(c): _ros_reader(fielddefs, c.msgtype, wanted[c.topic], not self.reader.is2,
+                                      self.reader.deserialize) for c in connections}
         try:
             for connection, t_ns, raw in self.reader.messages(connections=connections):
-                msg = deserialize(raw, connection.msgtype)
-                header = getattr(msg, "header", None)
-                stamp = getattr(header, "stamp", None)
-                valid = stamp.sec * NS + stamp.nanosec if stamp is not None else t_ns
-                yield connection.topic, t_ns, valid, msg
+                read, stamped = readers[id(connection)]
+                values = read(raw)
+                valid = values[-2] * NS + values[-1] if stamped else t_ns
+                yield connection.topic, t_ns, valid, values
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
             raise DkError(f"{self.name}: damaged recording ({_why(exc)})") from None
 
     def close(self) -> None:
-        self.reader.close()
+        if self.reader.stack is not None:
+            self.reader.close()
+
+
+def _ros_reader(fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool,
+                deserialize: Any) -> tuple[Any, bool]:
+    """(raw message → values of `wanted`, then the header stamp if it has one; stamped?)."""
+    from .fastread import compile_extractor
+
+    stamped = fields.check(fielddefs, msgtype, "msg.header.stamp.sec") is None
+    names = [*wanted, *(["msg.header.stamp.sec", "msg.header.stamp.nanosec"] if stamped else [])]
+    fast = compile_extractor(fielddefs, msgtype, names, ros1)
+    getters = [fields.accessor(f, dicts=False) for f in names]
+
+    def slow(raw: Any) -> tuple[Any, ...]:
+        msg = deserialize(raw, msgtype)
+        return tuple(_plain(get(msg)) for get in getters)
+
+    if fast is None:
+        return slow, stamped
+
+    def read(raw: Any) -> tuple[Any, ...]:
+        values = fast(raw)
+        return values if values is not None else slow(raw)
+    return read, stamped
+
+
+def _plain(value: Any) -> Any:
+    return value.item() if hasattr(value, "item") else value
+
+
+def _dict_reader(name: str, wanted: Wanted) -> Any:
+    """(topic, time, message dict) → values of the fields wanted on that topic."""
+    getters = {topic: [(f, fields.accessor(f, dicts=True)) for f in fs]
+               for topic, fs in wanted.items()}
+
+    def read(topic: str, t_ns: int, msg: Any) -> tuple[Any, ...]:
+        out = []
+        for field, get in getters[topic]:
+            try:
+                out.append(get(msg))
+            except (KeyError, IndexError, TypeError):
+                raise DkError(f"{name}: the message on {topic} at {t_ns / NS:g} s has no "
+                              f"field {field}") from None
+        return tuple(out)
+    return read
 
 
 def _typestore(msg_files: Sequence[Path], ros1: bool) -> Any:
@@ -133,7 +184,6 @@ class JsonlSource:
     """JSON lines `{"topic": "topic3", "time": 12.0, "msg": {"id": 1, "spd": 61.5}}`, with an
     optional `"available"` time (seconds); a `"header": {"stamp": …}` sets the valid time."""
 
-    dicts = True
 
     def __init__(self, path: Path) -> None:
         self.name, self.path = str(path), path
@@ -149,7 +199,8 @@ class JsonlSource:
     def count(self, topics: set[str] | None) -> int | None:
         return None
 
-    def messages(self, topics: set[str]) -> Iterator[Message]:
+    def messages(self, wanted: Wanted) -> Iterator[Message]:
+        read = _dict_reader(self.name, wanted)
         with self.path.open(encoding="utf-8") as handle:
             for n, line in enumerate(handle, 1):
                 if not line.strip():
@@ -164,8 +215,11 @@ class JsonlSource:
                         f"missing {exc}" if isinstance(exc, KeyError) else str(exc)
                     raise ParseError(f"not a message line ({what})", Span(self.name, n)) \
                         from None
-                if topic in topics:
-                    yield topic, available, valid, _floats(msg)
+                if topic in wanted:
+                    yield topic, available, valid, read(topic, valid, _floats(msg))
+
+    def close(self) -> None:
+        pass
 
 
 def _floats(value: Any) -> Any:
@@ -181,7 +235,6 @@ def _floats(value: Any) -> Any:
 class PushSource:
     """Samples pushed from any live source (a ROS callback, a socket reader, a test)."""
 
-    dicts = True
     name = "<push>"
     _END = object()
 
@@ -192,8 +245,12 @@ class PushSource:
         valid = to_ns(time)
         self._queue.put((topic, valid if available is None else to_ns(available), valid, msg))
 
-    def close(self) -> None:
+    def end(self) -> None:
+        """No more samples: the monitor settles what is open and stops."""
         self._queue.put(self._END)
+
+    def close(self) -> None:
+        pass
 
     def types(self) -> dict[str, str]:
         return {}
@@ -204,17 +261,18 @@ class PushSource:
     def count(self, topics: set[str] | None) -> int | None:
         return None
 
-    def messages(self, topics: set[str]) -> Iterator[Message]:
+    def messages(self, wanted: Wanted) -> Iterator[Message]:
+        read = _dict_reader(self.name, wanted)
         while (item := self._queue.get()) is not self._END:
-            if item[0] in topics:
-                yield item
+            topic, available, valid, msg = item
+            if topic in wanted:
+                yield topic, available, valid, read(topic, valid, msg)
 
 
 class McapStreamSource:
     """An MCAP file whose index is damaged (a recording cut off mid-write): read it record by
     record, so every message before the damage is used, then say where it broke."""
 
-    dicts = False
 
     def __init__(self, path: Path, msg_files: Sequence[Path] = ()) -> None:
         self.name, self.path = str(path), path
@@ -244,12 +302,12 @@ class McapStreamSource:
             self.channels[record.id] = (record.topic, schemas[record.schema_id])
 
     def _scan_types(self) -> None:
-        from mcap.records import Message
+        from mcap.records import Message as McapMessage
 
         schemas: dict[int, str] = {}
         try:
             for record in self._records():
-                if isinstance(record, Message) and self.channels:
+                if isinstance(record, McapMessage) and self.channels:
                     break
                 self._learn(record, schemas)
         except Exception as exc:
@@ -267,10 +325,14 @@ class McapStreamSource:
     def count(self, topics: set[str] | None) -> int | None:
         return None
 
-    def messages(self, topics: set[str]) -> Iterator[Message]:
+    def close(self) -> None:
+        pass
+
+    def messages(self, wanted: Wanted) -> Iterator[Message]:
         from mcap.records import Message as McapMessage
 
         schemas: dict[int, str] = {}
+        readers: dict[int, tuple[Any, bool]] = {}
         n = 0
         try:
             for record in self._records():
@@ -278,14 +340,17 @@ class McapStreamSource:
                     self._learn(record, schemas)
                     continue
                 topic, msgtype = self.channels.get(record.channel_id, ("", ""))
-                if topic not in topics:
+                if topic not in wanted:
                     continue
-                msg = self.store.deserialize_cdr(record.data, msgtype)
-                header = getattr(msg, "header", None)
-                stamp = getattr(header, "stamp", None)
-                valid = stamp.sec * NS + stamp.nanosec if stamp is not None else record.log_time
+                if record.channel_id not in readers:
+                    readers[record.channel_id] = _ros_reader(
+                        self.store.fielddefs, msgtype, wanted[topic], False,
+                        self.store.deserialize_cdr)
+                read, stamped = readers[record.channel_id]
+                values = read(record.data)
+                valid = values[-2] * NS + values[-1] if stamped else record.log_time
                 n += 1
-                yield topic, record.log_time, valid, msg
+                yield topic, record.log_time, valid, values
         except Exception as exc:
             why = "the file ends in the middle of a record" if type(exc).__name__ == \
                 "EndOfFile" else _why(exc)

@@ -1,0 +1,285 @@
+"""The Stream Processor and `dkreason monitor`, end to end, on recordings built here."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+
+from dkreason import KnowledgeManager
+from dkreason.cli import main
+from dkreason.errors import DkError
+from dkreason.monitor import Monitor
+from dkreason.progress import Verdict
+from dkreason.stream.processor import StreamPolicy, Violation
+from dkreason.stream.recording import write_recording
+from dkreason.stream.sources import JsonlSource, PushSource
+
+REPO = Path(__file__).resolve().parents[1]
+CAR = "dkreason_msgs/msg/CarMsg"
+AUTO = "dkreason_msgs/msg/AutomobileMsg"
+TYPES = {CAR: "int32 id\nfloat64 spd\n",
+         AUTO: "std_msgs/Header header\nint32 id\nfloat64 speed\nfloat64 position\n"}
+S = 10**9
+SPEEDING = "always (Speed[car1] > 60 -> eventually[0, 3] Speed[car1] <= 60)"
+SLOW = "always (Speed[car2] < 60)"
+
+
+def car_rows(seconds: int = 8):
+    """car2 keeps to 50; car1 speeds at 70 from 0.1 s to 5.1 s (a violation when the window
+    [0.1, 3.1] closes)."""
+    for t in range(seconds):
+        yield ("/platform1/topic4", CAR, t * S, {"id": 2, "spd": 50.0})
+        yield ("/platform1/topic3", CAR, t * S + S // 10, {"id": 1, "spd": 70.0 if t <= 5
+                                                            else 50.0})
+
+
+def jsonl(path: Path, rows) -> Path:
+    with path.open("w") as out:
+        for topic, _, t_ns, msg in rows:
+            out.write(json.dumps({"topic": topic.split("/")[-1], "time": t_ns / S,
+                                  "msg": msg}) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def single() -> KnowledgeManager:
+    return KnowledgeManager.from_config(REPO / "examples" / "single.toml")
+
+
+def run(capsys, config: Path, source: Path, *formulas: str, extra=()) -> tuple[int, list]:
+    code = main(["monitor", "--config", str(config), "--source", str(source), "--json",
+                 *extra, *formulas])
+    out = capsys.readouterr()
+    return code, [json.loads(line) for line in out.out.splitlines()] + (
+        [{"error": out.err.strip()}] if out.err.strip() else [])
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "sqlite3", "mcap", "bare-mcap", "jsonl"])
+def test_every_recording_format_gives_the_same_verdicts(capsys, tmp_path: Path, fmt):
+    if fmt == "jsonl":
+        source = jsonl(tmp_path / "run.jsonl", car_rows())
+    else:
+        source = tmp_path / {"ros1": "run.bag", "bare-mcap": "run.mcap"}.get(fmt, "run")
+        write_recording(source, fmt, TYPES, car_rows())  # type: ignore[arg-type]
+    code, lines = run(capsys, REPO / "examples" / "single.toml", source, SPEEDING, SLOW)
+    assert code == 1
+    verdicts = {line["formula"]: (line["verdict"], line["time"], line["at_end"])
+                for line in lines if "verdict" in line}
+    assert verdicts == {SPEEDING: (False, 3.1, False), SLOW: (True, 7.1, True)}
+
+
+@pytest.fixture(scope="module")
+def traffic(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    target = tmp_path_factory.mktemp("traffic") / "recording"
+    subprocess.run([sys.executable, str(REPO / "examples" / "traffic" / "simulate.py"),
+                    str(target)], check=True, capture_output=True)
+    return target
+
+
+TRAFFIC = "forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)"
+
+
+def test_traffic_example_federation_finds_car2s_violation_from_platform_2(
+        capsys, traffic: Path, tmp_path: Path):
+    plot = tmp_path / "traffic.png"
+    code, lines = run(capsys, REPO / "examples" / "federation.toml", traffic, TRAFFIC,
+                      extra=["--delay", "0.1", "--plot", str(plot)])
+    (verdict,) = [line for line in lines if "verdict" in line]
+    assert code == 1 and verdict["verdict"] is False and verdict["time"] == 300.02
+    assert "Speed[car2] <= 60 never held within [0.01, 300.01]" in verdict["witness"]
+    assert not [line for line in lines if "violation" in line]
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_traffic_example_single_platform_does_not_claim_what_it_did_not_see(
+        capsys, traffic: Path):
+    code, lines = run(capsys, REPO / "examples" / "single.toml", traffic, TRAFFIC,
+                      extra=["--delay", "0.1"])
+    (verdict,) = [line for line in lines if "verdict" in line]
+    assert code == 3 and verdict["verdict"] is None and verdict["at_end"] is True
+    spans = [u for u in verdict["unknown"] if u["feature"] == "Speed[car2]"]
+    assert {"feature": "Speed[car2]", "from": 204.010000001, "to": 359.02} in spans
+
+
+# ---- stream constraints and bad samples ---------------------------------------------------
+
+def messages(tmp_path: Path, rows: list[tuple[str, float, dict, float | None]]) -> Path:
+    """JSON lines from (topic, valid time, msg, available time or None)."""
+    path = tmp_path / "m.jsonl"
+    with path.open("w") as out:
+        for topic, t, msg, available in rows:
+            row = {"topic": topic, "time": t, "msg": msg}
+            if available is not None:
+                row["available"] = available
+            out.write(json.dumps(row) + "\n")
+    return path
+
+
+def events(single: KnowledgeManager, source: Path, policy: StreamPolicy,
+           formula: str = "always (Speed[car1] > 0)") -> tuple[list, Monitor]:
+    monitor = Monitor(single, [formula], policy)
+    monitor.keep_states = True
+    return list(monitor.run(JsonlSource(source))), monitor
+
+
+def kinds(evs: list) -> list[str]:
+    return [e.constraint for e in evs if isinstance(e, Violation)]
+
+
+def car1(t: float, spd: float = 50.0, available: float | None = None):
+    return ("topic3", t, {"id": 1, "spd": spd}, available)
+
+
+def test_start_and_end_time_drop_samples_outside_and_say_so(single, tmp_path):
+    evs, monitor = events(single, messages(tmp_path, [car1(0), car1(1), car1(2), car1(3)]),
+                          StreamPolicy(start_time=Fraction(1), end_time=Fraction(2)))
+    assert kinds(evs) == ["start_end_time", "start_end_time"]
+    assert [t / S for t, _ in monitor.states] == [1, 2]
+
+
+def test_sample_period_and_deviation(single, tmp_path):
+    rows = [car1(0), car1(1), car1(2.05), car1(4)]
+    evs, monitor = events(single, messages(tmp_path, rows),
+                          StreamPolicy(sample_period=Fraction(1),
+                                       sample_period_deviation=Fraction(1, 10)))
+    (v,) = [e for e in evs if isinstance(e, Violation)]
+    assert v.constraint == "sample_period" and "1.95 s since the previous sample" in v.detail
+    assert [t / S for t, _ in monitor.states] == [0, 1, 2, 3, 4]
+
+
+def test_max_delay(single, tmp_path):
+    evs, _ = events(single, messages(tmp_path, [car1(0, available=0.1), car1(1, available=1.7)]),
+                    StreamPolicy(max_delay=Fraction(1, 2), delay_before_approximation=Fraction(1)))
+    (v,) = [e for e in evs if isinstance(e, Violation)]
+    assert v.constraint == "max_delay" and "delay 0.7 s exceeds 0.5 s" in v.detail
+
+
+def test_out_of_order_and_duplicate_samples(single, tmp_path):
+    rows = [car1(0, 50, 0), car1(2, 52, 2), car1(1, 51, 2.1), car1(2, 53, 2.2)]
+    evs, monitor = events(single, messages(tmp_path, rows),
+                          StreamPolicy(ordered_on_valid_time=True, unique_valid_time=True,
+                                       delay_before_approximation=Fraction(1)))
+    assert kinds(evs) == ["ordered_on_valid_time", "unique_valid_time"]
+    # the out-of-order sample counts in valid-time order; on equal times the later arrival wins
+    assert [(t / S, s["Speed[car1]"]) for t, s in monitor.states] == [(0, 50), (1, 51),
+                                                                      (2, 53)]
+
+
+def test_late_samples_are_reported_and_never_rewrite_states_already_made(single, tmp_path):
+    rows = [car1(0, 50, 0), car1(1, 51, 1), car1(2, 52, 2), car1(0.5, 99, 2.5), car1(3, 53, 3)]
+    evs, monitor = events(single, messages(tmp_path, rows), StreamPolicy(max_age=None))
+    (v,) = [e for e in evs if isinstance(e, Violation)]
+    assert v.constraint == "late" and "valid at 0.5 s arrived at 2.5 s" in v.detail
+    assert [s["Speed[car1]"] for _, s in monitor.states] == [50, 51, 52, 53]
+
+
+def test_missing_samples_make_values_unknown_and_no_violation_is_claimed(single, tmp_path):
+    # car1 is seen speeding at 0 s and 1 s, then not for 29 s: the data cannot show whether
+    # it slowed down within 20 s, so there is no violation, only an unknown span
+    rows = [car1(0, 70), car1(1, 70), car1(30, 50)]
+    evs, monitor = events(single, messages(tmp_path, rows), StreamPolicy(max_age=Fraction(2)),
+                          "always (Speed[car1] > 60 -> eventually[0, 20] Speed[car1] <= 60)")
+    (v,) = [e for e in evs if isinstance(e, Verdict)]
+    assert v.verdict is None and v.at_end
+    assert [(u.feature, u.start, u.end) for u in v.unknown] == [
+        ("Speed[car1]", 3.000000001, 3.000000001)]
+    assert [(t / S, s["Speed[car1]"]) for t, s in monitor.states] == [
+        (0, 70), (1, 70), (3.000000001, None), (30, 50)]
+
+
+def test_approximation_none_only_takes_samples_at_the_state_time(single, tmp_path):
+    rows = [car1(0, 50), ("topic4", 0.5, {"id": 2, "spd": 40}, None), car1(1, 51)]
+    evs, monitor = events(single, messages(tmp_path, rows), StreamPolicy(approximation="none"),
+                          "always (Speed[car1] > 0 and Speed[car2] > 0)")
+    assert [(t / S, s["Speed[car1]"], s["Speed[car2]"]) for t, s in monitor.states] == [
+        (0, 50, None), (0.5, None, 40), (1, 51, None)]
+
+
+def test_filters_compare_ids_across_int_and_string(single, tmp_path):
+    rows = [("topic3", 0, {"id": "1", "spd": 70}, None), ("topic3", 1, {"id": 2, "spd": 10}, None),
+            ("topic3", 2, {"id": 1, "spd": 30}, None)]
+    _, monitor = events(single, messages(tmp_path, rows), StreamPolicy(max_age=None))
+    assert [s["Speed[car1]"] for _, s in monitor.states] == [70, 30]
+
+
+def test_merge_prefers_the_most_recent_valid_time_then_the_local_platform(tmp_path):
+    km = KnowledgeManager.from_config(REPO / "examples" / "federation.toml")
+    rows = [("topic3", 1, {"id": 1, "spd": 50}, None),
+            ("platform2/carstopic2", 1, {"id": 11, "speed": 99}, 1.05),
+            ("platform2/carstopic2", 2, {"id": 11, "speed": 61}, 2.05),
+            ("topic3", 2.5, {"id": 1, "spd": 55}, None)]
+    monitor = Monitor(km, ["always (Speed[car1] > 0)"], StreamPolicy(
+        delay_before_approximation=Fraction(1, 10)))
+    monitor.keep_states = True
+    list(monitor.run(JsonlSource(messages(tmp_path, rows))))
+    assert [(t / S, s["Speed[car1]"]) for t, s in monitor.states] == [(1, 50), (2, 61),
+                                                                      (2.5, 55)]
+
+
+def test_the_push_api_feeds_any_live_source(single):
+    source = PushSource()
+    for t in range(5):
+        source.push("topic3", t, {"id": 1, "spd": 70 if t < 4 else 50})
+    source.end()
+    monitor = Monitor(single, ["always (Speed[car1] > 60 -> eventually[0, 2] Speed[car1] <= 60)"],
+                      StreamPolicy())
+    (v,) = [e for e in monitor.run(source) if isinstance(e, Verdict)]
+    assert (v.verdict, v.time) == (False, 2)
+
+
+# ---- errors ---------------------------------------------------------------------------------
+
+def test_a_field_missing_from_the_message_type_is_found_before_replay(single, tmp_path):
+    bag = tmp_path / "run.mcap"
+    write_recording(bag, "bare-mcap", {CAR: "int32 id\nfloat64 speed\n"},
+                    [("/platform1/topic3", CAR, 0, {"id": 1, "speed": 3.0})])
+    with pytest.raises(DkError, match=r"topic /platform1/topic3 \(dkreason_msgs/msg/CarMsg\) "
+                                      r"has no field msg.spd: .*has no field 'spd'"):
+        list(Monitor(single, [SPEEDING], StreamPolicy()).run(_open(bag)))
+
+
+def _open(path: Path):
+    from dkreason.stream.sources import open_source
+    return open_source(path)
+
+
+def test_a_truncated_recording_still_gives_what_was_decided_before_the_damage(capsys, tmp_path):
+    bag = tmp_path / "cut.mcap"
+    rows = [("/platform1/topic3", CAR, t * S // 100, {"id": 1, "spd": 70.0 if t < 500 else 50.0})
+            for t in range(60_000)]
+    write_recording(bag, "bare-mcap", TYPES, rows)
+    data = bag.read_bytes()
+    bag.write_bytes(data[: len(data) // 2])
+    code, lines = run(capsys, REPO / "examples" / "single.toml", bag, SPEEDING)
+    assert code == 2
+    assert lines[0]["verdict"] is False and lines[0]["time"] == 3
+    assert lines[-1]["error"].count("\n") == 1  # the note about reading sequentially, the error
+    assert f"error: {bag}: damaged recording after" in lines[-1]["error"]
+
+
+@pytest.mark.parametrize("content", [b"not a bag at all", b""])
+def test_an_unreadable_recording_is_a_one_line_error(capsys, tmp_path, content):
+    bag = tmp_path / "x.bag"
+    bag.write_bytes(content)
+    code = main(["monitor", "--config", str(REPO / "examples" / "single.toml"), "--source",
+                 str(bag), SPEEDING])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and f"{bag}: not a readable ROS recording" in err
+
+
+def test_custom_message_definitions_are_read_from_msg_files(tmp_path):
+    msg = tmp_path / "dkreason_msgs" / "msg"
+    msg.mkdir(parents=True)
+    shutil.copy(REPO / "examples" / "traffic" / "msg" / "dkreason_msgs" / "msg" / "CarMsg.msg",
+                msg / "CarMsg.msg")
+    from dkreason.stream.sources import _typestore
+    store = _typestore([msg / "CarMsg.msg"], ros1=False)
+    assert "dkreason_msgs/msg/CarMsg" in store.fielddefs
+    with pytest.raises(DkError, match="expected a message definition pkg/msg/Name.msg"):
+        _typestore([tmp_path / "CarMsg.txt"], ros1=False)
