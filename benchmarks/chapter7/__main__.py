@@ -1,0 +1,326 @@
+"""Thesis chapter 7 reproduced: the Knowledge Manager timed phase by phase beside the thesis.
+
+For test cases 1.1, 1.2, 1.3, 2.1, 2.2, 3 and 4 at every x-axis point of tables 7.1–7.7 this
+writes the seeded workload (benchmarks/chapter7/workload.py) as ordinary OWL/SSL_T files, then
+times, through the public API a user calls:
+
+- preprocessing: `KnowledgeManager.from_config` (ontology and specs loaded, closures included);
+- extracting: parsing the formula; checking: its features against the ontology;
+- matching: expanding quantifiers and asking the rules for every feature's topics at once;
+- building: the stream request.
+
+Each figure is the median of several runs.  Tables print in the thesis' layout with its figures
+beside ours; the target is per-formula work (extracting + checking + matching + building) at
+most 0.1% of the thesis' same phases.  `--growth` times the 9-feature workload at scales 1, 10
+and 100 and prints each phase's fitted growth exponent (1 = linear in the grown sizes).
+
+    python -m benchmarks.chapter7 [--runs 7] [--loads 3] [--cases 1.1,4] [--growth] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from dkreason import KnowledgeManager
+from dkreason.check import check_formula
+from dkreason.expand import expand
+from dkreason.match import match
+from dkreason.parse.formula import parse_formula
+from dkreason.request import build_request
+
+from .workload import QUANTIFIED, Workload, expanded, formula, many, nine, write
+
+PHASES = ("Preprocessing", "Extracting features", "Checking features",
+          "Matching topic specs", "Building the request")
+FORMULA_PHASES = PHASES[1:]
+TARGET_SHARE = 0.001
+OUT = Path(__file__).resolve().parents[1] / "out" / "chapter7"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One thesis table: its x axis, its figures (ms) and how to build a point's workload."""
+
+    name: str
+    title: str
+    axis: str
+    xs: tuple[str, ...]
+    thesis: dict[str, tuple[int, ...]]  # Preprocessing, Extracting, Checking, Matching
+    point: Callable[[int, int], tuple[Workload, str]]  # (column index, scale) -> setup
+
+
+def _nine_setup(concepts: int, relevant: int, irrelevant: int, rel_specs: int,
+                irr_specs: int) -> tuple[Workload, str]:
+    return Workload(concepts, relevant, irrelevant, rel_specs, irr_specs, nine()), formula(nine())
+
+
+def _case_1_1(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(25 * (i + 1) * s, 0, 200 * s - 9, 0, 11 * s)
+
+
+def _case_1_2(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(200 * s, 0, 25 * i * s, 0, 11 * s)
+
+
+def _case_1_3(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(200 * s, 25 * i * s, 0, 0, 11 * s)
+
+
+def _case_2_1(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(50 * s, 50 * s, 0, 0, 100 * i * s)
+
+
+def _case_2_2(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(50 * s, 50 * s, 0, 100 * i * s, 9 * s)
+
+
+def _case_3(i: int, s: int) -> tuple[Workload, str]:
+    features = many(10 * (i + 1))
+    return Workload(50 * s, 51 * s - 3, 0, 50 * s - len(features), 0, features), \
+        formula(features)
+
+
+def _case_4(i: int, s: int) -> tuple[Workload, str]:
+    n = (3, 9, 27)[i // 2]
+    text = QUANTIFIED[n] if i % 2 == 0 else formula(expanded(n))
+    return Workload(50 * s, 0, 50 * s - 9, 0, 0, expanded(27)), text
+
+
+_PRE = "Preprocessing"
+CASES = [
+    Case("1.1", "Varying number of concepts", "Number of concepts",
+         tuple(str(25 * k) for k in range(1, 9)),
+         {_PRE: (197, 202, 173, 181, 183, 203, 176, 189),
+          "Extracting features": (28, 32, 28, 32, 30, 26, 28, 28),
+          "Checking features": (1807, 2379, 2937, 4651, 5308, 5595, 5978, 6426),
+          "Matching topic specs": (546, 542, 554, 544, 558, 562, 551, 547)}, _case_1_1),
+    Case("1.2", "Varying number of irrelevant individuals", "Num. of irrel. ind.",
+         tuple(str(25 * k) for k in range(9)),
+         {_PRE: (188, 186, 206, 184, 172, 191, 185, 178, 189),
+          "Extracting features": (29, 29, 29, 30, 29, 29, 29, 29, 27),
+          "Checking features": (4944, 5219, 5465, 5682, 5805, 6032, 6205, 6305, 6450),
+          "Matching topic specs": (575, 560, 557, 546, 550, 561, 567, 558, 570)}, _case_1_2),
+    Case("1.3", "Varying number of relevant individuals", "Num. of rel. ind.",
+         tuple(str(25 * k) for k in range(9)),
+         {_PRE: (178, 176, 183, 203, 190, 198, 191, 191, 176),
+          "Extracting features": (28, 30, 30, 29, 30, 30, 29, 32, 29),
+          "Checking features": (5086, 5164, 5400, 5657, 5715, 5984, 6060, 6295, 6514),
+          "Matching topic specs": (565, 549, 555, 556, 721, 567, 791, 574, 582)}, _case_1_3),
+    Case("2.1", "Varying number of irrelevant topic specifications",
+         "Number of irrelevant topic specs", tuple(str(100 * k) for k in range(6)),
+         {_PRE: (188, 184, 183, 193, 184, 185),
+          "Extracting features": (28, 27, 29, 29, 28, 28),
+          "Checking features": (1969, 2034, 2038, 2040, 2101, 2200),
+          "Matching topic specs": (585, 831, 1026, 1243, 1345, 1345)}, _case_2_1),
+    Case("2.2", "Varying number of relevant topic specifications",
+         "Number of relevant topic specs", tuple(str(100 * k) for k in range(6)),
+         {_PRE: (199, 186, 186, 192, 191, 191),
+          "Extracting features": (28, 28, 30, 29, 29, 29),
+          "Checking features": (2003, 1925, 2063, 1949, 2040, 2015),
+          "Matching topic specs": (574, 818, 1064, 1258, 1433, 1490)}, _case_2_2),
+    Case("3", "Varying number of features in a formula", "Number of features",
+         tuple(str(10 * k) for k in range(1, 6)),
+         {_PRE: (181, 181, 177, 198, 178),
+          "Extracting features": (28, 30, 31, 34, 36),
+          "Checking features": (1929, 2090, 2355, 2746, 3089),
+          "Matching topic specs": (633, 1031, 1172, 1325, 1486)}, _case_3),
+    Case("4", "Quantified or non-quantified arguments", "",
+         ("quant 3", "non-quant 3", "quant 9", "non-quant 9", "quant 27", "non-quant 27"),
+         {_PRE: (194, 199, 187, 186, 196, 183),
+          "Extracting features": (27, 27, 28, 29, 32, 31),
+          "Checking features": (1586, 1697, 1580, 2268, 98, 3062),
+          "Matching topic specs": (485, 521, 693, 630, 1332, 1041)}, _case_4),
+]
+
+
+def time_formula(km: KnowledgeManager, text: str) -> dict[str, float]:
+    """One run of the per-formula phases, in ms, exactly as `check_formula` chains them."""
+    kb = km.kb
+    t0 = time.perf_counter()
+    parsed = parse_formula(text)
+    t1 = time.perf_counter()
+    checked = check_formula(kb, parsed)
+    t2 = time.perf_counter()
+    ground = expand(kb, checked)
+    matches, rejected = match(kb, ground)
+    t3 = time.perf_counter()
+    request = build_request(kb, text, ground, matches, rejected)
+    t4 = time.perf_counter()
+    missing = [f for f in request.features if not f.topics]
+    if missing:
+        raise SystemExit(f"chapter7: workload broken, no topic for {missing[0].feature}")
+    return dict(zip(FORMULA_PHASES, ((t1 - t0) * 1e3, (t2 - t1) * 1e3, (t3 - t2) * 1e3,
+                                     (t4 - t3) * 1e3), strict=True))
+
+
+def measure(w: Workload, text: str, runs: int, loads: int, folder: Path) -> dict[str, float]:
+    """Median ms of every phase for one workload and formula."""
+    config = write(w, folder)
+    load_times = []
+    km: KnowledgeManager | None = None
+    for _ in range(loads):
+        km = None  # the previous knowledge base is freed before the next load is timed
+        t0 = time.perf_counter()
+        km = KnowledgeManager.from_config(config)
+        load_times.append((time.perf_counter() - t0) * 1e3)
+    assert km is not None
+    samples = [time_formula(km, text) for _ in range(runs)]
+    out = {_PRE: statistics.median(load_times)}
+    for phase in FORMULA_PHASES:
+        out[phase] = statistics.median(s[phase] for s in samples)
+    return out
+
+
+def per_formula(figures: dict[str, float]) -> float:
+    return sum(figures[p] for p in FORMULA_PHASES)
+
+
+def thesis_per_formula(case: Case, i: int) -> float:
+    return sum(case.thesis[p][i] for p in FORMULA_PHASES if p in case.thesis)
+
+
+def run_case(case: Case, scale: int, runs: int, loads: int,
+             root: Path) -> list[dict[str, float]]:
+    results = []
+    for i in range(len(case.xs)):
+        w, text = case.point(i, scale)
+        results.append(measure(w, text, runs, loads, root / f"case{case.name}-{i}"))
+    return results
+
+
+def _fmt(ms: float) -> str:
+    return f"{ms:.0f}" if ms >= 100 else f"{ms:.3g}"
+
+
+def table(case: Case, results: list[dict[str, float]]) -> list[list[str]]:
+    """Rows in the thesis' layout: each phase as thesis / ours, then per-formula and its share."""
+    rows = [[case.axis or "Formula", *case.xs]]
+    for phase in PHASES:
+        if phase in case.thesis:
+            rows.append([f"{phase} (thesis)", *(str(v) for v in case.thesis[phase])])
+        rows.append([f"{phase} (ours)", *(_fmt(r[phase]) for r in results)])
+    rows.append(["Per formula (thesis)",
+                 *(str(round(thesis_per_formula(case, i))) for i in range(len(case.xs)))])
+    rows.append(["Per formula (ours)", *(_fmt(per_formula(r)) for r in results)])
+    rows.append(["Ours / thesis, per formula",
+                 *(f"{per_formula(r) / thesis_per_formula(case, i):.3%}"
+                   for i, r in enumerate(results))])
+    rows.append(["Ours / thesis, preprocessing",
+                 *(f"{r[_PRE] / case.thesis[_PRE][i]:.0%}" for i, r in enumerate(results))])
+    return rows
+
+
+def plain(rows: list[list[str]]) -> str:
+    widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
+    return "\n".join("  ".join(cell.rjust(w) if c else cell.ljust(w)
+                               for c, (cell, w) in enumerate(zip(r, widths, strict=True)))
+                     for r in rows)
+
+
+def markdown(rows: list[list[str]]) -> str:
+    lines = ["| " + " | ".join(rows[0]) + " |",
+             "|" + "|".join(["---"] + ["---:"] * (len(rows[0]) - 1)) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows[1:]]
+    return "\n".join(lines)
+
+
+def plot(case: Case, results: list[dict[str, float]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    xs = list(range(len(case.xs)))
+    fig, ax = plt.subplots(figsize=(7, 4))
+    ax.plot(xs, [thesis_per_formula(case, i) for i in xs], "o-", color="tab:red",
+            label="thesis, per formula")
+    ax.plot(xs, case.thesis[_PRE], "s--", color="tab:red", alpha=0.5,
+            label="thesis, preprocessing")
+    ax.plot(xs, [per_formula(r) for r in results], "o-", color="tab:blue",
+            label="dkreason, per formula")
+    ax.plot(xs, [r[_PRE] for r in results], "s--", color="tab:blue", alpha=0.5,
+            label="dkreason, preprocessing")
+    ax.plot(xs, [thesis_per_formula(case, i) * TARGET_SHARE for i in xs], ":",
+            color="grey", label="target: 0.1% of thesis")
+    ax.set_yscale("log")
+    ax.set_xticks(xs, case.xs)
+    ax.set_xlabel(case.axis or "formula")
+    ax.set_ylabel("ms (log scale)")
+    ax.set_title(f"Test case {case.name}: {case.title.lower()}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def growth(scales: list[int], runs: int, loads: int, root: Path) -> list[list[str]]:
+    """The 9-feature workload (table 7.1's last point) grown by each scale; fitted exponents."""
+    figures = {s: measure(*_case_1_1(7, s), runs, loads, root / f"growth-{s}") for s in scales}
+    header = ["Phase (ms)", *(f"scale {s}" for s in scales), "exponent"]
+    rows = [header]
+    first, last = scales[0], scales[-1]
+    for phase in (*PHASES, "Per formula"):
+        values = [per_formula(figures[s]) if phase == "Per formula" else figures[s][phase]
+                  for s in scales]
+        k = math.log(values[-1] / values[0]) / math.log(last / first)
+        rows.append([phase, *(_fmt(v) for v in values), f"{k:.2f}"])
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.chapter7",
+                                     description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", type=int, default=7, help="runs per formula (median)")
+    parser.add_argument("--loads", type=int, default=3, help="loads per workload (median)")
+    parser.add_argument("--cases", default=",".join(c.name for c in CASES))
+    parser.add_argument("--scale", type=int, default=1)
+    parser.add_argument("--growth", action="store_true", help="also time scales 1, 10, 100")
+    parser.add_argument("--scales", default="1,10,100")
+    parser.add_argument("--out", type=Path, default=OUT)
+    args = parser.parse_args(argv)
+    wanted = args.cases.split(",")
+    unknown = [c for c in wanted if c not in {case.name for case in CASES}]
+    if unknown:
+        print(f"chapter7: unknown test case {unknown[0]!r}", file=sys.stderr)
+        return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    report = [f"# Thesis chapter 7 reproduced (scale {args.scale}, median of {args.runs} runs"
+              f" and {args.loads} loads)\n"]
+    worst = 0.0
+    with tempfile.TemporaryDirectory(prefix="dkreason-ch7-") as tmp:
+        for case in (c for c in CASES if c.name in wanted):
+            results = run_case(case, args.scale, args.runs, args.loads, Path(tmp))
+            rows = table(case, results)
+            print(f"\nTest case {case.name}: {case.title} (scale {args.scale}; ms)")
+            print(plain(rows))
+            report += [f"## Test case {case.name}: {case.title}\n", markdown(rows),
+                       f"\n![test case {case.name}](case{case.name}.png)\n"]
+            plot(case, results, args.out / f"case{case.name}.png")
+            worst = max(worst, *(per_formula(r) / thesis_per_formula(case, i)
+                                 for i, r in enumerate(results)))
+        summary = f"Worst per-formula share of the thesis: {worst:.3%} (target 0.1%)"
+        print(f"\n{summary}")
+        report.append(summary + "\n")
+        if args.growth:
+            scales = [int(s) for s in args.scales.split(",")]
+            rows = growth(scales, args.runs, args.loads, Path(tmp))
+            print("\nGrowth of the 9-feature workload (200 concepts, 200 individuals, "
+                  "20 specs at scale 1)")
+            print(plain(rows))
+            report += ["## Growth of the 9-feature workload\n", markdown(rows), ""]
+    (args.out / "report.md").write_text("\n".join(report) + "\n", encoding="utf-8")
+    print(f"\nwrote {args.out / 'report.md'} and one plot per test case")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,159 @@
+"""Seeded workloads of thesis chapter 7 (section 7.2), written as ordinary OWL and SSL_T files.
+
+Every ontology has concepts A–E (B–E under A), the relations X (unary), Y (binary) and
+Z (ternary) over A, and the individuals the formulas name: b1–b3 of B, d1–d3 of D, e1–e3 of E.
+Further concepts are each a top concept or a subconcept of a randomly chosen earlier one;
+further individuals are relevant (of B, like the formula's objects) or irrelevant (of another
+concept).  Topic specifications: one relevant spec per feature of the formula, irrelevant ones
+that differ from a relevant one in one argument, and extra relevant ones (sort topics or further
+topics for the same features).  `scale` multiplies every size.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+from itertools import product
+from pathlib import Path
+
+NS = "http://example.org/ch7#"
+NINE = ["X[b1]", "X[b2]", "X[b3]", "Y[b1, b1]", "Y[b1, b2]", "Y[b1, b3]", "Z[b1, b2, b1]",
+        "Z[b1, b2, b2]", "Z[b1, b2, b3]"]
+QUANTIFIED = {3: "forall x in B (Z[x, d1, e1])", 9: "forall x in B, y in D (Z[x, y, e1])",
+              27: "forall x in B, y in D, z in E(Z[x, y, z])"}
+
+
+@dataclass(frozen=True)
+class Workload:
+    concepts: int  # in all, A–E included
+    relevant: int  # individuals of B besides b1–b3 (d1–d3 and e1–e3 always exist)
+    irrelevant: int  # individuals of other concepts
+    relevant_specs: int  # besides one per feature of the formula
+    irrelevant_specs: int
+    features: list[str]  # ground features the relevant specs are made for
+    seed: int = 7
+
+
+def nine() -> list[str]:
+    return list(NINE)
+
+
+def many(n: int) -> list[str]:
+    """n distinct ground features over b1..bk (test case 3)."""
+    k = 3
+    while k + k * k + k ** 3 < n:
+        k += 1
+    b = [f"b{i}" for i in range(1, k + 1)]
+    pool = [f"X[{x}]" for x in b] + [f"Y[{x}, {y}]" for x, y in product(b, b)] + \
+        [f"Z[{x}, {y}, {z}]" for x, y, z in product(b, b, b)]
+    return pool[:n]
+
+
+def expanded(n: int) -> list[str]:
+    """The ground features a quantified formula of test case 4 expands to."""
+    if n == 3:
+        return [f"Z[b{i}, d1, e1]" for i in (1, 2, 3)]
+    if n == 9:
+        return [f"Z[b{i}, d{j}, e1]" for i in (1, 2, 3) for j in (1, 2, 3)]
+    return [f"Z[b{i}, d{j}, e{k}]" for i in (1, 2, 3) for j in (1, 2, 3) for k in (1, 2, 3)]
+
+
+def formula(features: list[str]) -> str:
+    return " and ".join(features)
+
+
+def write(w: Workload, folder: Path) -> Path:
+    """Write ontology, specs and config into `folder`; return the config path."""
+    rnd = random.Random(w.seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    concepts = ["A", "B", "C", "D", "E"]
+    parent: dict[str, str | None] = {"A": None, "B": "A", "C": "A", "D": "A", "E": "A"}
+    for i in range(max(w.concepts - 5, 0)):
+        name = f"K{i}"
+        parent[name] = rnd.choice(concepts) if rnd.random() < 0.8 else None
+        concepts.append(name)
+    individuals = {f"{c}{i}": c.upper() for c in "bde" for i in (1, 2, 3)}
+    for i in range(w.relevant):
+        individuals[f"b{4 + i}"] = "B"
+    quantified = _below("B", parent) | _below("D", parent) | _below("E", parent)
+    others = [c for c in concepts if c != "A" and c not in quantified]  # B, D, E stay as named
+    for i in range(w.irrelevant):
+        individuals[f"o{i}"] = rnd.choice(others)
+    (folder / "ch7.owl").write_text(_owl(parent, individuals), encoding="utf-8")
+
+    specs = [_spec(f"rel{n}", f) for n, f in enumerate(w.features)]
+    under_a = _below("A", parent)
+    names = sorted(i for i, c in individuals.items() if c in under_a)  # fit X, Y, Z
+    for n in range(w.irrelevant_specs):
+        name, args = _parse(rnd.choice(w.features))
+        k = rnd.randrange(len(args))
+        args[k] = rnd.choice([x for x in names if x != args[k]])
+        specs.append(_spec(f"irr{n}", f"{name}[{', '.join(args)}]"))
+    for n in range(w.relevant_specs):
+        name, args = _parse(w.features[n % len(w.features)])
+        if n % 2:  # a sort topic that covers the feature's first argument
+            specs.append(f"topic extra{n}:M contains {name}({', '.join(['B', *args[1:]])}) = "
+                         f"msg.v for some B = msg.id1" +
+                         "".join(f", {a} = msg.id{j + 2}" for j, a in enumerate(args[1:])))
+        else:
+            specs.append(_spec(f"extra{n}", w.features[n % len(w.features)]))
+    (folder / "ch7.sslt").write_text("\n".join(specs) + "\n", encoding="utf-8")
+    config = folder / "ch7.toml"
+    config.write_text('local = "ch7"\n[platforms.ch7]\nontology = "ch7.owl"\n'
+                      'specs = "ch7.sslt"\n', encoding="utf-8")
+    return config
+
+
+def _below(root: str, parent: dict[str, str | None]) -> set[str]:
+    """`root` and its subconcepts; `parent` lists parents before their children."""
+    below = {root}
+    for c, p in parent.items():
+        if p in below:
+            below.add(c)
+    return below
+
+
+def _parse(feature: str) -> tuple[str, list[str]]:
+    name, rest = feature.split("[")
+    return name, [a.strip() for a in rest.rstrip("]").split(",")]
+
+
+def _spec(topic: str, feature: str) -> str:
+    name, args = _parse(feature)
+    labels = [f"a{i}" for i in range(len(args))]
+    aliased = ", ".join(f"{a} as {lab}" for a, lab in zip(args, labels, strict=True))
+    ids = ", ".join(f"{lab} = msg.id{i + 1}" for i, lab in enumerate(labels))
+    return f"topic {topic}:M contains {name}({aliased}) = msg.v for {ids}"
+
+
+def _owl(parent: dict[str, str | None], individuals: dict[str, str]) -> str:
+    out = ['<?xml version="1.0"?>',
+           f'<rdf:RDF xmlns="{NS}" xml:base="{NS[:-1]}"',
+           '  xmlns:owl="http://www.w3.org/2002/07/owl#"',
+           '  xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"',
+           '  xmlns:rdfs="http://www.w3.org/2000/01/rdf-schema#">',
+           f'<owl:Ontology rdf:about="{NS[:-1]}"/>']
+    for arg in ("arg1", "arg2", "arg3"):
+        out.append(f'<owl:ObjectProperty rdf:about="{NS}{arg}"/>')
+    for c in ("Relation", "UnaryRelation", "BinaryRelation", "TernaryRelation"):
+        sup = "" if c == "Relation" else \
+            f'<rdfs:subClassOf rdf:resource="{NS}Relation"/>'
+        out.append(f'<owl:Class rdf:about="{NS}{c}">{sup}</owl:Class>')
+    for c, p in parent.items():
+        sup = f'<rdfs:subClassOf rdf:resource="{NS}{p}"/>' if p else ""
+        out.append(f'<owl:Class rdf:about="{NS}{c}">{sup}</owl:Class>')
+    for name, kind, arity in (("X", "UnaryRelation", 1), ("Y", "BinaryRelation", 2),
+                              ("Z", "TernaryRelation", 3)):
+        restrictions = "".join(
+            f'<owl:Restriction><owl:onProperty rdf:resource="{NS}arg{i}"/>'
+            f'<owl:allValuesFrom rdf:resource="{NS}A"/></owl:Restriction>'
+            for i in range(1, arity + 1))
+        out.append(f'<owl:Class rdf:about="{NS}{name}"><rdfs:subClassOf><owl:Class>'
+                   f'<owl:intersectionOf rdf:parseType="Collection">'
+                   f'<rdf:Description rdf:about="{NS}{kind}"/>{restrictions}'
+                   f'</owl:intersectionOf></owl:Class></rdfs:subClassOf></owl:Class>')
+    for ind, cls in individuals.items():
+        out.append(f'<owl:NamedIndividual rdf:about="{NS}{ind}">'
+                   f'<rdf:type rdf:resource="{NS}{cls}"/></owl:NamedIndividual>')
+    out.append("</rdf:RDF>")
+    return "\n".join(out) + "\n"
