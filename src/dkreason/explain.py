@@ -512,10 +512,9 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
                 chain = _chain(reader, node, str(told.fact[3]), str(sort_args[0].fact[6]),
                                ("subclass_of", "equivalent_class"))
                 lines.append(f"argument {position} of {topic}: {reader.name(obj)} : {chain}")
-    for leaf in proof.leaves():
-        if leaf.fact[0] == "topic_feature":
-            lines.append(f"topic: {leaf.text} [{leaf.source}]")
-    return tuple(lines)
+    carried = (f"topic: {leaf.text} [{leaf.source}]" for leaf in proof.leaves()
+               if leaf.fact[0] == "topic_feature")
+    return tuple(lines) + tuple(dict.fromkeys(carried))
 
 
 def _chain(reader: Reader, node: Proof, start: str, end: str, kinds: tuple[str, ...]) -> str:

@@ -8,6 +8,7 @@ rules against both ontologies they join, so a bad file fails at load time with i
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,9 +16,11 @@ from .datalog import Datalog
 from .errors import DkError, NameError_, ParseError, SortError, Span
 from .facts import (
     STATIC,
+    Facts,
     ResolvedArg,
     ResolvedFeature,
     ResolvedSpec,
+    Row,
     merge,
     ontology_facts,
     rows_of,
@@ -115,9 +118,7 @@ class KnowledgeBase:
         if spec.name in p.specs:
             raise DkError(f"topic {spec.name} already exists on {platform}")
         resolved = resolve_spec(p, spec)
-        facts = spec_facts(platform, resolved)
-        for pred, rows in rows_of(facts):
-            self.engine.assert_rows(pred, rows)
+        self._change(spec_facts(platform, resolved), self.engine.assert_rows)
         p.specs[spec.name], p.resolved[spec.name] = spec, resolved
         try:
             self._check_specs(p, [spec.name])
@@ -130,10 +131,16 @@ class KnowledgeBase:
         p = self.platform(platform)
         if name not in p.specs:
             raise NameError_(f"no topic {name!r} on {platform}", Span("<api>"))
-        for pred, rows in rows_of(spec_facts(platform, p.resolved[name])):
-            self.engine.retract_rows(pred, rows)
+        self._change(spec_facts(platform, p.resolved[name]), self.engine.retract_rows)
         del p.resolved[name]
         return p.specs.pop(name)
+
+    def _change(self, facts: Facts, how: Callable[[str, list[Row]], None]) -> None:
+        """Assert or retract spec facts; the views that read topics are computed again."""
+        self.engine.thaw()
+        for pred, rows in rows_of(facts):
+            how(pred, rows)
+        self.engine.materialize()
 
     def platform(self, name: str) -> Platform:
         if name not in self.platforms:

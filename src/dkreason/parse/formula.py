@@ -12,9 +12,8 @@ from fractions import Fraction
 from functools import cache
 from typing import Any
 
-from lark import Lark, Token, Transformer, v_args
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, VisitError
-from lark.tree import Meta
+from lark import Lark, Token, Transformer
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..errors import ParseError, Span
 from ..model import Arg, FeatureRef
@@ -126,23 +125,24 @@ _WORD = {"U": "until", "¬": "not", "∧": "and", "∨": "or", "→": "->", "↔
 
 @cache
 def _parser() -> Lark:
+    # The transformer runs inside the LALR parser: the AST is built without a parse tree.
     return Lark.open_from_package("dkreason.parse", "mtl.lark", parser="lalr",
-                                  propagate_positions=True, maybe_placeholders=False)
+                                  maybe_placeholders=False,
+                                  transformer=_ToAst())
 
 
 class _ToAst(Transformer[Token, Any]):
     @staticmethod
-    def _span(meta: Meta | Token) -> Span:
-        return Span(FILE, meta.line or 1, meta.column or 1)
+    def _span(token: Token) -> Span:
+        return Span(FILE, token.line or 1, token.column or 1)
 
     def name(self, children: list[Token]) -> Token:
         return children[0]
 
-    @v_args(meta=True)
-    def feature(self, meta: Meta, children: list[Token]) -> Ref:
+    def feature(self, children: list[Token]) -> Ref:
         name, *args = children
         return Ref(FeatureRef(str(name), tuple(Arg(str(a), None, self._span(a)) for a in args),
-                              self._span(meta)))
+                              self._span(name)))
 
     def number(self, children: list[Token]) -> Num:
         text = str(children[0])
@@ -182,13 +182,12 @@ class _ToAst(Transformer[Token, Any]):
 
     iff = imp = or_ = and_ = _connective
 
-    @v_args(meta=True)
-    def interval(self, meta: Meta, children: list[Fraction | None]) -> Interval:
-        lo, hi = children
+    def interval(self, children: list[Any]) -> Interval:
+        bracket, lo, hi = children
         if lo is None:
-            raise ParseError("an interval cannot start at infinity", self._span(meta))
+            raise ParseError("an interval cannot start at infinity", self._span(bracket))
         if hi is not None and hi < lo:
-            raise ParseError(f"empty interval: {lo} > {hi}", self._span(meta))
+            raise ParseError(f"empty interval: {lo} > {hi}", self._span(bracket))
         return Interval(lo, hi)
 
     def bound(self, children: list[Token]) -> Fraction | None:
@@ -241,12 +240,9 @@ def _where(node: Any) -> Span:
 
 def parse_formula(text: str) -> Formula:
     try:
-        tree = _parser().parse(text)
-        return _formula(_ToAst().transform(tree))
+        return _formula(_parser().parse(text))
     except UnexpectedInput as exc:
         raise _syntax_error(exc, text) from None
-    except VisitError as exc:
-        raise exc.orig_exc from None
 
 
 def _syntax_error(exc: UnexpectedInput, text: str) -> ParseError:
