@@ -5,7 +5,7 @@ the engine: the engine says which bindings hold, the clauses say why, so a rule 
 file adds appears in explanations like any shipped rule.  Told facts are the leaves and name
 where they came from: the spec statement, the ontology axiom, the bridge rule, the formula.
 
-Why-not looks at each candidate of `rules/matching.dl` (`candidate/6`: the feature read as a
+Why-not looks at each candidate of `rules/matching.dl` (`candidate/7`: the feature read as a
 feature of one platform, its arguments as that platform's objects) and reports the first
 condition of `sound_candidate/6` or `relevant_topic/7` that fails for it, descending through
 the rules to the told facts that are missing.
@@ -431,13 +431,13 @@ def _why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
 def _why_not(kb: KnowledgeBase, replay: Replayer, q: int, platform: str,
              topic: str | None) -> list[TopicWhyNot]:
     key = replay.reader.ground[q].key
-    candidates = replay.rows(("candidate", q, platform, None, None, None, None))
+    candidates = replay.rows(("candidate", q, platform, None, None, None, None, None))
     if not candidates:
-        failure = replay.refute(("candidate", q, platform, None, None, None, None))
+        failure = replay.refute(("candidate", q, platform, None, None, None, None, None))
         return [TopicWhyNot(platform, topic, f"{key} has no candidate on {platform}: "
                                              f"{_reason(kb, replay, failure)}", failure)]
     out = []
-    for _, _, _, g, *objects in candidates:
+    for _, _, _, _, g, *objects in candidates:
         arity = len(replay.reader.ground[q].args)
         shown = ", ".join(replay.reader.name(o) for o in objects[:arity])
         mapped = f"{replay.reader.name(g)}[{shown}]"
@@ -462,7 +462,7 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
                                          if failure.nearby else "")
     pred, *a = cond
     if failure.negated:
-        if pred == "excluded_for":
+        if pred == "excluded":
             return f"an incompat bridge rule excludes {name(a[2])} here"
         return f"{failure.condition_text} holds"
     if pred == "fits" and a[3]:
