@@ -14,11 +14,11 @@ from .names import local_name
 
 def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
                   matches: list[Match], rejected: list[Rejected]) -> StreamRequest:
-    per_feature: dict[int, list[TopicMatch]] = defaultdict(list)
+    per_feature: dict[int, dict[TopicMatch, None]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
-        if topic is not None and topic not in per_feature[m.query]:
-            per_feature[m.query].append(topic)
+        if topic is not None:
+            per_feature[m.query][topic] = None
     order = {(p, t): i for p, plat in kb.platforms.items() for i, t in enumerate(plat.specs)}
     features = tuple(
         FeatureRequest(g, tuple(sorted(per_feature[q], key=lambda t: (
