@@ -145,19 +145,43 @@ class Datalog:
 
     def materialize(self) -> None:
         """Replace each declared view's rules by its rows (call `thaw` before the facts it
-        depends on change)."""
+        depends on change).  Views are computed in dependency order, each frozen before the
+        next, so no view is derived again inside another."""
         from pyDatalog import Logic, pyEngine
 
-        rows = {name: self.query(name, *[None] * arity) for name, arity in self.views.items()
-                if name not in self._frozen}
         db = Logic.tl.logic.Db
-        for name, found in rows.items():
+        for name in self._view_order():
+            if name in self._frozen:
+                continue
+            found = self.query(name, *[None] * self.views[name])
             pred = db.get(f"{name}/{self.views[name]}")
             rules = list(pred.clauses.values()) if pred is not None else []
             for clause in rules:  # Pred.reset_clauses() mutates what it iterates over
                 pyEngine.retract(clause)
             self.assert_rows(name, found)
             self._frozen[name] = (rules, found)
+
+    def _view_order(self) -> list[str]:
+        """The views, each after every view its rules reach."""
+        reads: dict[str, set[str]] = {}
+        for rule in self.rules:
+            reads.setdefault(rule.head.predicate, set()).update(
+                b.predicate for b in rule.body if isinstance(b, Literal))
+        order: list[str] = []
+        seen: set[str] = set()
+
+        def visit(pred: str) -> None:
+            if pred in seen:
+                return
+            seen.add(pred)
+            for used in sorted(reads.get(pred, ())):
+                visit(used)
+            if pred in self.views:
+                order.append(pred)
+
+        for view in self.views:
+            visit(view)
+        return order
 
     def thaw(self) -> None:
         """Put the views' rules back (their rows go), so they follow changed facts."""
