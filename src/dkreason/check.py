@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from .errors import SortError
 from .facts import ResolvedArg
 from .kb import KnowledgeBase
-from .model import FeatureRef
+from .model import Arg, FeatureRef
 from .names import local_name
 from .parse.formula import Formula, features, quantifiers
 
@@ -37,18 +37,18 @@ def check_formula(kb: KnowledgeBase, formula: Formula) -> list[CheckedFeature]:
         args = tuple(local.names.resolve(a.sort, ("sort",), a.span) if a.sort is not None
                      else local.names.resolve(a.name, ("object",), a.span) for a in ref.args)
         checked.append(CheckedFeature(ref, iri, args))
-    asks = [(n, c.iri, i, x, "sort" if a.is_variable else "object")
-            for n, c in enumerate(checked) for i, (a, x) in enumerate(zip(c.ref.args, c.arg_iris,
-                                                                         strict=True), 1)]
+    asks: dict[tuple[str, int, str, str], tuple[int, Arg]] = {}  # first use of each argument
+    for n, c in enumerate(checked):
+        for i, (a, x) in enumerate(zip(c.ref.args, c.arg_iris, strict=True), 1):
+            asks.setdefault((c.iri, i, x, "sort" if a.is_variable else "object"), (n, a))
     if asks:
-        kb.engine.assert_rows("check_arg", asks)
+        kb.engine.assert_rows("check_arg", list(asks))
         try:
-            fitting = {row[0] for row in kb.engine.query("arg_fits", None)}
+            fitting = set(kb.engine.query("arg_fits", None, None, None))
         finally:
-            kb.engine.retract_rows("check_arg", asks)
-        for n, f, i, x, _kind in asks:
-            if n not in fitting:
-                arg = checked[n].ref.args[i - 1]
+            kb.engine.retract_rows("check_arg", list(asks))
+        for (f, i, x, _kind), (n, arg) in asks.items():
+            if (f, i, x) not in fitting:
                 how = kb.misfit(local, f, i, x) if not arg.is_variable else \
                     f"variable {arg.name} ranges over {local_name(x)}, " + \
                     kb.misfit(local, f, i, ResolvedArg("some", x, "")).removeprefix(
