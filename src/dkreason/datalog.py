@@ -4,11 +4,6 @@ pyDatalog keeps one engine per thread and its public `assert_fact`/`ask` re-pars
 source on every call (~60 µs a fact, ~1 ms a query).  This wrapper gives each knowledge base its
 own engine, asserts facts and asks queries through `pyEngine` directly (~6 µs a fact), and loads
 rule files with errors that name the file and line.
-
-pyDatalog finds the facts for a lookup by intersecting, for every bound argument, the set of
-all facts with that value: with the platform bound, that is every fact of the relation.
-`_lookup` takes its place: it starts from the smallest of those sets and filters it, so a
-lookup into a large view costs what the lookup finds.
 """
 
 from __future__ import annotations
@@ -64,30 +59,14 @@ class Rule:
 _MATERIALIZED = re.compile(r"^#\s*materialized:\s*(.+)$", re.M)
 
 
-def _lookup(literal: object) -> list[object]:
-    """pyEngine.relevant_clauses, selective: the predicate's rules, then its facts that agree
-    with every bound argument, taken from the smallest index bucket."""
-    pred = literal.pred  # type: ignore[attr-defined]
-    bound = [(i, t.id) for i, t in enumerate(literal.terms)  # type: ignore[attr-defined]
-             if t.is_const()]
-    if not bound:
-        return list(pred.db.values())
-    index = pred.index
-    smallest = min((index[i].get(value, ()) for i, value in bound), key=len)
-    found = list(pred.clauses.values())
-    found += [c for c in smallest if all(c.head.terms[i].id == v for i, v in bound)]
-    return found
-
-
 class Datalog:
     """One engine.  Rule files may declare `# materialized: name/arity, …`: those relations
     depend only on the knowledge base (not on a formula), so `materialize()` computes them once
     and keeps their rows as facts; pyDatalog would otherwise re-derive them on every query."""
 
     def __init__(self) -> None:
-        from pyDatalog import Logic, pyEngine
+        from pyDatalog import Logic
 
-        pyEngine.relevant_clauses = _lookup
         self._logic = Logic()  # a fresh engine, current in this thread
         self.rules: list[Rule] = []
         self.views: dict[str, int] = {}
