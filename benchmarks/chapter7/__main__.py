@@ -9,10 +9,11 @@ times, through the public API a user calls:
 - matching: expanding quantifiers and asking the rules for every feature's topics at once;
 - building: the stream request.
 
-Each figure is the median of several runs (after one untimed call).  Tables print in the thesis' layout with its figures
-beside ours; the target is per-formula work (extracting + checking + matching + building) at
-most 0.1% of the thesis' same phases.  `--growth` times the 9-feature workload at scales 1, 10
-and 100 and prints each phase's fitted growth exponent (1 = linear in the grown sizes).
+Each figure is the median of several runs (after one untimed call).  Tables print in the
+thesis' layout with its figures beside ours; the target is per-formula work (extracting +
+checking + matching + building) at most 0.1% of the thesis' same phases.  `--growth` times
+the 9-feature workload at scales 1, 10 and 100 and prints each phase's fitted growth exponent
+(1 = linear in the grown sizes).
 
     python -m benchmarks.chapter7 [--runs 7] [--loads 3] [--cases 1.1,4] [--growth] [--out DIR]
 """
@@ -26,7 +27,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 from dkreason import KnowledgeManager

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .datalog import Datalog
+from .datalog import Datalog, Row
 from .errors import DkError, NameError_, ParseError, SortError, Span
 from .facts import (
     STATIC,
@@ -20,7 +20,6 @@ from .facts import (
     ResolvedArg,
     ResolvedFeature,
     ResolvedSpec,
-    Row,
     merge,
     ontology_facts,
     rows_of,
