@@ -124,3 +124,21 @@ def test_usage_errors_are_one_line_too():
                           text=True, check=False)
     assert proc.returncode == 2
     assert (proc.stdout + proc.stderr).count("\n") == 1
+
+
+@needs_scenarios
+@pytest.mark.parametrize(("rule", "says", "line"), [
+    ("relevant(X) <= wanted(X, _A, _B, _C, _D) &", "not a rule", 2),
+    ("relevant(X) <= wanted(X, _, _, _, _)", "bare `_`", 2),
+    ("relevant(X) <= wanted(X + 1, _A, _B, _C, _D)", "unsupported term 'X + 1'", 2),
+    ("relevant(X)", "expected a rule", 2),
+    ("# materialized: relevant\nrelevant(X) <= local(X)", "expected name/arity", 2),
+])
+def test_a_bad_rule_file_is_one_line_naming_file_and_line(capsys, scenario: Path, rule, says,
+                                                          line):
+    (scenario / "mine.dl").write_text(f"# my policy\n{rule}\n")
+    config = scenario / "single.toml"
+    config.write_text('rules = ["mine.dl"]\n' + config.read_text())
+    code, out = run(capsys, "match", "--config", str(config), "Altitude[uav1] > 1")
+    assert code == 2 and len(out.splitlines()) == 1
+    assert f"mine.dl:{line}" in out and says in out, out

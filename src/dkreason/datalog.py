@@ -111,9 +111,6 @@ class Datalog:
         self.load_text(read_text(path), str(shown))
 
     def load_text(self, text: str, file: str) -> None:
-        from pyDatalog import pyParser
-        from pyDatalog.util import DatalogError
-
         rules = _clauses(text, file)
         for line in _MATERIALIZED.findall(text):
             for item in filter(None, (x.strip() for x in line.split(","))):
@@ -123,13 +120,8 @@ class Datalog:
                                     Span(file, text[: text.find(line)].count("\n") + 1))
                 self.views[name] = int(arity)
         self._activate()
-        try:
-            pyParser.load(text, newglobals={})
-        except SyntaxError as exc:
-            raise RuleError(f"not a rule: {exc.msg}", Span(file, exc.lineno or 0)) from None
-        except DatalogError as exc:
-            raise RuleError(str(exc.message).splitlines()[0],
-                            Span(file, exc.lineno or 0)) from None
+        for rule in rules:  # straight into the engine: pyParser would parse the text again
+            _assert_rule(rule)
         self.rules += rules
 
     def assert_rows(self, predicate: str, rows: Iterable[Sequence[Value]]) -> None:
@@ -208,6 +200,22 @@ class Datalog:
                  for i, a in enumerate(args)]
         answer = pyEngine.Literal(predicate, terms).ask()
         return list(answer) if isinstance(answer, list) else []
+
+
+def _assert_rule(rule: Rule) -> None:
+    """The clause as pyParser would build it: `~name` for negation, the operator as the
+    predicate of a comparison."""
+    from pyDatalog import pyEngine
+
+    def term(t: Term) -> object:
+        return pyEngine.Var(t.name) if isinstance(t, Var) else pyEngine.Const(t)
+
+    def literal(x: Literal | Comparison) -> object:
+        if isinstance(x, Comparison):
+            return pyEngine.Literal(x.op, [term(x.left), term(x.right)])
+        return pyEngine.Literal(("~" if x.negated else "") + x.predicate, [term(a) for a in x.args])
+
+    pyEngine.assert_(pyEngine.Clause(literal(rule.head), [literal(b) for b in rule.body]))
 
 
 def _clauses(text: str, file: str) -> list[Rule]:
