@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .datalog import Datalog, Row
+from .datalog import Datalog, Row, gc_paused
 from .errors import DkError, NameError_, ParseError, SortError, Span
 from .facts import (
     STATIC,
@@ -91,6 +91,11 @@ class KnowledgeBase:
 
     @classmethod
     def from_config(cls, path: Path) -> KnowledgeBase:
+        with gc_paused():
+            return cls._load(path)
+
+    @classmethod
+    def _load(cls, path: Path) -> KnowledgeBase:
         from .parse.cowl import read_bridge_rules
         from .parse.owl import read_ontology
         from .parse.sslt import read_specs
