@@ -7,15 +7,15 @@ name repeats within one feature and binding by name would be ambiguous to a read
 
 from __future__ import annotations
 
+from contextvars import ContextVar
 from dataclasses import dataclass, replace
 from functools import cache
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
-from lark import Lark, Token, Transformer, v_args
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, VisitError
-from lark.tree import Meta
+from lark import Lark, Token, Transformer
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..errors import DkError, ParseError, Span
 from ..model import ArgKind, TopicArg, TopicFeature, TopicSpec
@@ -24,8 +24,9 @@ from .files import read_bytes, read_text
 
 @cache
 def _parser() -> Lark:
+    # The transformer runs inside the LALR parser (no parse tree): spans come from tokens.
     return Lark.open_from_package("dkreason.parse", "sslt.lark", parser="lalr",
-                                  propagate_positions=True, maybe_placeholders=False)
+                                  maybe_placeholders=False, transformer=_ToModel())
 
 
 @dataclass(frozen=True, slots=True)
@@ -44,6 +45,7 @@ class _Entry:
     name: str
     field: str
     span: Span
+    end: int  # the line the entry ends on
 
 
 @dataclass(frozen=True, slots=True)
@@ -59,54 +61,52 @@ class _Feature:
     args: tuple[_Arg, ...]
     field: str
     span: Span
+    end: int
+
+
+_FILE: ContextVar[str] = ContextVar("sslt_file", default="<sslt>")  # the file being parsed
+
+
+def _span(token: Token) -> Span:
+    return Span(_FILE.get(), token.line or 0, token.column or 0)
 
 
 class _ToModel(Transformer[Token, Any]):
-    def __init__(self, file: str) -> None:
-        super().__init__()
-        self.file = file
+    def name(self, children: list[Token]) -> Token:
+        return children[0]
 
-    def _span(self, meta: Meta) -> Span:
-        return Span(self.file, meta.line, meta.column)
+    def arg(self, children: list[Any]) -> _Arg:
+        return _Arg(str(children[0]), str(children[1]) if len(children) > 1 else None,
+                    _span(children[0]))
 
-    def name(self, children: list[Token]) -> str:
-        return str(children[0])
-
-    @v_args(meta=True)
-    def arg(self, meta: Meta, children: list[Any]) -> _Arg:
-        return _Arg(children[0], str(children[1]) if len(children) > 1 else None,
-                    self._span(meta))
-
-    @v_args(meta=True)
-    def sort_entry(self, meta: Meta, children: list[Any]) -> _Entry:
+    def sort_entry(self, children: list[Any]) -> _Entry:
         kind, name, field = children
-        return _Entry(str(kind), name, str(field), self._span(meta))  # type: ignore[arg-type]
+        return _Entry(str(kind), str(name), str(field), _span(kind),  # type: ignore[arg-type]
+                      field.end_line or 0)
 
-    @v_args(meta=True)
-    def object_entry(self, meta: Meta, children: list[Any]) -> _Entry:
+    def object_entry(self, children: list[Any]) -> _Entry:
         name, field = children
-        return _Entry("object", name, str(field), self._span(meta))
+        return _Entry("object", str(name), str(field), _span(name), field.end_line or 0)
 
-    @v_args(meta=True)
-    def feature(self, meta: Meta, children: list[Any]) -> list[Any]:
+    def feature(self, children: list[Any]) -> list[Any]:
         name, *rest = children
         args = tuple(c for c in rest if isinstance(c, _Arg))
-        field = next(str(c) for c in rest if isinstance(c, Token))
+        field = next(c for c in rest if isinstance(c, Token))
         entries = [c for c in rest if isinstance(c, _Entry)]
-        return [_Feature(name, args, field, self._span(meta)), *entries]
+        return [_Feature(str(name), args, str(field), _span(name), field.end_line or 0),
+                *entries]
 
-    @v_args(meta=True)
-    def topic(self, meta: Meta, children: list[Any]) -> tuple[TopicSpec, int, int]:
-        name, msgtype, *items = children
+    def topic(self, children: list[Any]) -> tuple[TopicSpec, int, int]:
+        keyword, name, msgtype, *items = children
         flat = [x for item in items for x in (item if isinstance(item, list) else [item])]
-        span = self._span(meta)
+        span, lines = _span(keyword), (keyword.line, max(x.end for x in flat))
         if isinstance(flat[0], _Entry):
             if len(flat) > 1:
                 raise ParseError(f"topic {name} lists {len(flat)} entities; a sort or object "
                                  f"topic carries exactly one", span)
             entry = flat[0]
             entity = TopicArg(entry.kind, entry.name, entry.field, entry.span)
-            return TopicSpec(str(name), str(msgtype), (), entity, span), meta.line, meta.end_line
+            return (TopicSpec(str(name), str(msgtype), (), entity, span), *lines)
         features: list[TopicFeature] = []
         pending: list[_Entry] = []
         current: _Feature | None = None
@@ -117,8 +117,7 @@ class _ToModel(Transformer[Token, Any]):
             if current is not None:
                 features.append(_bind(current, pending))
             current, pending = x, []
-        return (TopicSpec(str(name), str(msgtype), tuple(features), None, span),
-                meta.line, meta.end_line)
+        return (TopicSpec(str(name), str(msgtype), tuple(features), None, span), *lines)
 
 
 def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
@@ -144,16 +143,16 @@ def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
 
 
 def parse_text(text: str, file: str = "<sslt>") -> SpecFile:
+    token = _FILE.set(file)
     try:
-        tree = _parser().parse(text)
-        rows = _ToModel(file).transform(tree).children
+        rows: list[tuple[TopicSpec, int, int]] = _parser().parse(text).children  # type: ignore[assignment]
     except UnexpectedInput as exc:
         raise _syntax_error(exc, file) from None
-    except VisitError as exc:
-        raise exc.orig_exc from None
-    specs = tuple(r[0] for r in rows)
+    finally:
+        _FILE.reset(token)
+    specs = tuple(spec for spec, _, _ in rows)
     _no_duplicates(specs)
-    return SpecFile(specs, tuple((r[1], r[2]) for r in rows))
+    return SpecFile(specs, tuple((first, last) for _, first, last in rows))
 
 
 def _syntax_error(exc: UnexpectedInput, file: str) -> ParseError:
