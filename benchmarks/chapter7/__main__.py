@@ -26,6 +26,7 @@ import statistics
 import sys
 import tempfile
 import time
+import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,50 +97,21 @@ def _case_4(i: int, s: int) -> tuple[Workload, str]:
 
 
 _PRE = "Preprocessing"
-CASES = [
-    Case("1.1", "Varying number of concepts", "Number of concepts",
-         tuple(str(25 * k) for k in range(1, 9)),
-         {_PRE: (197, 202, 173, 181, 183, 203, 176, 189),
-          "Extracting features": (28, 32, 28, 32, 30, 26, 28, 28),
-          "Checking features": (1807, 2379, 2937, 4651, 5308, 5595, 5978, 6426),
-          "Matching topic specs": (546, 542, 554, 544, 558, 562, 551, 547)}, _case_1_1),
-    Case("1.2", "Varying number of irrelevant individuals", "Num. of irrel. ind.",
-         tuple(str(25 * k) for k in range(9)),
-         {_PRE: (188, 186, 206, 184, 172, 191, 185, 178, 189),
-          "Extracting features": (29, 29, 29, 30, 29, 29, 29, 29, 27),
-          "Checking features": (4944, 5219, 5465, 5682, 5805, 6032, 6205, 6305, 6450),
-          "Matching topic specs": (575, 560, 557, 546, 550, 561, 567, 558, 570)}, _case_1_2),
-    Case("1.3", "Varying number of relevant individuals", "Num. of rel. ind.",
-         tuple(str(25 * k) for k in range(9)),
-         {_PRE: (178, 176, 183, 203, 190, 198, 191, 191, 176),
-          "Extracting features": (28, 30, 30, 29, 30, 30, 29, 32, 29),
-          "Checking features": (5086, 5164, 5400, 5657, 5715, 5984, 6060, 6295, 6514),
-          "Matching topic specs": (565, 549, 555, 556, 721, 567, 791, 574, 582)}, _case_1_3),
-    Case("2.1", "Varying number of irrelevant topic specifications",
-         "Number of irrelevant topic specs", tuple(str(100 * k) for k in range(6)),
-         {_PRE: (188, 184, 183, 193, 184, 185),
-          "Extracting features": (28, 27, 29, 29, 28, 28),
-          "Checking features": (1969, 2034, 2038, 2040, 2101, 2200),
-          "Matching topic specs": (585, 831, 1026, 1243, 1345, 1345)}, _case_2_1),
-    Case("2.2", "Varying number of relevant topic specifications",
-         "Number of relevant topic specs", tuple(str(100 * k) for k in range(6)),
-         {_PRE: (199, 186, 186, 192, 191, 191),
-          "Extracting features": (28, 28, 30, 29, 29, 29),
-          "Checking features": (2003, 1925, 2063, 1949, 2040, 2015),
-          "Matching topic specs": (574, 818, 1064, 1258, 1433, 1490)}, _case_2_2),
-    Case("3", "Varying number of features in a formula", "Number of features",
-         tuple(str(10 * k) for k in range(1, 6)),
-         {_PRE: (181, 181, 177, 198, 178),
-          "Extracting features": (28, 30, 31, 34, 36),
-          "Checking features": (1929, 2090, 2355, 2746, 3089),
-          "Matching topic specs": (633, 1031, 1172, 1325, 1486)}, _case_3),
-    Case("4", "Quantified or non-quantified arguments", "",
-         ("quant 3", "non-quant 3", "quant 9", "non-quant 9", "quant 27", "non-quant 27"),
-         {_PRE: (194, 199, 187, 186, 196, 183),
-          "Extracting features": (27, 27, 28, 29, 32, 31),
-          "Checking features": (1586, 1697, 1580, 2268, 98, 3062),
-          "Matching topic specs": (485, 521, 693, 630, 1332, 1041)}, _case_4),
-]
+_KEYS = {"preprocessing": _PRE, "extracting": "Extracting features",
+         "checking": "Checking features", "matching": "Matching topic specs"}
+_SETUPS = {"1.1": _case_1_1, "1.2": _case_1_2, "1.3": _case_1_3, "2.1": _case_2_1,
+           "2.2": _case_2_2, "3": _case_3, "4": _case_4}
+
+
+def _cases() -> list[Case]:
+    """The thesis' tables (thesis.toml) joined to the workload each point needs."""
+    tables = tomllib.loads((Path(__file__).parent / "thesis.toml").read_text(encoding="utf-8"))
+    return [Case(name, t["title"], t["axis"], tuple(t["x"]),
+                 {_KEYS[k]: tuple(t[k]) for k in _KEYS}, _SETUPS[name])
+            for name, t in tables.items()]
+
+
+CASES = _cases()
 
 
 def time_formula(km: KnowledgeManager, text: str) -> dict[str, float]:
