@@ -37,3 +37,33 @@ def test_bad_formulas_are_errors_pointing_into_the_formula(single, formula, erro
 def test_a_variable_of_a_subsort_is_accepted(single):
     request = single.check_formula("forall x in UAV: Altitude[x] > 3")  # UAV ⊑ AerialVehicle
     assert [f.feature.args for f in request.features] == [("uav1",), ("uav2",)]
+
+
+ESCORT = """
+@prefix : <http://sea.org/o#> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:Ship a owl:Class .
+:Boat a owl:Class .
+:BinaryRelation a owl:Class .
+:Escorts a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( :BinaryRelation
+    [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Ship ]
+    [ a owl:Restriction ; owl:onProperty :arg2 ; owl:allValuesFrom :Boat ] ) ] .
+:ship1 a owl:NamedIndividual, :Ship .
+:boat1 a owl:NamedIndividual, :Boat .
+"""
+
+
+@pytest.mark.parametrize(("formula", "column", "says"), [
+    ("Escorts[ship1, ship1]", 16, "argument 2 of Escorts: ship1 is a Ship, Escorts needs Boat"),
+    ("Escorts[ship1, boat1] and Escorts[boat1, boat1]", 35,
+     "argument 1 of Escorts: boat1 is a Boat, Escorts needs Ship"),
+])
+def test_every_argument_must_fit_not_just_one(tmp_path, formula, column, says):
+    (tmp_path / "sea.ttl").write_text(ESCORT)
+    (tmp_path / "sea.toml").write_text('[platforms.sea]\nontology = "sea.ttl"\n')
+    km = KnowledgeManager.from_config(tmp_path / "sea.toml")
+    assert km.check_formula("Escorts[ship1, boat1]").features
+    with pytest.raises(SortError) as err:
+        km.check_formula(formula)
+    assert err.value.span.column == column and says in str(err.value)
