@@ -26,7 +26,7 @@ import random
 import time
 import tracemalloc
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 from dkreason.progress import Progressor
 
@@ -35,59 +35,41 @@ TARGET_RTAMT = 10.0  # at least 10x rtamt on every row
 PEER_BUDGET = 0.6  # seconds of peer work per run, to size their traces
 
 
-def formulas(kind: str, n: int) -> list[str]:
-    out = []
-    for k in range(n):
-        c = 10 - k / 10
-        if kind == "P1":
-            out.append(f"always (X > {c})")
-        elif kind == "P2":
-            out.append(f"always (A > {c} and B > C)")
-        elif kind == "P3":
-            out.append(f"always (P -> eventually[0,{10 + k}] Q)")
-        elif kind == "P4":
-            out.append(f"always not (always[0,{300 + k}] S > 60)")
-        else:
-            out.append("always (" + " and ".join(f"X{i} > {c}" for i in range(27)) + ")")
-    return out
+class Spec(NamedTuple):
+    """One row's k-th formula in each monitor's language (peers need past forms)."""
+
+    ours: str
+    rtamt: tuple[str, list[str]]  # formula, its variables
+    reelay: str
 
 
-def rtamt_specs(kind: str, n: int) -> list[tuple[str, list[str]]]:
-    out = []
-    for k in range(n):
-        c = 10 - k / 10
-        if kind == "P1":
-            out.append((f"historically(x > {c})", ["x"]))
-        elif kind == "P2":
-            out.append((f"historically(a > {c} and b > c)", ["a", "b", "c"]))
-        elif kind == "P3":
-            w = 10 + k
-            out.append((f"historically((once[{w},{w}] (p > 0)) -> once[0,{w}] (q > 0))",
-                        ["p", "q"]))
-        elif kind == "P4":
-            out.append((f"historically(not(historically[0,{300 + k}](spd > 60)))", ["spd"]))
-        else:
-            out.append(("historically(" + " and ".join(f"x{i} > {c}" for i in range(27)) + ")",
-                        [f"x{i}" for i in range(27)]))
-    return out
+def spec(kind: str, k: int) -> Spec:
+    c, w = 10 - k / 10, 10 + k
+    if kind == "P1":
+        return Spec(f"always (X > {c})", (f"historically(x > {c})", ["x"]),
+                    f"historically{{x > {c}}}")
+    if kind == "P2":
+        return Spec(f"always (A > {c} and B > C)",
+                    (f"historically(a > {c} and b > c)", ["a", "b", "c"]),
+                    f"historically({{a > {c}}} and {{d > 0}})")
+    if kind == "P3":
+        return Spec(f"always (P -> eventually[0,{w}] Q)",
+                    (f"historically((once[{w},{w}] (p > 0)) -> once[0,{w}] (q > 0))",
+                     ["p", "q"]),
+                    f"historically((once[{w}:{w}]{{p}}) -> once[0:{w}]{{q}})")
+    if kind == "P4":
+        return Spec(f"always not (always[0,{300 + k}] S > 60)",
+                    (f"historically(not(historically[0,{300 + k}](spd > 60)))", ["spd"]),
+                    f"historically(not (historically[0:{300 + k}]{{spd > 60}}))")
+    xs = range(27)
+    return Spec("always (" + " and ".join(f"X{i} > {c}" for i in xs) + ")",
+                ("historically(" + " and ".join(f"x{i} > {c}" for i in xs) + ")",
+                 [f"x{i}" for i in xs]),
+                "historically(" + " and ".join(f"{{x{i} > {c}}}" for i in xs) + ")")
 
 
-def reelay_specs(kind: str, n: int) -> list[str]:
-    out = []
-    for k in range(n):
-        c = 10 - k / 10
-        if kind == "P1":
-            out.append(f"historically{{x > {c}}}")
-        elif kind == "P2":
-            out.append(f"historically({{a > {c}}} and {{d > 0}})")
-        elif kind == "P3":
-            w = 10 + k
-            out.append(f"historically((once[{w}:{w}]{{p}}) -> once[0:{w}]{{q}})")
-        elif kind == "P4":
-            out.append(f"historically(not (historically[0:{300 + k}]{{spd > 60}}))")
-        else:
-            out.append("historically(" + " and ".join(f"{{x{i} > {c}}}" for i in range(27)) + ")")
-    return out
+def specs(kind: str, n: int) -> list[Spec]:
+    return [spec(kind, k) for k in range(n)]
 
 
 def peer_name(feature: str) -> str:
@@ -132,7 +114,7 @@ def best(prepare: Callable[[], Callable[[], int]]) -> tuple[float, int]:
 def ours(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float, int]:
     def prepare() -> Callable[[], int]:
         p = Progressor()
-        for f in formulas(kind, n):
+        for f in (x.ours for x in specs(kind, n)):
             p.add(f)
 
         def run() -> int:
@@ -150,20 +132,21 @@ def with_rtamt(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float, 
         import rtamt
     except ImportError:
         return None
-    specs = []
-    for text, variables in rtamt_specs(kind, n):
-        spec = rtamt.StlDiscreteTimeSpecification()
+    monitors = []
+    for row_spec in specs(kind, n):
+        text, variables = row_spec.rtamt
+        monitor = rtamt.StlDiscreteTimeSpecification()
         for v in variables:
-            spec.declare_var(v, "float")
-        spec.spec = text
-        spec.parse()
-        specs.append((spec, variables))
+            monitor.declare_var(v, "float")
+        monitor.spec = text
+        monitor.parse()
+        monitors.append(monitor)
     rows = [[(peer_name(k), float(v)) for k, v in s.items()] for s in states]
 
     def run() -> int:
         for t, row in enumerate(rows):
-            for spec, _ in specs:
-                spec.update(t, row)
+            for monitor in monitors:
+                monitor.update(t, row)
         return len(rows)
     return best(lambda: run)
 
@@ -173,7 +156,7 @@ def with_reelay(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float,
         import reelay
     except ImportError:
         return None
-    monitors = [reelay.discrete_timed_monitor(pattern=p) for p in reelay_specs(kind, n)]
+    monitors = [reelay.discrete_timed_monitor(pattern=x.reelay) for x in specs(kind, n)]
     rows = []
     for t, s in enumerate(states):
         row = {peer_name(k): v for k, v in s.items()}
@@ -194,7 +177,7 @@ def memory(states: int) -> list[tuple[int, int]]:
     """Traced memory (bytes) after 10%, 50% and 100% of a P3 run."""
     rows = trace("P3", 20_000)
     p = Progressor()
-    p.add(formulas("P3", 1)[0])
+    p.add(spec("P3", 0).ours)
     marks, out = {states // 10, states // 2, states}, []
     tracemalloc.start()
     try:
