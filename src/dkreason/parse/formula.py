@@ -280,11 +280,12 @@ def _walk(node: Any, env: dict[str, str]) -> Iterator[FeatureRef]:
         yield FeatureRef(f.name, tuple(Arg(a.name, env.get(a.name), a.span) for a in f.args),
                          f.span)
     else:
-        for child in _children(node):
+        for child in children(node):
             yield from _walk(child, env)
 
 
-def _children(node: Any) -> tuple[Any, ...]:
+def children(node: Any) -> tuple[Any, ...]:
+    """The subformulas and subexpressions of a node, left to right."""
     if isinstance(node, Compare | Connective | Arith | Until):
         return node.left, node.right
     if isinstance(node, Not | Temporal | Neg):
@@ -297,12 +298,12 @@ def _children(node: Any) -> tuple[Any, ...]:
 def _feature_refs(node: Any) -> Iterator[FeatureRef]:
     if isinstance(node, Atom | Ref):
         yield node.feature
-    for child in _children(node):
+    for child in children(node):
         yield from _feature_refs(child)
 
 
 def quantifiers(formula: Formula) -> Iterator[Quant]:
     if isinstance(formula, Quant):
         yield formula
-    for child in _children(formula):
+    for child in children(formula):
         yield from quantifiers(child)

@@ -24,6 +24,7 @@ from ..parse.formula import (
     Not,
     Num,
     Ref,
+    children,
 )
 
 Value = bool | None
@@ -57,9 +58,8 @@ def features(node: Any) -> list[str]:
     def walk(n: Any) -> None:
         if isinstance(n, Atom | Ref):
             out[key(n.feature)] = None
-        for attr in ("arg", "left", "right"):
-            if hasattr(n, attr):
-                walk(getattr(n, attr))
+        for child in children(n):
+            walk(child)
 
     walk(node)
     return list(out)
@@ -166,25 +166,17 @@ def compile_state(f: Formula) -> tuple[StateFn, list[str]]:
 def _boolean_keys(f: Any) -> set[str]:
     if isinstance(f, Atom):
         return {key(f.feature)}
-    out: set[str] = set()
-    for attr in ("arg", "left", "right"):
-        if hasattr(f, attr):
-            out |= _boolean_keys(getattr(f, attr))
-    return out
+    return set().union(*(_boolean_keys(child) for child in children(f)))
 
 
 def _py(n: Any, names: dict[str, str]) -> str:
     if isinstance(n, BoolConst):
         return "True" if n.value else "False"
-    if isinstance(n, Atom):
-        return names[key(n.feature)]
-    if isinstance(n, Ref):
+    if isinstance(n, Atom | Ref):
         return names[key(n.feature)]
     if isinstance(n, Num):
         return repr(n.value)
-    if isinstance(n, Compare):
-        return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
-    if isinstance(n, Arith):
+    if isinstance(n, Compare | Arith):
         return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
     if isinstance(n, Neg):
         return f"(-{_py(n.arg, names)})"
