@@ -58,3 +58,12 @@ def test_listing_and_lookup(scenario: Path):
     assert km.list_sort("Aircraft", "platform3") == ["heli1", "heli2", "uas20", "uas21", "uas22"]
     with pytest.raises(DkError, match="no topic 'nope' on platform1"):
         km.get_topic_specification("nope")
+
+
+def test_a_removed_topic_is_no_longer_matched_by_the_same_manager(scenario: Path):
+    km = KnowledgeManager.from_config(scenario / "single.toml")
+    km.add_topic(NEW)
+    km.remove_topic("topic10")
+    km.remove_topic("topic2")
+    topics = {t.topic for t in km.check_formula("Altitude[uav2] > 1").features[0].topics}
+    assert "topic10" not in topics and "topic2" not in topics

@@ -175,12 +175,17 @@ class Datalog:
             self.assert_rows(name, found)
             self._frozen[name] = (rules, found)
 
-    def _view_order(self) -> list[str]:
-        """The views, each after every view its rules reach."""
+    def _reads(self) -> dict[str, set[str]]:
+        """Each derived predicate and the predicates its rules' bodies name."""
         reads: dict[str, set[str]] = {}
         for rule in self.rules:
             reads.setdefault(rule.head.predicate, set()).update(
                 b.predicate for b in rule.body if isinstance(b, Literal))
+        return reads
+
+    def _view_order(self) -> list[str]:
+        """The views, each after every view its rules reach."""
+        reads = self._reads()
         order: list[str] = []
         seen: set[str] = set()
 
@@ -197,15 +202,26 @@ class Datalog:
             visit(view)
         return order
 
-    def thaw(self) -> None:
-        """Put the views' rules back (their rows go), so they follow changed facts."""
+    def thaw(self, changed: Iterable[str]) -> None:
+        """Put back the rules of the views whose rules reach a `changed` predicate (their rows
+        go), so they follow the changed facts; the other views stay as they are."""
         from pyDatalog import pyEngine
 
-        for name, (rules, found) in self._frozen.items():
+        readers: dict[str, set[str]] = {}
+        for head, body in self._reads().items():
+            for pred in body:
+                readers.setdefault(pred, set()).add(head)
+        stale, todo = set(changed), list(changed)
+        while todo:  # everything derived, however indirectly, from a changed predicate
+            for reader in readers.get(todo.pop(), ()):
+                if reader not in stale:
+                    stale.add(reader)
+                    todo.append(reader)
+        for name in [v for v in self._frozen if v in stale]:
+            rules, found = self._frozen.pop(name)
             self.retract_rows(name, found)
             for clause in rules:
                 pyEngine.assert_(clause)
-        self._frozen.clear()
 
     def query(self, predicate: str, *args: Value | None) -> list[Row]:
         """All rows of `predicate` matching `args` (None = any value)."""

@@ -141,7 +141,7 @@ class KnowledgeBase:
 
     def _change(self, facts: Facts, how: Callable[[str, list[Row]], None]) -> None:
         """Assert or retract spec facts; the views that read topics are computed again."""
-        self.engine.thaw()
+        self.engine.thaw(facts.keys())
         for pred, rows in rows_of(facts):
             how(pred, rows)
         self.engine.materialize()
