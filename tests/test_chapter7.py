@@ -52,3 +52,15 @@ def test_every_test_case_point_builds_a_workload():
 def test_the_runner_rejects_an_unknown_test_case(capsys):
     assert main(["--cases", "9.9"]) == 2
     assert "unknown test case '9.9'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("argv", "says"), [
+    (["--loads", "0"], "expected a whole number of at least 1, got '0'"),
+    (["--growth", "--scales", "10,10"], "needs two different scales"),
+])
+def test_the_runner_rejects_bad_options_with_exit_2(capsys, argv, says):
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own errors
+        code = int(exc.code or 0)
+    assert code == 2 and says in capsys.readouterr().err

@@ -250,21 +250,34 @@ def growth(scales: list[int], runs: int, loads: int, root: Path) -> list[list[st
     return rows
 
 
+def _positive(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return int(text)
+
+
+def _scales(text: str) -> list[int]:
+    return sorted({_positive(x) for x in text.split(",")})
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.chapter7",
                                      description=__doc__.split("\n")[0])
-    parser.add_argument("--runs", type=int, default=7, help="runs per formula (median)")
-    parser.add_argument("--loads", type=int, default=3, help="loads per workload (median)")
+    parser.add_argument("--runs", type=_positive, default=7, help="runs per formula (median)")
+    parser.add_argument("--loads", type=_positive, default=3, help="loads per workload (median)")
     parser.add_argument("--cases", default=",".join(c.name for c in CASES))
-    parser.add_argument("--scale", type=int, default=1)
+    parser.add_argument("--scale", type=_positive, default=1)
     parser.add_argument("--growth", action="store_true", help="also time scales 1, 10, 100")
-    parser.add_argument("--scales", default="1,10,100")
+    parser.add_argument("--scales", type=_scales, default=[1, 10, 100])
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
     wanted = args.cases.split(",")
     unknown = [c for c in wanted if c not in {case.name for case in CASES}]
     if unknown:
         print(f"chapter7: unknown test case {unknown[0]!r}", file=sys.stderr)
+        return 2
+    if args.growth and len(set(args.scales)) < 2:
+        print("chapter7: --scales needs two different scales to fit a growth", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     report = [f"# Thesis chapter 7 reproduced (scale {args.scale}, median of {args.runs} runs"
@@ -285,8 +298,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\n{summary}")
         report.append(summary + "\n")
         if args.growth:
-            scales = [int(s) for s in args.scales.split(",")]
-            rows = growth(scales, args.runs, args.loads, Path(tmp))
+            rows = growth(args.scales, args.runs, args.loads, Path(tmp))
             print("\nGrowth of the 9-feature workload (200 concepts, 200 individuals, "
                   "20 specs at scale 1)")
             print(plain(rows))
