@@ -62,3 +62,15 @@ def scenario(tmp_path: Path) -> Path:
     for path in target.rglob("*"):
         path.chmod(0o755 if path.is_dir() else 0o644)
     return target
+
+
+@pytest.fixture(scope="session")
+def traffic(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The traffic example's recording (examples/traffic/simulate.py), made once."""
+    import subprocess
+    import sys
+
+    target = tmp_path_factory.mktemp("traffic") / "recording"
+    subprocess.run([sys.executable, str(REPO / "examples" / "traffic" / "simulate.py"),
+                    str(target)], check=True, capture_output=True)
+    return target

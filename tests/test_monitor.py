@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
-import sys
 from fractions import Fraction
 from pathlib import Path
 
@@ -72,14 +70,6 @@ def test_every_recording_format_gives_the_same_verdicts(capsys, tmp_path: Path, 
     verdicts = {line["formula"]: (line["verdict"], line["time"], line["at_end"])
                 for line in lines if "verdict" in line}
     assert verdicts == {SPEEDING: (False, 3.1, False), SLOW: (True, 7.1, True)}
-
-
-@pytest.fixture(scope="module")
-def traffic(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    target = tmp_path_factory.mktemp("traffic") / "recording"
-    subprocess.run([sys.executable, str(REPO / "examples" / "traffic" / "simulate.py"),
-                    str(target)], check=True, capture_output=True)
-    return target
 
 
 TRAFFIC = "forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)"

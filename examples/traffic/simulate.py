@@ -5,7 +5,10 @@ UasMsg of the bundled topic specifications.
 car2 drives at 70 km/h for 200 s in platform 1's region, then 150 s more in platform 2's region,
 where platform 2 sees it as car12 (`car2 same car12`): only platform 2's carstopic1 shows that
 the speeding went on for more than 300 s.  car1 and car3 stay in platform 1's region and keep to
-the limit (car3 drops back within 300 s).  Platform 3's UAS report their speed and height.
+the limit (car3 drops back within 300 s).  Platform 2 also tracks car12's position along the
+road all the time (carstopic3, its only source).  Platform 3's UAS report their speed and
+height, and uastopic9 carries uas21's height though no topic specification describes it yet
+(the live example adds one while running).
 
     python examples/traffic/simulate.py examples/traffic/recording
 """
@@ -51,7 +54,12 @@ def messages() -> list[tuple[str, str, int, dict[str, object]]]:
         if ENTERS_P2 <= t < LEAVES_P2:
             out.append(("/platform2/carstopic1", auto, t * S + 50_000_000,
                         {"header": {"stamp": t}, "id": 12, "speed": v["car2"]}))
+        out.append(("/platform2/carstopic3", auto, t * S + 55_000_000,
+                    {"header": {"stamp": t}, "id": 12, "speed": v["car2"],
+                     "position": round(t * v["car2"] / 3.6, 1)}))
         # platform 3: its unmanned aircraft systems
+        out.append(("/platform3/uastopic9", uas, t * S + 70_000_000,
+                    {"header": {"stamp": t}, "id": 21, "speed": 38.0, "height": 95.0}))
         for n in (20, 21):
             out.append(("/platform3/uastopic1", uas, t * S + 60_000_000 + n,
                         {"header": {"stamp": t}, "id": n, "speed": 38.0, "height": 120.0}))

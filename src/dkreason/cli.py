@@ -46,6 +46,14 @@ def _build() -> _Parser:
     def config(p: argparse.ArgumentParser) -> None:
         p.add_argument("--config", required=True, type=Path, help="TOML config file")
 
+    def network(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                       help="Zenoh endpoint to connect to, e.g. tcp/10.0.0.2:7447 (repeatable)")
+        p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                       help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
+        p.add_argument("--zenoh-config", metavar="FILE",
+                       help="Zenoh config file (TLS, access control); endpoints still apply")
+
     p = sub.add_parser("match", help="the topics each feature of a formula is read from")
     config(p)
     p.add_argument("--json", action="store_true", help="print the stream request as JSON")
@@ -60,10 +68,17 @@ def _build() -> _Parser:
     p.add_argument("formulas", nargs="+", metavar="FORMULA")
     p.set_defaults(run=_progress)
 
-    p = sub.add_parser("monitor", help="verdicts of formulas over a robot recording")
+    p = sub.add_parser("monitor", help="verdicts of formulas over a robot recording, or live")
     config(p)
-    p.add_argument("--source", required=True, type=Path,
+    p.add_argument("--source", type=Path,
                    help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages")
+    p.add_argument("--live", action="store_true",
+                   help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
+    network(p)
+    p.add_argument("--wait", type=float, default=10.0,
+                   help="live: seconds to wait for the configured platforms (default 10)")
+    p.add_argument("--until", type=_seconds, help="live: stop when the stream clock passes it")
+    p.add_argument("--duration", type=float, help="live: stop after this many wall seconds")
     p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
                    help="pkg/msg/Name.msg definitions for recordings that carry none")
     p.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
@@ -83,6 +98,22 @@ def _build() -> _Parser:
     p.add_argument("--unique", action="store_true", help="valid times must be unique")
     p.add_argument("formulas", nargs="+", metavar="FORMULA")
     p.set_defaults(run=_monitor)
+
+    p = sub.add_parser("serve", help="run a platform node: its knowledge and topics over Zenoh")
+    config(p)
+    network(p)
+    p.add_argument("--source", type=Path,
+                   help="replay this recording's topics of the platform (- : JSON lines on "
+                        "stdin, published as they come)")
+    p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
+                   help="pkg/msg/Name.msg definitions for recordings that carry none")
+    p.add_argument("--origin", type=float,
+                   help="wall time (Unix s) the replay starts at; nodes given the same one "
+                        "replay in step (default: now)")
+    p.add_argument("--speed", type=float, default=1.0, help="replay speed factor (default 1)")
+    p.add_argument("--heartbeat", type=float, default=0.02,
+                   help="seconds between clock messages (default 0.02)")
+    p.set_defaults(run=_serve)
 
     p = sub.add_parser("explain", help="why each topic matched, or why one did not")
     config(p)
@@ -186,6 +217,62 @@ def _seconds_or_inf(text: str) -> Fraction | None:
     return None if text in ("inf", "oo") else _seconds(text)
 
 
+def _logging() -> None:
+    import logging
+
+    logging.basicConfig(stream=sys.stderr, level=logging.INFO, format="%(name)s: %(message)s")
+
+
+def _session(args: argparse.Namespace) -> Any:
+    from .live.wire import open_session
+
+    return open_session(args.connect, args.listen, args.zenoh_config)
+
+
+def _on_signals(handler: Any) -> None:
+    import signal
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def _interrupt(*_: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from .live.serve import PlatformNode
+    from .stream.sources import open_source
+
+    if args.speed <= 0 or args.heartbeat <= 0:
+        raise DkError("--speed and --heartbeat must be positive")
+    _logging()
+    km = _km(args)
+    source = open_source(args.source, args.msg) if args.source is not None else None
+    records = getattr(source, "records", None)
+    if source is not None and records is None:
+        raise DkError(f"{source.name}: a damaged recording cannot be replayed live")
+    session = _session(args)
+    node = PlatformNode(km, session, args.heartbeat)
+    print(f"serving {km.local}: {len(km.list_topics())} topic specification(s)", flush=True)
+    _on_signals(_interrupt)
+    try:
+        if records is None:
+            node.serve(None, args.origin, args.speed)
+        elif str(args.source) == "-":
+            node.feed(records())
+        else:
+            node.serve(records(), args.origin, args.speed)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.close()
+        session.close()
+        if source is not None:
+            source.close()
+    return 0
+
+
 def _monitor(args: argparse.Namespace) -> int:
     from .monitor import Monitor, plot
     from .progress import Verdict
@@ -195,6 +282,10 @@ def _monitor(args: argparse.Namespace) -> int:
     policy = StreamPolicy(args.period, args.deviation, args.approximation, args.max_age,
                           args.delay, args.start, args.end, args.max_delay, args.ordered,
                           args.unique)
+    if args.live:
+        return _monitor_live(args, policy)
+    if args.source is None:
+        raise DkError("monitor needs --source RECORDING, or --live")
     monitor = Monitor(_km(args), args.formulas, policy)
     monitor.keep_states = args.plot is not None
     source = open_source(args.source, args.msg)
@@ -221,6 +312,35 @@ def _monitor(args: argparse.Namespace) -> int:
             print(f"plot written to {args.plot}")
     if error is not None:
         raise error
+    return exit_status([v.verdict for v in verdicts])
+
+
+def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
+    from .live.monitor import Change, LiveMonitor
+    from .progress import Verdict
+
+    if args.source is not None or args.plot is not None:
+        raise DkError("--live takes no --source and no --plot")
+    _logging()
+    session = _session(args)
+    try:
+        monitor = LiveMonitor(args.config, args.formulas, policy, session, args.wait)
+        _on_signals(lambda *_: monitor.stop.set())
+        verdicts, violations = [], 0
+        for event in monitor.run(args.until, args.duration):
+            if isinstance(event, Change):
+                print(json.dumps(event.to_json(), ensure_ascii=False) if args.json else
+                      str(event), flush=True)
+                continue
+            if isinstance(event, Verdict):
+                verdicts.append(event)
+            else:
+                violations += 1
+            _print_event(event, args.json)
+    finally:
+        session.close()
+    if not args.json:
+        _summary(verdicts, violations)
     return exit_status([v.verdict for v in verdicts])
 
 

@@ -202,9 +202,10 @@ class Datalog:
             visit(view)
         return order
 
-    def thaw(self, changed: Iterable[str]) -> None:
+    def thaw(self, changed: Iterable[str]) -> list[str]:
         """Put back the rules of the views whose rules reach a `changed` predicate (their rows
-        go), so they follow the changed facts; the other views stay as they are."""
+        go), so they follow the changed facts; the other views stay as they are.  Returns the
+        views thawed."""
         from pyDatalog import pyEngine
 
         readers: dict[str, set[str]] = {}
@@ -217,11 +218,13 @@ class Datalog:
                 if reader not in stale:
                     stale.add(reader)
                     todo.append(reader)
-        for name in [v for v in self._frozen if v in stale]:
+        thawed = [v for v in self._frozen if v in stale]
+        for name in thawed:
             rules, found = self._frozen.pop(name)
             self.retract_rows(name, found)
             for clause in rules:
                 pyEngine.assert_(clause)
+        return thawed
 
     def query(self, predicate: str, *args: Value | None) -> list[Row]:
         """All rows of `predicate` matching `args` (None = any value)."""

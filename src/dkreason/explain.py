@@ -163,7 +163,9 @@ class Reader:
         if pred == "wanted":
             q = int(args[0])
             return str(self.ground[q].span) if q < len(self.ground) else "<formula>"
-        if pred in ("local", "mapping", "platform"):
+        if pred == "online" and kb.live:
+            return "live: the platform is present (liveliness)"
+        if pred in ("local", "mapping", "platform", "online"):
             return str(kb.config.path) if kb.config else "configuration"
         if pred in ("position", "sort_kind"):
             return "built in (src/dkreason/facts.py)"

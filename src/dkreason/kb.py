@@ -8,8 +8,8 @@ rules against both ontologies they join, so a bad file fails at load time with i
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .datalog import Datalog, Row, gc_paused
@@ -28,6 +28,7 @@ from .facts import (
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
 from .parse.config import RULES_HOME, Config, read_config
+from .parse.sslt import without_spans
 
 RULES_DIR = RULES_HOME / "rules"
 _TRAILING_DIGITS = re.compile(r"(\d+)$")
@@ -56,38 +57,55 @@ class Platform:
 class KnowledgeBase:
     def __init__(self, local: str, platforms: dict[str, Platform],
                  mappings: tuple[Mapping_, ...], rule_files: tuple[Path, ...] = (),
-                 config: Config | None = None) -> None:
+                 config: Config | None = None, online: set[str] | None = None) -> None:
+        """`platforms` are those whose knowledge is at hand; a mapping waits until both of its
+        platforms are (live federations add them as they appear).  `online`: the platforms
+        whose topics are used (default: all)."""
         self.local = local
         self.platforms = platforms
-        self.mappings = mappings
+        self.mappings: tuple[Mapping_, ...] = ()
+        self.pending = mappings
         self.config = config
+        self.live = online is not None
+        self.rederived: list[str] = []  # the views the last change computed again
         self.warnings: list[str] = []
         self.engine = Datalog()
         for path in (*sorted(RULES_DIR.glob("*.dl")), *rule_files):
             self.engine.load_file(path)
-        facts = merge(STATIC, {"local": [(local,)],
-                               "platform": [(p,) for p in platforms],
-                               "mapping": [(m.source, m.target) for m in mappings],
-                               "bridge": [(m.source, r.source, m.target, r.target, r.type)
-                                          for m in mappings for r in self._checked(m)]},
-                      *(ontology_facts(p.ontology) for p in platforms.values()),
-                      *(spec_facts(p.name, s) for p in platforms.values()
-                        for s in p.resolved.values()))
+        facts = merge(STATIC, {"local": [(local,)]},
+                      *(self._platform_facts(p) for p in platforms.values()),
+                      self._mapping_facts(), {"online": [
+                          (p,) for p in platforms if online is None or p in online]})
         for pred, rows in rows_of(facts):
             self.engine.assert_rows(pred, rows)
         self.engine.materialize()
         for p in platforms.values():
             self._check_specs(p, list(p.resolved))
-        joined = {m.source for m in mappings if m.target == local} | \
-                 {m.target for m in mappings if m.source == local}
-        for name in platforms:
-            if name != local and name not in joined:
-                self.warnings.append(f"platform {name} is joined to {local} by no mapping "
-                                     f"file: its topics are not used")
-        for m in mappings:
-            if local not in (m.source, m.target):
-                self.warnings.append(f"mapping {m.source}→{m.target} ({m.file}) does not "
-                                     f"involve the local platform {local}: unused")
+        self._warn()
+
+    def _platform_facts(self, p: Platform) -> Facts:
+        return merge({"platform": [(p.name,)]}, ontology_facts(p.ontology),
+                     *(spec_facts(p.name, s) for s in p.resolved.values()))
+
+    def _mapping_facts(self) -> Facts:
+        """Facts of the pending mappings whose platforms are both present, now active."""
+        ready = tuple(m for m in self.pending
+                      if m.source in self.platforms and m.target in self.platforms)
+        self.pending = tuple(m for m in self.pending if m not in ready)
+        self.mappings += ready
+        return {"mapping": [(m.source, m.target) for m in ready],
+                "bridge": [(m.source, r.source, m.target, r.target, r.type)
+                           for m in ready for r in self._checked(m)]}
+
+    def _warn(self) -> None:
+        joined = {m.source for m in self.mappings if m.target == self.local} | \
+                 {m.target for m in self.mappings if m.source == self.local}
+        self.warnings = [f"platform {name} is joined to {self.local} by no mapping file: its "
+                         f"topics are not used" for name in self.platforms
+                         if name != self.local and name not in joined]
+        self.warnings += [f"mapping {m.source}→{m.target} ({m.file}) does not involve the "
+                          f"local platform {self.local}: unused" for m in self.mappings
+                          if self.local not in (m.source, m.target)]
 
     @classmethod
     def from_config(cls, path: Path) -> KnowledgeBase:
@@ -103,13 +121,13 @@ class KnowledgeBase:
         config = read_config(path)
         platforms: dict[str, Platform] = {}
         for files in config.platforms:
-            ontology = read_ontology(files.ontology, files.name)
-            platform = Platform(ontology, _name_index(ontology), specs_path=files.specs)
-            if files.specs is not None:
-                for spec in read_specs(files.specs).specs:
-                    platform.specs[spec.name] = spec
-                    platform.resolved[spec.name] = resolve_spec(platform, spec)
-            platforms[files.name] = platform
+            if files.ontology is None:
+                raise ParseError(f"[platforms.{files.name}] has no ontology file: its knowledge "
+                                 f"comes from the network (dkreason monitor --live)",
+                                 Span(str(path)))
+            specs = read_specs(files.specs).specs if files.specs is not None else ()
+            platforms[files.name] = make_platform(read_ontology(files.ontology, files.name),
+                                                  specs, files.specs)
         mappings = tuple(Mapping_(m.source, m.target, str(m.file), read_bridge_rules(m.file))
                          for m in config.mappings)
         return cls(config.local, platforms, mappings, config.rules, config)
@@ -139,9 +157,74 @@ class KnowledgeBase:
         del p.resolved[name]
         return p.specs.pop(name)
 
+    # ---- a live federation: platforms come and go, objects join sorts ------------------
+
+    def add_platform(self, p: Platform) -> None:
+        """Add a platform's knowledge (and the mappings now complete), online."""
+        if p.name in self.platforms:
+            raise DkError(f"platform {p.name} is already known")
+        self.platforms[p.name] = p
+        try:
+            facts = merge(self._platform_facts(p), self._mapping_facts(),
+                          {"online": [(p.name,)]})
+        except DkError:
+            del self.platforms[p.name]
+            raise
+        self._change(facts, self.engine.assert_rows)
+        self._check_specs(p, list(p.resolved))
+        self._warn()
+
+    def set_online(self, name: str, online: bool) -> None:
+        """Whether a known platform's topics are used; only what reads `online` is redone."""
+        self.platform(name)
+        if online != self.is_online(name):
+            self._change({"online": [(name,)]},
+                         self.engine.assert_rows if online else self.engine.retract_rows)
+
+    def is_online(self, name: str) -> bool:
+        return bool(self.engine.query("online", name))
+
+    def replace_specs(self, platform: str, specs: list[TopicSpec]) -> tuple[list[str], list[str]]:
+        """Make a platform's specs these (changed ones are replaced): (added, removed) names.
+        All are checked before anything changes."""
+        p = self.platform(platform)
+        new = {s.name: s for s in specs}
+        for spec in new.values():
+            resolve_spec(p, spec)
+        removed = [n for n, s in p.specs.items()
+                   if n not in new or without_spans(s) != without_spans(new[n])]
+        added = [n for n in new if n not in p.specs or n in removed]
+        for name in removed:
+            self.remove_spec(platform, name)
+        for name in added:
+            self.add_spec(platform, new[name])
+        return added, removed
+
+    def add_object(self, platform: str, name: str, sort: str, id_: IdValue | None = None
+                   ) -> str:
+        """A new object of a sort (an rdf:type axiom); its IRI.  Matching sees it at once."""
+        p = self.platform(platform)
+        sort_iri = p.names.resolve(sort, ("sort",), Span("<api>"))
+        ns = sort_iri[:len(sort_iri) - len(local_name(sort_iri))]
+        iri = name[1:-1] if name.startswith("<") else ns + name
+        if p.names.kind(iri) not in (None, "object"):
+            raise NameError_(f"{name!r} is {article(str(p.names.kind(iri)))} on {platform}, "
+                             f"not an object", Span("<api>"))
+        if (iri, sort_iri) in p.ontology.types:
+            return iri
+        ids = dict(p.ontology.ids) | ({iri: id_} if id_ is not None else {})
+        p.ontology = replace(p.ontology, individuals=p.ontology.individuals | {iri},
+                             types=(*p.ontology.types, (iri, sort_iri)), ids=ids)
+        p.names = _name_index(p.ontology)
+        facts: Facts = {"type_of": [(platform, iri, sort_iri)]}
+        if not self.engine.query("individual", platform, iri):
+            facts["individual"] = [(platform, iri)]
+        self._change(facts, self.engine.assert_rows)
+        return iri
+
     def _change(self, facts: Facts, how: Callable[[str, list[Row]], None]) -> None:
-        """Assert or retract spec facts; the views that read topics are computed again."""
-        self.engine.thaw(facts.keys())
+        """Assert or retract facts; only the views that read them are computed again."""
+        self.rederived = self.engine.thaw(facts.keys())
         for pred, rows in rows_of(facts):
             how(pred, rows)
         self.engine.materialize()
@@ -202,6 +285,16 @@ class KnowledgeBase:
                                      f"in {ont.platform} ({ont.file}), expected {article(want)}",
                                      rule.span)
         return m.rules
+
+
+def make_platform(ontology: Ontology, specs: Iterable[TopicSpec],
+                  specs_path: Path | None = None) -> Platform:
+    """A platform's knowledge, each spec's names resolved (a bad one raises, naming it)."""
+    platform = Platform(ontology, _name_index(ontology), specs_path=specs_path)
+    for spec in specs:
+        platform.specs[spec.name] = spec
+        platform.resolved[spec.name] = resolve_spec(platform, spec)
+    return platform
 
 
 def _name_index(ont: Ontology) -> NameIndex:

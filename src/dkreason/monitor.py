@@ -26,11 +26,7 @@ Event = Verdict | Violation
 class Monitor:
     def __init__(self, km: KnowledgeManager, formulas: list[str], policy: StreamPolicy) -> None:
         self.km, self.formulas, self.policy = km, formulas, policy
-        features: dict[str, FeatureRequest] = {}
-        for f in formulas:
-            for fr in km.check_formula(f).features:
-                features.setdefault(fr.feature.key, fr)
-        self.request = StreamRequest("; ".join(formulas), km.local, tuple(features.values()))
+        self.request = combined_request(km, formulas)
         self.states: list[tuple[int, dict[str, Any]]] = []
         self.keep_states = False
 
@@ -46,7 +42,7 @@ class Monitor:
         def on_state(time: int, values: dict[str, Any]) -> None:
             if self.keep_states:
                 self.states.append((time, dict(values)))
-            out.extend(_seconds(v) for v in progressor.step(time, values))
+            out.extend(in_seconds(v) for v in progressor.step(time, values))
 
         try:
             processor = StreamProcessor(self.request, self.policy, source, on_state, out.append)
@@ -62,11 +58,20 @@ class Monitor:
         finally:
             source.close()
         processor.finish()
-        out.extend(_seconds(v) for v in progressor.finish())
+        out.extend(in_seconds(v) for v in progressor.finish())
         yield from out
 
 
-def _seconds(v: Verdict) -> Verdict:
+def combined_request(km: KnowledgeManager, formulas: list[str]) -> StreamRequest:
+    """One request for several formulas: each ground feature once."""
+    features: dict[str, FeatureRequest] = {}
+    for f in formulas:
+        for fr in km.check_formula(f).features:
+            features.setdefault(fr.feature.key, fr)
+    return StreamRequest("; ".join(formulas), km.local, tuple(features.values()))
+
+
+def in_seconds(v: Verdict) -> Verdict:
     """The progressor runs in nanoseconds; people read seconds."""
     unknown = tuple(dataclasses.replace(u, start=seconds(u.start), end=seconds(u.end))
                     for u in v.unknown)

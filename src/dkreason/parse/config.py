@@ -5,6 +5,8 @@
     [platforms.platform1]
     ontology = "ontologies/platform1.owl"
     specs = "specs/platform1.sslt"                  # .sslt or .xml; optional
+    [platforms.platform2]                           # no files: fetched from the platform's
+                                                    # node (`dkreason monitor --live`)
     [[mappings]]
     source = "platform1"
     target = "platform2"
@@ -32,7 +34,7 @@ RULES_HOME = Path(__file__).resolve().parents[3]
 @dataclass(frozen=True, slots=True)
 class PlatformFiles:
     name: str
-    ontology: Path
+    ontology: Path | None  # None: the knowledge comes from the platform's live node
     specs: Path | None
 
 
@@ -84,10 +86,12 @@ def read_config(path: Path) -> Config:
         if not isinstance(table, dict):
             raise fail(f"platforms.{name} must be a table")
         _only(table, {"ontology", "specs"}, f"[platforms.{name}]", fail)
-        specs = table.get("specs")
-        platforms.append(PlatformFiles(
-            name, at(text(table, "ontology", f"[platforms.{name}]")),
-            at(text(table, "specs", f"[platforms.{name}]")) if specs is not None else None))
+        section = f"[platforms.{name}]"
+        if "specs" in table and "ontology" not in table:
+            raise fail(f"{section}: specs without an ontology")
+        platforms.append(PlatformFiles(name, *(
+            at(text(table, key, section)) if key in table else None
+            for key in ("ontology", "specs"))))
     names = [p.name for p in platforms]
     local = data.get("local", names[0] if len(names) == 1 else None)
     if local not in names:

@@ -21,20 +21,23 @@ THING = "http://www.w3.org/2002/07/owl#Thing"
 
 
 def read_ontology(path: Path, platform: str) -> Ontology:
+    return parse_ontology(read_bytes(path), str(path), platform, path.resolve().as_uri())
+
+
+def parse_ontology(data: bytes, file: str, platform: str, base: str | None = None) -> Ontology:
+    """`file` names the data in messages and tells its RDF syntax by its suffix."""
     from rdflib import BNode, Graph, Literal, URIRef
     from rdflib.collection import Collection
     from rdflib.namespace import OWL, RDF, RDFS
     from rdflib.util import guess_format
 
-    file = str(path)
-    data = read_bytes(path)
     fmt = guess_format(file) or "xml"
     if fmt == "xml":
         from .. import xmlsafe
         xmlsafe.check(data, file)
     graph = Graph(bind_namespaces="none")
     try:
-        graph.parse(data=data, format=fmt, publicID=path.resolve().as_uri())
+        graph.parse(data=data, format=fmt, publicID=base)
     except Exception as exc:  # rdflib raises many types; all mean "this file is not RDF"
         raise _rdf_error(exc, file) from None
 

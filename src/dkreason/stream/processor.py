@@ -148,6 +148,19 @@ class StreamProcessor:
         self.next_state: int | None = self.start  # next periodic state time
         self.last_seen: int | None = None
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
+        for f in request.features:
+            self.keys.append("".join(f.feature.key.split()))
+            self.hist.append([])
+            self.due.append(-1)
+            self.queued.append(False)
+        self._route(request, source)
+
+    def reroute(self, request: StreamRequest, source: Source) -> None:
+        """New topics for the same features (a live federation changed): what each feature
+        has seen so far stays."""
+        if ["".join(f.feature.key.split()) for f in request.features] != self.keys:
+            raise DkError("a new route must keep the features of the stream request")
+        self.groups, self.wanted = {}, {}
         self._route(request, source)
 
     # ---- set-up: which recording topic feeds which feature, checked before replay -------
@@ -155,10 +168,6 @@ class StreamProcessor:
     def _route(self, request: StreamRequest, source: Source) -> None:
         types = source.types()
         for q, f in enumerate(request.features):
-            self.keys.append("".join(f.feature.key.split()))
-            self.hist.append([])
-            self.due.append(-1)
-            self.queued.append(False)
             for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
                 names = [f"/{m.platform}/{m.topic}", f"{m.platform}/{m.topic}"]
                 if m.platform == request.local:
@@ -196,9 +205,17 @@ class StreamProcessor:
 
     def feed(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
         """One message's wanted values (see `wanted`), in recording order."""
+        self.put(topic, available, valid, values)
+        self.advance(available)
+
+    def put(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
+        """A message, without making states: a live source says when time has passed."""
         for group in self.groups[topic]:
             for route in group.routes(values):
                 self._sample(route, available, valid, route.get(values))
+
+    def advance(self, available: int) -> None:
+        """Every source has passed `available`: make the states due by then."""
         if available <= self.quiet_until:
             self.last_seen = available
             return  # nothing is due yet

@@ -21,6 +21,7 @@ from ..errors import DkError, ParseError, Span
 from . import fields
 
 Message = tuple[str, int, int, tuple[Any, ...]]
+Record = tuple[str, int, int, Any]  # a whole message: topic, available, valid, plain data
 Wanted = dict[str, list[str]]  # topic → fields, in the order the values are yielded
 NS = 10**9
 
@@ -109,9 +110,33 @@ class RosbagSource:
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
             raise DkError(f"{self.name}: damaged recording ({_why(exc)})") from None
 
+    def records(self) -> Iterator[Record]:
+        """Every message in full, as plain data (what a live platform node publishes)."""
+        try:
+            for connection, t_ns, raw in self.reader.messages():
+                msg = plain(self.reader.deserialize(raw, connection.msgtype))
+                stamp = msg.get("header", {}).get("stamp") if isinstance(msg, dict) else None
+                valid = stamp["sec"] * NS + stamp.get("nanosec", stamp.get("nsec", 0)) \
+                    if isinstance(stamp, dict) and "sec" in stamp else t_ns
+                yield connection.topic, t_ns, valid, msg
+        except Exception as exc:
+            raise DkError(f"{self.name}: damaged recording ({_why(exc)})") from None
+
     def close(self) -> None:
         if self.reader.stack is not None:
             self.reader.close()
+
+
+def plain(value: Any) -> Any:
+    """A deserialised ROS message as JSON-ready dicts, lists and numbers."""
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: plain(getattr(value, k)) for k in value.__dataclass_fields__
+                if not k.startswith("__")}
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    return value
 
 
 def _ros_reader(fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool,
@@ -141,7 +166,7 @@ def _plain(value: Any) -> Any:
     return value.item() if hasattr(value, "item") else value
 
 
-def _dict_reader(name: str, wanted: Wanted) -> Any:
+def dict_reader(name: str, wanted: Wanted) -> Any:
     """(topic, time, message dict) → values of the fields wanted on that topic."""
     getters = {topic: [(f, fields.accessor(f, dicts=True)) for f in fs]
                for topic, fs in wanted.items()}
@@ -186,8 +211,9 @@ class JsonlSource:
 
 
     def __init__(self, path: Path) -> None:
-        self.name, self.path = str(path), path
-        if not path.is_file():
+        """`-` reads standard input (a live feed)."""
+        self.name, self.path = ("<stdin>" if str(path) == "-" else str(path)), path
+        if str(path) != "-" and not path.is_file():
             raise DkError(f"{path}: no such file")
 
     def types(self) -> dict[str, str]:
@@ -200,8 +226,17 @@ class JsonlSource:
         return None
 
     def messages(self, wanted: Wanted) -> Iterator[Message]:
-        read = _dict_reader(self.name, wanted)
-        with self.path.open(encoding="utf-8") as handle:
+        read = dict_reader(self.name, wanted)
+        for topic, available, valid, msg in self.records():
+            if topic in wanted:
+                yield topic, available, valid, read(topic, valid, msg)
+
+    def records(self) -> Iterator[Record]:
+        import contextlib
+        import sys
+
+        with (contextlib.nullcontext(sys.stdin) if self.name == "<stdin>" else
+              self.path.open(encoding="utf-8")) as handle:
             for n, line in enumerate(handle, 1):
                 if not line.strip():
                     continue
@@ -215,8 +250,7 @@ class JsonlSource:
                         f"missing {exc}" if isinstance(exc, KeyError) else str(exc)
                     raise ParseError(f"not a message line ({what})", Span(self.name, n)) \
                         from None
-                if topic in wanted:
-                    yield topic, available, valid, read(topic, valid, _floats(msg))
+                yield topic, available, valid, _floats(msg)
 
     def close(self) -> None:
         pass
@@ -262,7 +296,7 @@ class PushSource:
         return None
 
     def messages(self, wanted: Wanted) -> Iterator[Message]:
-        read = _dict_reader(self.name, wanted)
+        read = dict_reader(self.name, wanted)
         while (item := self._queue.get()) is not self._END:
             topic, available, valid, msg = item
             if topic in wanted:
@@ -359,7 +393,7 @@ class McapStreamSource:
 
 
 def open_source(path: Path, msg_files: Sequence[Path] = ()) -> Source:
-    if path.suffix == ".jsonl" or path.suffix == ".json":
+    if path.suffix == ".jsonl" or path.suffix == ".json" or str(path) == "-":
         return JsonlSource(path)
     try:
         return RosbagSource(path, msg_files)

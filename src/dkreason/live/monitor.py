@@ -1,0 +1,406 @@
+"""Monitor a live federation, adapting as it changes (thesis 8.2's future work, built).
+
+The monitor finds the platforms its config names by their liveliness tokens, asks each for its
+knowledge, matches with its own mapping files, and subscribes to the relevant topics only.
+Whenever a platform comes or goes, or announces new specs or objects, the change goes into the
+knowledge base as facts (only the views that read them are derived again), the formulas are
+matched again, and subscriptions are added or dropped; the progressor and every feature's
+history carry on, so decided verdicts stay.  A feature left with no topic is reported, and its
+value turns unknown once its last sample is older than the maximum age.
+
+Time is the stream's: each platform's clock says up to when it has published, and a state is
+made once every present platform has passed its time (plus the policy's delay), so samples
+from platforms running at different paces are never late for each other.
+
+Trust: knowledge and samples are taken only from the platforms in the config; anything else
+seen is logged once.  Payloads are bounded and checked (wire.py); a bad one is logged and
+dropped.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+from ..errors import DkError
+from ..kb import KnowledgeBase, Platform, make_platform
+from ..manager import KnowledgeManager
+from ..model import Mapping_, StreamRequest
+from ..monitor import combined_request, in_seconds
+from ..parse.config import read_config
+from ..progress import Progressor, Verdict
+from ..stream.processor import StreamPolicy, StreamProcessor, Violation, seconds
+from ..stream.sources import NS, Message, Wanted, dict_reader
+from . import wire
+
+log = logging.getLogger("dkreason.live")
+
+
+@dataclass(frozen=True, slots=True)
+class Change:
+    """Something the federation did: joined, left, subscribed, unsubscribed, source_lost."""
+
+    event: str
+    time: int | None  # ns on the stream clock; None before any platform's clock
+    platform: str
+    detail: str = ""
+    feature: str = ""
+    topic: str = ""
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"event": self.event, "time": None if self.time is None else seconds(self.time),
+               "platform": self.platform}
+        out |= {k: v for k, v in (("feature", self.feature), ("topic", self.topic),
+                                  ("detail", self.detail)) if v}
+        return out
+
+    def __str__(self) -> str:
+        when = "before start" if self.time is None else f"at {seconds(self.time)} s"
+        what = {"joined": f"platform {self.platform} joined",
+                "left": f"platform {self.platform} left",
+                "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
+                "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
+                "source_lost": f"source lost: {self.feature} has no topic left"}[self.event]
+        return f"{when}: {what}" + (f" ({self.detail})" if self.detail else "")
+
+
+Event = Verdict | Violation | Change
+
+
+class _Live:
+    """The stream processor's view of the network: nothing known before messages come."""
+
+    name = "<live>"
+
+    def types(self) -> dict[str, str]:
+        return {}
+
+    def check_field(self, topic: str, field: str) -> str | None:
+        return None
+
+    def messages(self, wanted: Wanted) -> Iterator[Message]:
+        return iter(())
+
+    def count(self, topics: set[str] | None) -> int | None:
+        return None
+
+    def close(self) -> None:
+        pass
+
+
+class LiveMonitor:
+    def __init__(self, config: Path, formulas: list[str], policy: StreamPolicy, session: Any,
+                 wait: float = 10.0, ask_timeout: float = 3.0) -> None:
+        from ..parse.cowl import read_bridge_rules
+        from ..parse.owl import read_ontology
+        from ..parse.sslt import read_specs
+
+        self.config = read_config(config)
+        self.formulas, self.policy, self.session = formulas, policy, session
+        self.wait, self.ask_timeout = wait, ask_timeout
+        self.names = {p.name for p in self.config.platforms}
+        self.known: dict[str, Platform] = {}  # knowledge at hand, before the KB exists
+        for files in self.config.platforms:
+            if files.ontology is not None:
+                specs = read_specs(files.specs).specs if files.specs is not None else ()
+                self.known[files.name] = make_platform(
+                    read_ontology(files.ontology, files.name), specs, files.specs)
+        self.mappings = tuple(Mapping_(m.source, m.target, str(m.file),
+                                       read_bridge_rules(m.file)) for m in self.config.mappings)
+        self.events: queue.Queue[tuple[Any, ...]] = queue.Queue()
+        self.present: set[str] = set()
+        self.clocks: dict[str, int] = {}
+        self.seen_strangers: set[str] = set()
+        self.rejected: dict[tuple[str, str], int] = {}
+        self.kb: KnowledgeBase | None = None
+        self.subs: dict[tuple[str, str], Any] = {}  # (platform, topic) → subscriber
+        self.topics: dict[str, set[tuple[str, str]]] = {}  # feature → its (platform, topic)s
+        self.decided = 0
+        self.stop = threading.Event()
+        self.declared = [session.liveliness().declare_subscriber(
+            f"{wire.ROOT}/*/alive", self._on_alive, history=True)]
+        for p in sorted(self.names):
+            for what in ("clock", "changed"):
+                self.declared.append(session.declare_subscriber(
+                    wire.key(p, what), lambda s, p=p, what=what: self.events.put(
+                        (what, p, s.payload.to_bytes()))))
+
+    # ---- zenoh callbacks (other threads): only enqueue ----------------------------------
+
+    def _on_alive(self, sample: Any) -> None:
+        import zenoh
+
+        p = wire.platform_of(str(sample.key_expr))
+        self.events.put(("alive", p, sample.kind == zenoh.SampleKind.PUT))
+
+    # ---- knowledge ---------------------------------------------------------------------
+
+    def _ask(self, p: str, what: str) -> Any:
+        for reply in self.session.get(wire.key(p, what), timeout=self.ask_timeout):
+            if reply.ok is not None:
+                return wire.decode(reply.ok.payload.to_bytes(), wire.MAX_KNOWLEDGE,
+                                   f"{p}'s {what}")
+        raise wire.WireError(f"{p} did not answer the query for its {what}")
+
+    def _fetch(self, p: str) -> Platform:
+        """A platform's whole knowledge, asked over the network."""
+        from ..parse.owl import parse_ontology
+        from ..parse.sslt import parse_text
+
+        ont = self._ask(p, "ontology")
+        if not isinstance(ont, dict) or not isinstance(ont.get("text"), str) or \
+                not isinstance(ont.get("file"), str):
+            raise wire.WireError(f"{p}'s ontology: expected {{\"file\": …, \"text\": …}}")
+        name = Path(ont["file"]).name or "ontology.owl"
+        ontology = parse_ontology(ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p)
+        platform = make_platform(ontology, parse_text(self._specs_text(p),
+                                                      wire.key(p, "specs")).specs)
+        for iri, sort, id_ in self._objects(p):
+            if (iri, sort) not in platform.ontology.types:
+                ids = dict(platform.ontology.ids) | ({iri: id_} if id_ is not None else {})
+                platform.ontology = replace(
+                    platform.ontology, individuals=platform.ontology.individuals | {iri},
+                    types=(*platform.ontology.types, (iri, sort)), ids=ids)
+        return make_platform(platform.ontology, platform.specs.values())
+
+    def _specs_text(self, p: str) -> str:
+        specs = self._ask(p, "specs")
+        if not isinstance(specs, dict) or not isinstance(specs.get("sslt"), str):
+            raise wire.WireError(f"{p}'s specs: expected {{\"sslt\": …}}")
+        return str(specs["sslt"])
+
+    def _objects(self, p: str) -> list[tuple[str, str, Any]]:
+        objects = self._ask(p, "objects")
+        out = []
+        for iri, info in (objects.items() if isinstance(objects, dict) else ()):
+            sorts = info.get("sorts") if isinstance(info, dict) else None
+            id_ = info.get("id") if isinstance(info, dict) else None
+            if not isinstance(sorts, list) or not isinstance(id_, (int, str, type(None))):
+                raise wire.WireError(f"{p}'s objects: {iri!r} needs sorts and an id")
+            out += [(iri, str(s), id_) for s in sorts]
+        return out
+
+    def _update(self, p: str) -> None:
+        """A known platform's specs and objects, asked again and applied as changes."""
+        from ..parse.sslt import parse_text
+
+        assert self.kb is not None
+        specs = parse_text(self._specs_text(p), wire.key(p, "specs")).specs
+        objects = self._objects(p)
+        added, removed = self.kb.replace_specs(p, list(specs))
+        types = set(self.kb.platform(p).ontology.types)
+        new = [(iri, sort, id_) for iri, sort, id_ in objects if (iri, sort) not in types]
+        for iri, sort, id_ in new:
+            self.kb.add_object(p, f"<{iri}>", f"<{sort}>", id_)
+        if added or removed or new:
+            log.info("%s changed: specs added %s, removed %s; %d new object types", p,
+                     ", ".join(added) or "none", ", ".join(removed) or "none", len(new))
+
+    # ---- the loop ----------------------------------------------------------------------
+
+    def run(self, until: Fraction | None = None, duration: float | None = None
+            ) -> Iterator[Event]:
+        """Events as they happen, until every formula is decided, the stream clock passes
+        `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts."""
+        yield from self._gather()
+        km = KnowledgeManager(self.kb) if self.kb is not None else None
+        assert km is not None
+        self.km = km
+        self.request = combined_request(km, self.formulas)
+        self.keys = [f.feature.key for f in self.request.features]
+        progressor = Progressor.with_knowledge(km, unit=Fraction(1, NS))
+        for f in self.formulas:
+            progressor.add(f)
+        out: list[Event] = []
+
+        def on_state(t: int, values: dict[str, Any]) -> None:
+            for v in progressor.step(t, values):
+                self.decided += 1
+                out.append(in_seconds(v))
+
+        self.source = _Live()
+        self.processor = StreamProcessor(self.request, self.policy, self.source, on_state,
+                                         out.append)
+        self.read = dict_reader(self.source.name, self.processor.wanted)
+        out += self._subscribe(self.request, None, "")
+        yield from out
+        out.clear()
+        end = None if until is None else int(until * NS)
+        stop_at = None if duration is None else time.monotonic() + duration
+        try:
+            while not self.stop.is_set() and self.decided < len(self.formulas):
+                if stop_at is not None and time.monotonic() >= stop_at:
+                    break
+                mark = self.watermark()
+                if end is not None and mark is not None and mark >= end:
+                    break
+                try:
+                    event = self.events.get(timeout=0.1)
+                except queue.Empty:
+                    continue
+                out += self._handle(event)
+                mark = self.watermark()
+                if mark is not None:
+                    self.processor.advance(mark if end is None else min(mark, end))
+                yield from out
+                out.clear()
+        finally:
+            self.close()
+        self.processor.finish()
+        out.extend(in_seconds(v) for v in progressor.finish())
+        yield from out
+
+    def watermark(self) -> int | None:
+        """Up to when every present platform has published (None: no clock yet)."""
+        clocks = [self.clocks[p] for p in self.present if p in self.clocks]
+        return min(clocks) if clocks else None
+
+    def _gather(self) -> Iterator[Event]:
+        """Wait for the local platform's knowledge, and for every configured platform up to
+        `wait` s; then build the knowledge base from what is at hand."""
+        local = self.config.local
+        deadline = time.monotonic() + self.wait
+        while self.present != self.names or local not in self.known:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                break
+            try:
+                event = self.events.get(timeout=min(left, 0.1))
+            except queue.Empty:
+                continue
+            yield from self._handle(event)
+        if local not in self.known:
+            raise DkError(f"the local platform {local} did not appear within {self.wait:g} s "
+                          f"(is `dkreason serve` running for it, on a reachable endpoint?)")
+        self.kb = KnowledgeBase(local, dict(self.known), self.mappings, self.config.rules,
+                                self.config, online=self.present & set(self.known))
+
+    def _handle(self, event: tuple[Any, ...]) -> list[Event]:
+        kind, p = event[0], event[1]
+        if p not in self.names:
+            if p not in self.seen_strangers:
+                self.seen_strangers.add(p)
+                log.warning("ignoring platform %s: not in the config", p)
+            return []
+        try:
+            if kind == "sample":
+                self._sample(p, event[2], event[3])
+            elif kind == "clock":
+                if p in self.present:
+                    t = wire.clock(event[2], f"{p}'s clock")
+                    self.clocks[p] = max(t, self.clocks.get(p, t))
+            elif kind == "alive":
+                return self._alive(p) if event[2] else self._left(p)
+            elif kind == "changed" and p in self.present:
+                return self._changed(p)
+        except DkError as exc:  # a peer's bad payload or knowledge: its fault, not ours
+            self._reject(p, kind, str(exc))
+        return []
+
+    def _reject(self, p: str, what: str, why: str) -> None:
+        n = self.rejected[(p, what)] = self.rejected.get((p, what), 0) + 1
+        if n <= 10 or n % 1000 == 0:
+            log.warning("rejected %s from %s (%d so far): %s", what, p, n, why)
+
+    def _sample(self, p: str, topic: str, payload: bytes) -> None:
+        if p not in self.present or (p, topic) not in self.subs:
+            return  # in flight when its subscription was dropped
+        available, valid, msg = wire.sample(payload, f"{p}/{topic}")
+        name = f"{p}/{topic}"
+        try:
+            values = self.read(name, valid, msg)
+        except DkError as exc:
+            raise wire.WireError(str(exc)) from None
+        self.processor.put(name, available, valid, values)
+        self.clocks[p] = max(available, self.clocks.get(p, available))
+
+    def _alive(self, p: str) -> list[Event]:
+        if p in self.present:
+            return []
+        if p not in self.known:
+            try:
+                self.known[p] = self._fetch(p)
+            except DkError as exc:
+                self._reject(p, "knowledge", str(exc))
+                return []
+        self.present.add(p)
+        changes: list[Event] = [Change("joined", self.watermark(), p)]
+        if self.kb is None:
+            return changes
+        if p not in self.kb.platforms:
+            self.kb.add_platform(self.known[p])
+        else:
+            try:
+                self._update(p)
+            except DkError as exc:
+                self._reject(p, "knowledge", str(exc))
+            self.kb.set_online(p, True)
+        return changes + self._rematch(p, f"platform {p} joined")
+
+    def _left(self, p: str) -> list[Event]:
+        if p not in self.present:
+            return []
+        changes: list[Event] = [Change("left", self.watermark(), p)]
+        self.present.discard(p)
+        self.clocks.pop(p, None)
+        if self.kb is None:
+            return changes
+        self.kb.set_online(p, False)
+        return changes + self._rematch(p, f"platform {p} went away")
+
+    def _changed(self, p: str) -> list[Event]:
+        if self.kb is None:
+            self.known[p] = self._fetch(p)
+            return []
+        self._update(p)
+        return self._rematch(p, f"platform {p} changed its topics")
+
+    # ---- subscriptions -----------------------------------------------------------------
+
+    def _rematch(self, p: str, why: str) -> list[Event]:
+        request = combined_request(self.km, self.formulas)
+        by_key = {f.feature.key: f for f in request.features}
+        if set(by_key) != set(self.keys):
+            extra = sorted(set(by_key) - set(self.keys))
+            if extra:
+                log.warning("not monitored until restart (the formulas were expanded at "
+                            "start): %s", ", ".join(extra))
+            request = replace(request, features=tuple(by_key[k] for k in self.keys
+                                                      if k in by_key))
+        changes = self._subscribe(request, p, why)
+        self.processor.reroute(request, self.source)
+        self.read = dict_reader(self.source.name, self.processor.wanted)
+        return changes
+
+    def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
+        now = self.watermark()
+        before = self.topics
+        self.topics = {f.feature.key: {(t.platform, t.topic) for t in f.topics}
+                       for f in request.features}
+        changes: list[Event] = []
+        wanted = {pt: key for key, pts in self.topics.items() for pt in pts}
+        for (q, t), key in sorted(wanted.items()):
+            if (q, t) not in self.subs:
+                self.subs[(q, t)] = self.session.declare_subscriber(
+                    wire.key(q, "topic", t), lambda s, q=q, t=t: self.events.put(
+                        ("sample", q, t, s.payload.to_bytes())))
+                changes.append(Change("subscribed", now, q, feature=key, topic=t))
+        for (q, t) in sorted(set(self.subs) - set(wanted)):
+            self.subs.pop((q, t)).undeclare()
+            changes.append(Change("unsubscribed", now, q, why, topic=t))
+        for key, pts in before.items():
+            if pts and not self.topics.get(key):
+                changes.append(Change("source_lost", now, p or "", why, feature=key))
+        return changes
+
+    def close(self) -> None:
+        for sub in [*self.declared, *self.subs.values()]:
+            sub.undeclare()
+        self.declared, self.subs = [], {}

@@ -1,0 +1,218 @@
+"""A platform node: one robot's knowledge and topics on the network (thesis 1.2, 4.3).
+
+It answers queries for its ontology, topic specifications and objects, holds a liveliness
+token while it runs, publishes its topics' samples, and says when its knowledge changed (an
+API call, or its specs file edited by `dkreason specs add/remove`).  Samples come from the
+Python API (`publish`) or a replay (`replay`) that keeps the recording's times and paces them
+on a shared wall-clock origin, so nodes started apart replay in step and a restarted node
+resumes where the others are.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from ..errors import DkError
+from ..manager import KnowledgeManager
+from ..model import IdValue, TopicSpec
+from ..stream.sources import NS, Record
+from . import wire
+
+log = logging.getLogger("dkreason.live")
+
+
+class PlatformNode:
+    def __init__(self, km: KnowledgeManager, session: Any, heartbeat: float = 0.02) -> None:
+        self.km, self.session = km, session
+        self.name = km.local
+        self.heartbeat = heartbeat
+        self.lock = threading.RLock()  # orders samples before the clock that covers them
+        self.version = 0
+        self.publishers: dict[str, Any] = {}
+        self.specs_stamp = self._stamp()
+        self.closed = threading.Event()
+        platform = km.kb.platform(self.name)
+        ontology = Path(platform.ontology.file)
+        self._ontology = wire.encode({"file": ontology.name,
+                                      "text": ontology.read_text(encoding="utf-8")})
+        self._answers = {"ontology": lambda: self._ontology, "specs": self._specs,
+                         "objects": self._objects}
+        self.queryables = [session.declare_queryable(wire.key(self.name, what), self._answer)
+                           for what in self._answers]
+        self.changes = session.declare_publisher(wire.key(self.name, "changed"))
+        self.clock_pub = session.declare_publisher(wire.key(self.name, "clock"))
+        self.token = session.liveliness().declare_token(wire.key(self.name, "alive"))
+
+    # ---- knowledge ---------------------------------------------------------------------
+
+    def _answer(self, query: Any) -> None:
+        what = str(query.key_expr).rsplit("/", 1)[-1]
+        with self.lock:
+            payload = self._answers[what]()
+        query.reply(query.key_expr, payload)
+
+    def _specs(self) -> bytes:
+        from ..parse.sslt import format_spec
+
+        return wire.encode({"sslt": "".join(f"{format_spec(s)}\n"
+                                            for s in self.km.list_topic_specifications())})
+
+    def _objects(self) -> bytes:
+        p = self.km.kb.platform(self.name)
+        sorts: dict[str, list[str]] = {o: [] for o in sorted(p.ontology.individuals)}
+        for o, c in p.ontology.types:
+            sorts[o].append(c)
+        return wire.encode({o: {"sorts": s, "id": p.object_id(o)} for o, s in sorts.items()})
+
+    def _changed(self) -> None:
+        self.version += 1
+        self.changes.put(wire.encode({"version": self.version}))
+
+    def add_topic(self, spec: str | TopicSpec) -> TopicSpec:
+        with self.lock:
+            added = self.km.add_topic(spec)
+            self.specs_stamp = self._stamp()
+            self._changed()
+        return added
+
+    def remove_topic(self, name: str) -> TopicSpec:
+        with self.lock:
+            removed = self.km.remove_topic(name)
+            self.specs_stamp = self._stamp()
+            self._changed()
+        return removed
+
+    def add_object(self, name: str, sort: str, id_: IdValue | None = None) -> str:
+        """A new object of a sort, announced (not written to the ontology file)."""
+        with self.lock:
+            iri = self.km.kb.add_object(self.name, name, sort, id_)
+            self._changed()
+        return iri
+
+    def _stamp(self) -> tuple[int, int] | None:
+        path = self.km.kb.platform(self.name).specs_path
+        try:
+            info = path.stat() if path is not None else None
+        except OSError:
+            return None
+        return (info.st_mtime_ns, info.st_size) if info else None
+
+    def _reload_specs(self) -> None:
+        """The specs file changed on disk (`dkreason specs add`): take it if it checks."""
+        from ..parse.sslt import read_specs
+
+        stamp = self._stamp()
+        if stamp == self.specs_stamp:
+            return
+        path = self.km.kb.platform(self.name).specs_path
+        assert path is not None
+        with self.lock:
+            self.specs_stamp = stamp
+            try:
+                added, removed = self.km.kb.replace_specs(self.name,
+                                                          list(read_specs(path).specs))
+            except DkError as exc:
+                log.warning("%s: specs file not taken, keeping the previous specs: %s",
+                            self.name, exc)
+                return
+            if added or removed:
+                log.info("%s: specs file changed: added %s, removed %s", self.name,
+                         ", ".join(added) or "none", ", ".join(removed) or "none")
+                self._changed()
+
+    # ---- samples -----------------------------------------------------------------------
+
+    def publish(self, topic: str, msg: dict[str, Any], valid: int | None = None,
+                available: int | None = None) -> None:
+        """A message of `topic`; times in ns on the stream clock (default: now)."""
+        with self.lock:
+            now = time.time_ns() if valid is None else valid
+            self._put(topic, now if available is None else available, now, msg)
+
+    def _put(self, topic: str, available: int, valid: int, msg: Any) -> None:
+        pub = self.publishers.get(topic)
+        if pub is None:
+            import zenoh
+
+            pub = self.publishers[topic] = self.session.declare_publisher(
+                wire.key(self.name, "topic", topic),
+                congestion_control=zenoh.CongestionControl.BLOCK)
+        pub.put(wire.encode({"valid": valid, "available": available, "msg": msg}))
+
+    def _clock(self, now: int) -> None:
+        self.clock_pub.put(wire.encode({"time": now}))
+
+    def feed(self, records: Iterator[Record], watch: float = 0.5) -> None:
+        """Publish `records` as they come (a JSON-lines pipe): their times are the clock."""
+        next_watch = time.monotonic() + watch
+        for topic, available, valid, msg in _own(records, self.name):
+            if self.closed.is_set():
+                return
+            with self.lock:
+                self._put(topic, available, valid, msg)
+                self._clock(available)
+            if time.monotonic() >= next_watch:
+                self._reload_specs()
+                next_watch = time.monotonic() + watch
+        self.closed.wait()
+
+    def serve(self, records: Iterator[Record] | None = None, origin: float | None = None,
+              speed: float = 1.0, watch: float = 0.5) -> None:
+        """Replay `records` (or only keep the clock, on wall time) until `close`.
+
+        A record made at time t is published at wall time origin + (t - first)/speed with
+        its own times; records already past (a node restarted mid-run) are skipped."""
+        origin = time.time() if origin is None else origin
+        pending = _own(records, self.name) if records is not None else iter(())
+        head = next(pending, None)
+        first = head[1] if head is not None else 0
+        replaying = records is not None
+
+        def stream_now() -> int:
+            if not replaying:
+                return time.time_ns()
+            return first + int((time.time() - origin) * speed * NS)
+
+        skipped, start = 0, stream_now()
+        while head is not None and head[1] < start:
+            head, skipped = next(pending, None), skipped + 1
+        if skipped:
+            log.info("%s: replay resumes at %.3f s, %d earlier messages skipped", self.name,
+                     start / NS, skipped)
+        next_watch = time.monotonic() + watch
+        while not self.closed.is_set():
+            now = stream_now()
+            with self.lock:
+                while head is not None and head[1] <= now:
+                    self._put(*head)
+                    head = next(pending, None)
+                self._clock(now if head is None else min(now, head[1] - 1))
+            if time.monotonic() >= next_watch:
+                self._reload_specs()
+                next_watch = time.monotonic() + watch
+            wait = self.heartbeat
+            if head is not None:
+                wait = min(wait, max(0.0, (head[1] - stream_now()) / speed / NS))
+            self.closed.wait(wait)
+
+    def close(self) -> None:
+        self.closed.set()
+        with self.lock:
+            self.token.undeclare()
+            for q in self.queryables:
+                q.undeclare()
+
+
+def _own(records: Iterator[Record], platform: str) -> Iterator[Record]:
+    """This platform's topics in a recording, by their names: `/P/T` or `T` → T."""
+    prefix = f"/{platform}/"
+    for topic, available, valid, msg in records:
+        if topic.startswith(prefix):
+            yield topic[len(prefix):], available, valid, msg
+        elif topic.strip("/").count("/") == 0:
+            yield topic.strip("/"), available, valid, msg

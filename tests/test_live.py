@@ -1,0 +1,313 @@
+"""A live federation over Zenoh (issue 8): platform nodes and a monitor in separate processes on
+loopback (explicit endpoints, no multicast), and the knowledge base changes they cause."""
+
+from __future__ import annotations
+
+import json
+import queue
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from dkreason import KnowledgeManager
+from dkreason.cli import main
+from dkreason.kb import KnowledgeBase
+
+from .conftest import REPO
+from .test_federation import map_car3_to_a_truck
+
+SPEEDING = "forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)"
+POSITION = "always (Position[car2] >= 0)"
+ALTITUDE = "forall x in UAV: always (Altitude[x] > 10)"
+CLI = [sys.executable, "-m", "dkreason.cli"]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture
+def site(tmp_path: Path) -> Path:
+    """A copy of the bundled platforms, so specs added while running stay in the test."""
+    for part in ("ontologies", "specs"):
+        shutil.copytree(REPO / part, tmp_path / part)
+    shutil.copytree(REPO / "examples" / "live", tmp_path / "examples" / "live")
+    return tmp_path / "examples" / "live"
+
+
+class Processes:
+    """Every process a test starts, stopped however the test ends."""
+
+    def __init__(self) -> None:
+        self.all: list[subprocess.Popen[str]] = []
+
+    def start(self, *args: str, stdin: Any = None) -> subprocess.Popen[str]:
+        proc = subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                stdin=stdin, text=True, cwd=REPO)
+        self.all.append(proc)
+        return proc
+
+    def stop(self) -> None:
+        for proc in self.all:
+            if proc.poll() is None:
+                proc.terminate()
+        for proc in self.all:
+            try:
+                proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            for pipe in (proc.stdout, proc.stderr):
+                if pipe is not None:
+                    pipe.close()
+
+
+@pytest.fixture
+def procs() -> Iterator[Processes]:
+    p = Processes()
+    try:
+        yield p
+    finally:
+        p.stop()
+
+
+def lines_of(proc: subprocess.Popen[str]) -> queue.Queue[dict[str, Any] | None]:
+    """The monitor's JSON lines as they come; None at its end."""
+    out: queue.Queue[dict[str, Any] | None] = queue.Queue()
+
+    def read() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            if line.strip():
+                out.put(json.loads(line))
+        out.put(None)
+
+    threading.Thread(target=read, daemon=True).start()
+    return out
+
+
+def wait_for(events: queue.Queue[dict[str, Any] | None], seen: list[dict[str, Any]],
+             timeout: float = 15.0, since: int = 0, **fields: Any) -> dict[str, Any]:
+    """The first event from `seen[since]` on with these fields, reading more as needed."""
+    deadline = time.monotonic() + timeout
+    for event in seen[since:]:
+        if fields.items() <= event.items():
+            return event
+    while True:
+        event = events.get(timeout=max(0.01, deadline - time.monotonic()))
+        assert event is not None, f"the monitor ended before {fields}"
+        seen.append(event)
+        if fields.items() <= event.items():
+            return event
+
+
+def serve(procs: Processes, site: Path, n: int, port: int, recording: Path, origin: float,
+          speed: float) -> subprocess.Popen[str]:
+    return procs.start("serve", "--config", str(site / f"platform{n}.toml"),
+                       "--connect", f"tcp/127.0.0.1:{port}", "--source", str(recording),
+                       "--origin", str(origin), "--speed", str(speed))
+
+
+def test_live_federation_adapts_and_gives_the_recorded_verdict(
+        procs: Processes, site: Path, traffic: Path, capsys: pytest.CaptureFixture[str]):
+    assert main(["monitor", "--config", str(REPO / "examples" / "federation.toml"), "--source",
+                 str(traffic), "--delay", "0.1", "--json", SPEEDING]) == 1
+    recorded = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+
+    port, speed = free_port(), 30.0
+    monitor = procs.start("monitor", "--live", "--config", str(site / "monitor.toml"),
+                          "--listen", f"tcp/127.0.0.1:{port}", "--delay", "0.1", "--until",
+                          "330", "--wait", "20", "--json", SPEEDING, POSITION, ALTITUDE)
+    events, seen = lines_of(monitor), []
+    origin = time.time() + 6  # every node is up by then, even on a loaded machine
+    nodes = {n: serve(procs, site, n, port, traffic, origin, speed) for n in (1, 2, 3)}
+    for n in (1, 2, 3):
+        wait_for(events, seen, event="joined", platform=f"platform{n}")
+    wait_for(events, seen, event="subscribed", platform="platform2", topic="carstopic3")
+
+    # platform 2 crashes at about 60 s of stream time: Position[car2] loses its only topic
+    time.sleep(max(0.0, origin + 60 / speed - time.time()))
+    nodes[2].kill()
+    lost = wait_for(events, seen, event="source_lost", feature="Position[car2]")
+    assert lost["platform"] == "platform2" and "went away" in lost["detail"]
+    assert monitor.poll() is None
+
+    # it comes back, and is used again
+    nodes[2] = serve(procs, site, 2, port, traffic, origin, speed)
+    back = len(seen)
+    wait_for(events, seen, since=back, event="joined", platform="platform2", timeout=20)
+    wait_for(events, seen, since=back, event="subscribed", platform="platform2",
+             topic="carstopic3")
+
+    # a topic specification added on platform 3 while running brings a new subscription
+    added = subprocess.run([*CLI, "specs", "add", "--config", str(site / "platform3.toml"),
+                            "topic uastopic9:UasMsg contains Height(uas21) = msg.height "
+                            "for uas21 = msg.id"], capture_output=True, text=True, cwd=REPO)
+    assert added.returncode == 0, added.stderr
+    wait_for(events, seen, event="subscribed", platform="platform3", topic="uastopic9",
+             feature="Altitude[uav2]")
+
+    assert monitor.wait(timeout=40) == 1
+    while (event := events.get(timeout=5)) is not None:
+        seen.append(event)
+    verdicts = {e["formula"]: e for e in seen if "verdict" in e}
+    assert verdicts[SPEEDING] == recorded[0]  # the same verdict, time and witness
+    assert verdicts[POSITION]["verdict"] is None  # no verdict on data that was not there
+    assert "Position[car2] unknown from 65" in verdicts[POSITION]["witness"] or \
+        "Position[car2] unknown from" in verdicts[POSITION]["witness"]
+    assert monitor.stderr is not None
+    assert "Traceback" not in monitor.stderr.read()
+
+
+def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
+        procs: Processes, tmp_path: Path, traffic: Path):
+    import zenoh
+
+    from dkreason.live.wire import open_session
+
+    (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    (tmp_path / "platform1.toml").write_text(
+        f'[platforms.platform1]\nontology = "{REPO}/ontologies/platform1.owl"\n'
+        f'specs = "{REPO}/specs/platform1.sslt"\n')
+    port = free_port()
+    monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
+                          "--listen", f"tcp/127.0.0.1:{port}", "--until", "200", "--wait", "20",
+                          "--json", "always (Speed[car1] < 100)")
+    events, seen = lines_of(monitor), []
+    rogue = open_session([f"tcp/127.0.0.1:{port}"], [])
+    try:
+        token = rogue.liveliness().declare_token("dkreason/intruder/alive")
+        origin = time.time() + 4
+        procs.start("serve", "--config", str(tmp_path / "platform1.toml"), "--connect",
+                    f"tcp/127.0.0.1:{port}", "--source", str(traffic), "--origin", str(origin),
+                    "--speed", "60")
+        wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
+        time.sleep(1)  # the subscription's declaration reaches the rogue session
+        bad = rogue.declare_publisher("dkreason/platform1/topic/topic3",
+                                      congestion_control=zenoh.CongestionControl.BLOCK)
+        for payload in (b"not json", b"[" * 100_000, b'{"valid": "soon", "msg": {}}',
+                        b'{"valid": 1, "msg": {"id": 1}}', bytes([0xff, 0xfe])):
+            bad.put(payload)
+        rogue.put("dkreason/intruder/topic/topic3", b'{"valid": 1, "msg": {"id": 1}}')
+        assert monitor.wait(timeout=30) == 0
+        token.undeclare()
+    finally:
+        rogue.close()
+    while (event := events.get(timeout=5)) is not None:
+        seen.append(event)
+    assert [e["verdict"] for e in seen if "verdict" in e] == [True]
+    assert monitor.stderr is not None
+    log = monitor.stderr.read()
+    assert log.count("ignoring platform intruder") == 1
+    assert "more than the 65536 allowed" in log and "not JSON" in log
+    assert "has no field msg.spd" in log
+    assert "Traceback" not in log
+    assert not any(e.get("platform") == "intruder" for e in seen)
+
+
+def test_monitor_without_its_local_platform_says_so(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]):
+    (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    code = main(["monitor", "--live", "--config", str(tmp_path / "monitor.toml"), "--listen",
+                 f"tcp/127.0.0.1:{free_port()}", "--wait", "0.5", "always (Speed[car1] < 1)"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert err[-1] == ("error: the local platform platform1 did not appear within 0.5 s (is "
+                       "`dkreason serve` running for it, on a reachable endpoint?)")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["monitor", "--config", "examples/federation.toml", "always (Speed[car1] < 1)"],
+     "error: monitor needs --source RECORDING, or --live"),
+    (["serve", "--config", "examples/federation.toml", "--listen", "nonsense"],
+     "error: zenoh: bad endpoint 'nonsense' (expected <protocol>/<address>"),
+    (["serve", "--config", "examples/federation.toml", "--listen", "tcp/256.1.1.1:1"],
+     "error: zenoh: cannot open a session"),
+    (["monitor", "--config", "examples/live/monitor.toml", "--source", "x.jsonl",
+      "always (Speed[car1] < 1)"],
+     "error: examples/live/monitor.toml: [platforms.platform1] has no ontology file"),
+])
+def test_bad_live_invocations_give_one_line(args: list[str], message: str,
+                                             capsys: pytest.CaptureFixture[str],
+                                             monkeypatch: pytest.MonkeyPatch):
+    monkeypatch.chdir(REPO)
+    assert main(args) == 2
+    out = capsys.readouterr()
+    lines = [line for line in (out.out + out.err).splitlines()
+             if not line.startswith("dkreason.live")]
+    assert len(lines) == 1 and lines[0].startswith(message), lines
+
+
+# ---- the knowledge base as the federation changes (no network) ----------------------------
+
+@pytest.fixture
+def federation_km() -> KnowledgeManager:
+    return KnowledgeManager.from_config(REPO / "examples" / "federation.toml")
+
+
+def _request(kb: KnowledgeBase, formula: str) -> dict[str, set[tuple[str, str]]]:
+    request = KnowledgeManager(kb).check_formula(formula)
+    return {f.feature.key: {(t.platform, t.topic) for t in f.topics} for f in request.features}
+
+
+def test_a_platform_going_offline_rederives_no_view(federation_km: KnowledgeManager):
+    kb = federation_km.kb
+    before = _request(kb, SPEEDING)
+    kb.set_online("platform2", False)
+    assert kb.rederived == []  # only the query-time rules read `online`
+    assert _request(kb, SPEEDING)["Speed[car2]"] == {("platform1", "topic4")}
+    kb.set_online("platform2", True)
+    assert _request(kb, SPEEDING) == before
+
+
+def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeManager):
+    from dkreason.parse.sslt import parse_text
+
+    kb = federation_km.kb
+    spec = parse_text("topic uastopic9:UasMsg contains Height(uas21) = msg.height "
+                      "for uas21 = msg.id").specs
+    added, removed = kb.replace_specs("platform3", [*kb.platform("platform3").specs.values(),
+                                                    *spec])
+    assert (added, removed) == (["uastopic9"], [])
+    assert set(kb.rederived) <= {"topic_objects", "carries", "sort_topic"}
+    assert ("platform3", "uastopic9") in _request(kb, ALTITUDE)["Altitude[uav2]"]
+
+
+def test_a_platform_appearing_brings_its_mappings(tmp_path: Path):
+    from dkreason.kb import make_platform
+    from dkreason.parse.owl import read_ontology
+    from dkreason.parse.sslt import read_specs
+
+    full = KnowledgeBase.from_config(REPO / "examples" / "federation.toml")
+    kb = KnowledgeBase(full.local, {"platform1": full.platforms["platform1"]},
+                       (*full.mappings, *full.pending), online={"platform1"})
+    assert _request(kb, SPEEDING)["Speed[car2]"] == {("platform1", "topic4")}
+    platform2 = make_platform(read_ontology(REPO / "ontologies" / "platform2.owl", "platform2"),
+                              read_specs(REPO / "specs" / "platform2.sslt").specs)
+    kb.add_platform(platform2)
+    assert _request(kb, SPEEDING)["Speed[car2]"] == {("platform1", "topic4"),
+                                                     ("platform2", "carstopic1")}
+
+
+def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path):
+    """truck1 (a GroundVehicle) was no place to read car3's Speed; once platform 2 says it is
+    an Automobile, carstopic1 serves it, and the warning goes."""
+    map_car3_to_a_truck(scenario)
+    kb = KnowledgeBase.from_config(scenario / "federation.toml")
+    formula = "always (Speed[car3] > 60)"
+    assert _request(kb, formula)["Speed[car3]"] == {("platform1", "topic5")}
+    kb.add_object("platform2", "truck1", "Automobile")
+    request = KnowledgeManager(kb).check_formula(formula)
+    assert {(t.platform, t.topic) for t in request.features[0].topics} == {
+        ("platform1", "topic5"), ("platform2", "carstopic1")}
+    assert request.warnings == ()
