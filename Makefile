@@ -31,6 +31,7 @@ bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check '.[bench]'
 	$(BIN)/python -m benchmarks.bench_match
 	$(BIN)/python -m benchmarks.bench_progress
+	$(BIN)/python -m benchmarks.bench_live
 	$(BIN)/python -m benchmarks.chapter7 --growth
 
 clean:

@@ -311,3 +311,28 @@ def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path):
     assert {(t.platform, t.topic) for t in request.features[0].topics} == {
         ("platform1", "topic5"), ("platform2", "carstopic1")}
     assert request.warnings == ()
+
+
+def test_a_node_publishes_json_lines_from_its_standard_input(procs: Processes, tmp_path: Path):
+    (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    port = free_port()
+    monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
+                          "--listen", f"tcp/127.0.0.1:{port}", "--until", "3", "--json",
+                          "always (Speed[car1] < 100)")
+    events, seen = lines_of(monitor), []
+    node = procs.start("serve", "--config", str(REPO / "examples" / "live" / "platform1.toml"),
+                       "--connect", f"tcp/127.0.0.1:{port}", "--source", "-",
+                       stdin=subprocess.PIPE)
+    wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
+    time.sleep(0.5)
+    assert node.stdin is not None
+    for t in range(6):  # the stream clock passes --until at 4: the monitor stops
+        node.stdin.write(json.dumps({"topic": "/platform1/topic3", "time": t,
+                                     "msg": {"id": 1, "spd": 50.0 + t}}) + "\n")
+        node.stdin.flush()
+    assert monitor.wait(timeout=20) == 0
+    node.stdin.close()
+    while (event := events.get(timeout=5)) is not None:
+        seen.append(event)
+    (verdict,) = [e for e in seen if "verdict" in e]
+    assert (verdict["verdict"], verdict["time"], verdict["at_end"]) == (True, 3, True)

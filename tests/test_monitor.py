@@ -273,3 +273,12 @@ def test_custom_message_definitions_are_read_from_msg_files(tmp_path):
     assert "dkreason_msgs/msg/CarMsg" in store.fielddefs
     with pytest.raises(DkError, match="expected a message definition pkg/msg/Name.msg"):
         _typestore([tmp_path / "CarMsg.txt"], ros1=False)
+
+
+def test_a_recording_without_the_features_leaves_every_verdict_unknown(capsys, tmp_path: Path):
+    source = tmp_path / "other.jsonl"
+    source.write_text('{"topic": "elsewhere", "time": 1, "msg": {}}\n')
+    code, lines = run(capsys, REPO / "examples" / "single.toml", source,
+                      "always (Speed[car1] < 100)")
+    assert code == 3
+    assert [(v["verdict"], v["time"]) for v in lines if "verdict" in v] == [(None, None)]

@@ -76,7 +76,7 @@ def _build() -> _Parser:
                    help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
     network(p)
     p.add_argument("--wait", type=float, default=10.0,
-                   help="live: seconds to wait for the configured platforms (default 10)")
+                   help="live: seconds to wait for the local platform (default 10)")
     p.add_argument("--until", type=_seconds, help="live: stop when the stream clock passes it")
     p.add_argument("--duration", type=float, help="live: stop after this many wall seconds")
     p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",

@@ -75,7 +75,8 @@ def in_seconds(v: Verdict) -> Verdict:
     """The progressor runs in nanoseconds; people read seconds."""
     unknown = tuple(dataclasses.replace(u, start=seconds(u.start), end=seconds(u.end))
                     for u in v.unknown)
-    return dataclasses.replace(v, time=seconds(v.time), unknown=unknown)
+    return dataclasses.replace(v, time=None if v.time is None else seconds(v.time),
+                               unknown=unknown)
 
 
 def plot(monitor: Monitor, events: list[Event], path: Path) -> None:

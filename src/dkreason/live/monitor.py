@@ -8,9 +8,11 @@ matched again, and subscriptions are added or dropped; the progressor and every 
 history carry on, so decided verdicts stay.  A feature left with no topic is reported, and its
 value turns unknown once its last sample is older than the maximum age.
 
-Time is the stream's: each platform's clock says up to when it has published, and a state is
-made once every present platform has passed its time (plus the policy's delay), so samples
-from platforms running at different paces are never late for each other.
+Time is the stream's: each subscribed topic's clock (its samples and clock ticks, which Zenoh
+delivers in order on that topic's key) says up to when it has been sent, and a state is made
+once every subscribed topic has passed its time (plus the policy's delay), so samples from
+platforms running at different paces are never late for each other.  A topic just subscribed
+holds the others back until its first tick, for at most `HOLD` seconds.
 
 Trust: knowledge and samples are taken only from the platforms in the config; anything else
 seen is logged once.  Payloads are bounded and checked (wire.py); a bad one is logged and
@@ -41,6 +43,7 @@ from ..stream.sources import NS, Message, Wanted, dict_reader
 from . import wire
 
 log = logging.getLogger("dkreason.live")
+HOLD = 1.0  # wall seconds a new subscription may hold back states before its first tick
 
 
 @dataclass(frozen=True, slots=True)
@@ -116,21 +119,23 @@ class LiveMonitor:
                                        read_bridge_rules(m.file)) for m in self.config.mappings)
         self.events: queue.Queue[tuple[Any, ...]] = queue.Queue()
         self.present: set[str] = set()
-        self.clocks: dict[str, int] = {}
+        self.clocks: dict[tuple[str, str], int] = {}  # (platform, topic) → sent up to
+        self.since: dict[tuple[str, str], float] = {}  # (platform, topic) → subscribed at
         self.seen_strangers: set[str] = set()
         self.rejected: dict[tuple[str, str], int] = {}
         self.kb: KnowledgeBase | None = None
         self.subs: dict[tuple[str, str], Any] = {}  # (platform, topic) → subscriber
         self.topics: dict[str, set[tuple[str, str]]] = {}  # feature → its (platform, topic)s
         self.decided = 0
+        self.end: int | None = None  # ns: samples after it are not taken
+        self.received = 0  # samples taken
         self.stop = threading.Event()
         self.declared = [session.liveliness().declare_subscriber(
             f"{wire.ROOT}/*/alive", self._on_alive, history=True)]
         for p in sorted(self.names):
-            for what in ("clock", "changed"):
-                self.declared.append(session.declare_subscriber(
-                    wire.key(p, what), lambda s, p=p, what=what: self.events.put(
-                        (what, p, s.payload.to_bytes()))))
+            self.declared.append(session.declare_subscriber(
+                wire.key(p, "changed"), lambda s, p=p: self.events.put(
+                    ("changed", p, s.payload.to_bytes()))))
 
     # ---- zenoh callbacks (other threads): only enqueue ----------------------------------
 
@@ -232,14 +237,14 @@ class LiveMonitor:
         out += self._subscribe(self.request, None, "")
         yield from out
         out.clear()
-        end = None if until is None else int(until * NS)
+        end = self.end = None if until is None else int(until * NS)
         stop_at = None if duration is None else time.monotonic() + duration
         try:
             while not self.stop.is_set() and self.decided < len(self.formulas):
                 if stop_at is not None and time.monotonic() >= stop_at:
                     break
                 mark = self.watermark()
-                if end is not None and mark is not None and mark >= end:
+                if end is not None and mark is not None and mark > end:
                     break
                 try:
                     event = self.events.get(timeout=0.1)
@@ -258,16 +263,21 @@ class LiveMonitor:
         yield from out
 
     def watermark(self) -> int | None:
-        """Up to when every present platform has published (None: no clock yet)."""
-        clocks = [self.clocks[p] for p in self.present if p in self.clocks]
+        """Up to when every subscribed topic has been sent (None: not known yet)."""
+        clocks = []
+        for pt in self.subs:
+            if pt in self.clocks:
+                clocks.append(self.clocks[pt])
+            elif time.monotonic() - self.since[pt] < HOLD:
+                return None
         return min(clocks) if clocks else None
 
     def _gather(self) -> Iterator[Event]:
-        """Wait for the local platform's knowledge, and for every configured platform up to
-        `wait` s; then build the knowledge base from what is at hand."""
+        """Wait up to `wait` s for the local platform's knowledge (formulas are written in its
+        words), then build the knowledge base from what is at hand; others join as they come."""
         local = self.config.local
         deadline = time.monotonic() + self.wait
-        while self.present != self.names or local not in self.known:
+        while local not in self.known:
             left = deadline - time.monotonic()
             if left <= 0:
                 break
@@ -292,10 +302,6 @@ class LiveMonitor:
         try:
             if kind == "sample":
                 self._sample(p, event[2], event[3])
-            elif kind == "clock":
-                if p in self.present:
-                    t = wire.clock(event[2], f"{p}'s clock")
-                    self.clocks[p] = max(t, self.clocks.get(p, t))
             elif kind == "alive":
                 return self._alive(p) if event[2] else self._left(p)
             elif kind == "changed" and p in self.present:
@@ -312,14 +318,16 @@ class LiveMonitor:
     def _sample(self, p: str, topic: str, payload: bytes) -> None:
         if p not in self.present or (p, topic) not in self.subs:
             return  # in flight when its subscription was dropped
-        available, valid, msg = wire.sample(payload, f"{p}/{topic}")
         name = f"{p}/{topic}"
-        try:
-            values = self.read(name, valid, msg)
-        except DkError as exc:
-            raise wire.WireError(str(exc)) from None
-        self.processor.put(name, available, valid, values)
-        self.clocks[p] = max(available, self.clocks.get(p, available))
+        available, valid, msg = wire.topic_message(payload, name)
+        if msg is not None and (self.end is None or valid <= self.end):
+            try:
+                values = self.read(name, valid, msg)
+            except DkError as exc:
+                raise wire.WireError(str(exc)) from None
+            self.processor.put(name, available, valid, values)
+            self.received += 1
+        self.clocks[(p, topic)] = max(available, self.clocks.get((p, topic), available))
 
     def _alive(self, p: str) -> list[Event]:
         if p in self.present:
@@ -349,7 +357,6 @@ class LiveMonitor:
             return []
         changes: list[Event] = [Change("left", self.watermark(), p)]
         self.present.discard(p)
-        self.clocks.pop(p, None)
         if self.kb is None:
             return changes
         self.kb.set_online(p, False)
@@ -388,12 +395,14 @@ class LiveMonitor:
         wanted = {pt: key for key, pts in self.topics.items() for pt in pts}
         for (q, t), key in sorted(wanted.items()):
             if (q, t) not in self.subs:
+                self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
                     wire.key(q, "topic", t), lambda s, q=q, t=t: self.events.put(
                         ("sample", q, t, s.payload.to_bytes())))
                 changes.append(Change("subscribed", now, q, feature=key, topic=t))
         for (q, t) in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()
+            self.clocks.pop((q, t), None)
             changes.append(Change("unsubscribed", now, q, why, topic=t))
         for key, pts in before.items():
             if pts and not self.topics.get(key):

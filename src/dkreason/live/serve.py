@@ -45,7 +45,6 @@ class PlatformNode:
         self.queryables = [session.declare_queryable(wire.key(self.name, what), self._answer)
                            for what in self._answers]
         self.changes = session.declare_publisher(wire.key(self.name, "changed"))
-        self.clock_pub = session.declare_publisher(wire.key(self.name, "clock"))
         self.token = session.liveliness().declare_token(wire.key(self.name, "alive"))
 
     # ---- knowledge ---------------------------------------------------------------------
@@ -134,7 +133,7 @@ class PlatformNode:
             now = time.time_ns() if valid is None else valid
             self._put(topic, now if available is None else available, now, msg)
 
-    def _put(self, topic: str, available: int, valid: int, msg: Any) -> None:
+    def _publisher(self, topic: str) -> Any:
         pub = self.publishers.get(topic)
         if pub is None:
             import zenoh
@@ -142,20 +141,29 @@ class PlatformNode:
             pub = self.publishers[topic] = self.session.declare_publisher(
                 wire.key(self.name, "topic", topic),
                 congestion_control=zenoh.CongestionControl.BLOCK)
-        pub.put(wire.encode({"valid": valid, "available": available, "msg": msg}))
+        return pub
+
+    def _put(self, topic: str, available: int, valid: int, msg: Any) -> None:
+        self._publisher(topic).put(wire.encode({"valid": valid, "available": available,
+                                                "msg": msg}))
 
     def _clock(self, now: int) -> None:
-        self.clock_pub.put(wire.encode({"time": now}))
+        """Tell every topic (specified or published) that all of it up to `now` is sent."""
+        tick = wire.encode({"clock": now})
+        for topic in {*self.km.list_topics(), *self.publishers}:
+            self._publisher(topic).put(tick)
 
     def feed(self, records: Iterator[Record], watch: float = 0.5) -> None:
         """Publish `records` as they come (a JSON-lines pipe): their times are the clock."""
-        next_watch = time.monotonic() + watch
+        next_watch = next_tick = time.monotonic()
         for topic, available, valid, msg in _own(records, self.name):
             if self.closed.is_set():
                 return
             with self.lock:
                 self._put(topic, available, valid, msg)
-                self._clock(available)
+                if time.monotonic() >= next_tick:  # the others have nothing before it
+                    self._clock(available)
+                    next_tick = time.monotonic() + self.heartbeat
             if time.monotonic() >= next_watch:
                 self._reload_specs()
                 next_watch = time.monotonic() + watch

@@ -7,10 +7,12 @@ Key expressions, for platform P (every payload is UTF-8 JSON):
     dkreason/P/specs          query → {"sslt": "<every topic specification, SSL_T>"}
     dkreason/P/objects        query → {"<object IRI>": {"sorts": ["<sort IRI>", …], "id": 12}}
     dkreason/P/changed        put {"version": n}: P's specs or objects changed; ask again
-    dkreason/P/clock          put {"time": ns}: P has published every sample up to this time
-    dkreason/P/topic/T        put {"valid": ns, "available": ns, "msg": {…}}: a message of T
+    dkreason/P/topic/T        put {"valid": ns, "available": ns, "msg": {…}}: a message of T,
+                              or {"clock": ns}: every message of T up to this time is sent
 
 Times are integer nanoseconds on the stream's clock (a replay keeps its recording's times).
+The clock travels on each topic's own key because Zenoh keeps the order of one key's puts,
+not across keys (their callbacks run on different threads).
 A peer's payload is untrusted: `decode` bounds its size and shape.
 """
 
@@ -54,19 +56,18 @@ def decode(payload: bytes, limit: int, what: str) -> Any:
         raise WireError(f"{what}: not JSON ({exc})") from None
 
 
-def sample(payload: bytes, what: str) -> tuple[int, int, Any]:
-    """(available, valid, msg) of a sample payload."""
+def topic_message(payload: bytes, what: str) -> tuple[int, int, Any]:
+    """(available, valid, msg) of a topic's put; a clock tick has msg None."""
     data = decode(payload, MAX_SAMPLE, what)
+    if isinstance(data, dict) and "clock" in data:
+        t = _time(data["clock"], what)
+        return t, t, None
     if not isinstance(data, dict) or not isinstance(data.get("msg"), dict):
-        raise WireError(f"{what}: expected {{\"valid\": ns, \"msg\": {{…}}}}")
+        raise WireError(f"{what}: expected {{\"valid\": ns, \"msg\": {{…}}}} or "
+                        f"{{\"clock\": ns}}")
     valid = _time(data.get("valid"), what)
     available = _time(data.get("available", valid), what)
     return available, valid, data["msg"]
-
-
-def clock(payload: bytes, what: str) -> int:
-    data = decode(payload, MAX_SAMPLE, what)
-    return _time(data.get("time") if isinstance(data, dict) else None, what)
 
 
 def _time(value: Any, what: str) -> int:

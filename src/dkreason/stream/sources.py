@@ -237,7 +237,7 @@ class JsonlSource:
 
         with (contextlib.nullcontext(sys.stdin) if self.name == "<stdin>" else
               self.path.open(encoding="utf-8")) as handle:
-            for n, line in enumerate(handle, 1):
+            for n, line in enumerate(iter(handle.readline, ""), 1):  # a pipe: line by line
                 if not line.strip():
                     continue
                 try:
