@@ -336,3 +336,51 @@ def test_a_node_publishes_json_lines_from_its_standard_input(procs: Processes, t
         seen.append(event)
     (verdict,) = [e for e in seen if "verdict" in e]
     assert (verdict["verdict"], verdict["time"], verdict["at_end"]) == (True, 3, True)
+
+
+def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Path):
+    """In one process, through the Python API: platform 2 says truck1 is an Automobile, then
+    drops a topic; the running monitor subscribes and unsubscribes accordingly."""
+    from dkreason.live.monitor import Change, LiveMonitor
+    from dkreason.live.serve import PlatformNode
+    from dkreason.live.wire import open_session
+    from dkreason.stream.processor import StreamPolicy
+
+    map_car3_to_a_truck(scenario)
+    for n in (1, 2):
+        (scenario / f"p{n}.toml").write_text(
+            f'[platforms.platform{n}]\nontology = "ontologies/platform{n}.owl"\n'
+            f'specs = "specs/platform{n}.sslt"\n')
+    (scenario / "monitor.toml").write_text(
+        'local = "platform1"\n[platforms.platform1]\n[platforms.platform2]\n[[mappings]]\n'
+        'source = "platform1"\ntarget = "platform2"\n'
+        'file = "mappings/platform1-platform2.cowl.xml"\n')
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    sessions = [open_session([], [endpoint])] + [open_session([endpoint], []) for _ in (1, 2)]
+    nodes = [PlatformNode(KnowledgeManager.from_config(scenario / f"p{n}.toml"), s)
+             for n, s in zip((1, 2), sessions[1:], strict=True)]
+    monitor = LiveMonitor(scenario / "monitor.toml", ["always (Speed[car3] > 60)"],
+                          StreamPolicy(), sessions[0], wait=10)
+    steps = iter([lambda: nodes[1].add_object("truck1", "Automobile"),
+                  lambda: nodes[1].remove_topic("carstopic1")])
+    changes = []
+    try:
+        for event in monitor.run(duration=20):
+            if not isinstance(event, Change):
+                continue  # the end verdict
+            changes.append((event.event, event.platform, event.topic, event.feature))
+            if event.event in ("subscribed", "unsubscribed") and \
+                    ("joined", "platform2", "", "") in changes:
+                step = next(steps, None)
+                if step is None:
+                    monitor.stop.set()
+                else:
+                    step()
+    finally:
+        for node in nodes:
+            node.close()
+        for session in sessions:
+            session.close()
+    assert ("subscribed", "platform2", "carstopic1", "Speed[car3]") in changes
+    assert ("unsubscribed", "platform2", "carstopic1", "") in changes
+    assert not any(c[0] == "source_lost" for c in changes)  # topic5 still serves Speed[car3]
