@@ -215,9 +215,8 @@ class LiveMonitor:
         """Events as they happen, until every formula is decided, the stream clock passes
         `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts."""
         yield from self._gather()
-        km = KnowledgeManager(self.kb) if self.kb is not None else None
-        assert km is not None
-        self.km = km
+        assert self.kb is not None
+        km = self.km = KnowledgeManager(self.kb)
         self.request = combined_request(km, self.formulas)
         self.keys = [f.feature.key for f in self.request.features]
         progressor = Progressor.with_knowledge(km, unit=Fraction(1, NS))

@@ -42,18 +42,18 @@ class PlatformNode:
                                       "text": ontology.read_text(encoding="utf-8")})
         self._answers = {"ontology": lambda: self._ontology, "specs": self._specs,
                          "objects": self._objects}
-        self.queryables = [session.declare_queryable(wire.key(self.name, what), self._answer)
-                           for what in self._answers]
+        self.queryables = [session.declare_queryable(
+            wire.key(self.name, what), lambda query, what=what: self._answer(query, what))
+            for what in self._answers]
         self.changes = session.declare_publisher(wire.key(self.name, "changed"))
         self.token = session.liveliness().declare_token(wire.key(self.name, "alive"))
 
     # ---- knowledge ---------------------------------------------------------------------
 
-    def _answer(self, query: Any) -> None:
-        what = str(query.key_expr).rsplit("/", 1)[-1]
+    def _answer(self, query: Any, what: str) -> None:
         with self.lock:
             payload = self._answers[what]()
-        query.reply(query.key_expr, payload)
+        query.reply(wire.key(self.name, what), payload)
 
     def _specs(self) -> bytes:
         from ..parse.sslt import format_spec
