@@ -124,7 +124,7 @@ def test_live_federation_adapts_and_gives_the_recorded_verdict(
                  str(traffic), "--delay", "0.1", "--json", SPEEDING]) == 1
     recorded = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
 
-    port, speed = free_port(), 30.0
+    port, speed = free_port(), 20.0
     monitor = procs.start("monitor", "--live", "--config", str(site / "monitor.toml"),
                           "--listen", f"tcp/127.0.0.1:{port}", "--delay", "0.1", "--until",
                           "330", "--wait", "20", "--json", SPEEDING, POSITION, ALTITUDE)
