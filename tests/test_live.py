@@ -177,7 +177,8 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
 
     from dkreason.live.wire import open_session
 
-    (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    (tmp_path / "monitor.toml").write_text(
+        'local = "platform1"\n[platforms.platform1]\n[platforms.platform9]\n')
     (tmp_path / "platform1.toml").write_text(
         f'[platforms.platform1]\nontology = "{REPO}/ontologies/platform1.owl"\n'
         f'specs = "{REPO}/specs/platform1.sslt"\n')
@@ -189,6 +190,12 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
     rogue = open_session([f"tcp/127.0.0.1:{port}"], [])
     try:
         token = rogue.liveliness().declare_token("dkreason/intruder/alive")
+        # a configured platform whose node answers with a broken ontology
+        broken = rogue.declare_queryable(
+            "dkreason/platform9/ontology",
+            lambda q: q.reply("dkreason/platform9/ontology",
+                              b'{"file": "p9.owl", "text": "<rdf:RDF"}'))
+        token9 = rogue.liveliness().declare_token("dkreason/platform9/alive")
         origin = time.time() + 4
         procs.start("serve", "--config", str(tmp_path / "platform1.toml"), "--connect",
                     f"tcp/127.0.0.1:{port}", "--source", str(traffic), "--origin", str(origin),
@@ -202,7 +209,8 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
             bad.put(payload)
         rogue.put("dkreason/intruder/topic/topic3", b'{"valid": 1, "msg": {"id": 1}}')
         assert monitor.wait(timeout=30) == 0
-        token.undeclare()
+        for entity in (token, token9, broken):
+            entity.undeclare()
     finally:
         rogue.close()
     while (event := events.get(timeout=5)) is not None:
@@ -213,6 +221,7 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
     assert log.count("ignoring platform intruder") == 1
     assert "more than the 65536 allowed" in log and "not JSON" in log
     assert "has no field msg.spd" in log
+    assert "rejected knowledge from platform9" in log and "p9.owl" in log
     assert "Traceback" not in log
     assert not any(e.get("platform") == "intruder" for e in seen)
 
@@ -309,6 +318,9 @@ def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path):
     formula = "always (Speed[car3] > 60)"
     assert _request(kb, formula)["Speed[car3]"] == {("platform1", "topic5")}
     kb.add_object("platform2", "truck1", "Automobile")
+    # what reads objects' sorts is derived again; the sort hierarchy and topic keys are not
+    assert {"instance_of", "fits"} <= set(kb.rederived)
+    assert not {"subsort_eq", "topic_objects", "feature_candidate"} & set(kb.rederived)
     request = KnowledgeManager(kb).check_formula(formula)
     assert {(t.platform, t.topic) for t in request.features[0].topics} == {
         ("platform1", "topic5"), ("platform2", "carstopic1")}
