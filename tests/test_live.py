@@ -375,21 +375,21 @@ def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Pa
              for n, s in zip((1, 2), sessions[1:], strict=True)]
     monitor = LiveMonitor(scenario / "monitor.toml", ["always (Speed[car3] > 60)"],
                           StreamPolicy(), sessions[0], wait=10)
-    steps = iter([lambda: nodes[1].add_object("truck1", "Automobile"),
-                  lambda: nodes[1].remove_topic("carstopic1")])
+    # each step once the monitor shows what it waits for
+    steps = [({("joined", "platform2", "", ""), ("subscribed", "platform1", "topic5",
+                                                  "Speed[car3]")},
+              lambda: nodes[1].add_object("truck1", "Automobile")),
+             ({("subscribed", "platform2", "carstopic1", "Speed[car3]")},
+              lambda: nodes[1].remove_topic("carstopic1")),
+             ({("unsubscribed", "platform2", "carstopic1", "")}, monitor.stop.set)]
     changes = []
     try:
         for event in monitor.run(duration=20):
             if not isinstance(event, Change):
                 continue  # the end verdict
             changes.append((event.event, event.platform, event.topic, event.feature))
-            if event.event in ("subscribed", "unsubscribed") and \
-                    ("joined", "platform2", "", "") in changes:
-                step = next(steps, None)
-                if step is None:
-                    monitor.stop.set()
-                else:
-                    step()
+            if steps and steps[0][0] <= set(changes):
+                steps.pop(0)[1]()
     finally:
         for node in nodes:
             node.close()
