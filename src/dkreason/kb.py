@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from pathlib import Path
 
 from .datalog import Datalog, Row, gc_paused
@@ -50,8 +51,13 @@ class Platform:
         """The object's `id` data property, else the digits ending its local name (thesis)."""
         if iri in self.ontology.ids:
             return self.ontology.ids[iri]
-        match = _TRAILING_DIGITS.search(local_name(iri))
-        return int(match.group(1)) if match else None
+        return _digits_id(local_name(iri))
+
+
+@lru_cache(maxsize=1 << 16)
+def _digits_id(name: str) -> int | None:
+    match = _TRAILING_DIGITS.search(name)
+    return int(match.group(1)) if match else None
 
 
 class KnowledgeBase:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 from collections import defaultdict
 from collections.abc import Iterable, Mapping
+from functools import lru_cache
 from typing import Literal
 
 from .errors import NameError_, Span
@@ -17,6 +18,7 @@ from .errors import NameError_, Span
 Kind = Literal["feature", "sort", "object"]
 
 
+@lru_cache(maxsize=1 << 16)  # requests name every matched topic's feature and objects
 def local_name(iri: str) -> str:
     for sep in ("#", "/", ":"):
         if sep in iri:
