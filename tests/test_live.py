@@ -19,6 +19,7 @@ import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
+from dkreason.errors import DkError
 from dkreason.kb import KnowledgeBase
 
 from .conftest import REPO
@@ -398,3 +399,73 @@ def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Pa
     assert ("subscribed", "platform2", "carstopic1", "Speed[car3]") in changes
     assert ("unsubscribed", "platform2", "carstopic1", "") in changes
     assert not any(c[0] == "source_lost" for c in changes)  # topic5 still serves Speed[car3]
+
+
+def test_a_platform_back_with_another_ontology_replaces_its_knowledge(scenario: Path):
+    """Platform 2 restarts with a new sort, Truck ⊑ Automobile, and truck1 a Truck: no change
+    of specs or objects could say that, so the monitor replaces what it knew of platform 2,
+    and reads Speed[car3] from carstopic1."""
+    from dkreason.live.monitor import Change, LiveMonitor
+    from dkreason.live.serve import PlatformNode
+    from dkreason.live.wire import open_session
+    from dkreason.stream.processor import StreamPolicy
+
+    from .test_federation import P2, add_to_ontology
+
+    map_car3_to_a_truck(scenario)
+    for n in (1, 2):
+        (scenario / f"p{n}.toml").write_text(
+            f'[platforms.platform{n}]\nontology = "ontologies/platform{n}.owl"\n'
+            f'specs = "specs/platform{n}.sslt"\n')
+    (scenario / "monitor.toml").write_text(
+        'local = "platform1"\n[platforms.platform1]\n[platforms.platform2]\n[[mappings]]\n'
+        'source = "platform1"\ntarget = "platform2"\n'
+        'file = "mappings/platform1-platform2.cowl.xml"\n')
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    sessions = [open_session([], [endpoint])] + [open_session([endpoint], []) for _ in (1, 2)]
+    nodes = [PlatformNode(KnowledgeManager.from_config(scenario / f"p{n}.toml"), s)
+             for n, s in zip((1, 2), sessions[1:], strict=True)]
+    monitor = LiveMonitor(scenario / "monitor.toml", ["always (Speed[car3] > 60)"],
+                          StreamPolicy(), sessions[0], wait=10)
+
+    def restart_platform2() -> None:
+        nodes[1].close()
+        sessions[2].close()
+        add_to_ontology(scenario / "ontologies" / "platform2.owl",
+                        f'<owl:Class rdf:about="{P2}Truck"><rdfs:subClassOf '
+                        f'rdf:resource="{P2}Automobile"/></owl:Class>'
+                        f'<rdf:Description rdf:about="{P2}truck1">'
+                        f'<rdf:type rdf:resource="{P2}Truck"/></rdf:Description>')
+        sessions[2] = open_session([endpoint], [])
+        nodes[1] = PlatformNode(KnowledgeManager.from_config(scenario / "p2.toml"), sessions[2])
+
+    steps = [({("joined", "platform2", "", ""), ("subscribed", "platform1", "topic5",
+                                                  "Speed[car3]")}, restart_platform2),
+             ({("subscribed", "platform2", "carstopic1", "Speed[car3]")}, monitor.stop.set)]
+    changes = []
+    try:
+        for event in monitor.run(duration=20):
+            if isinstance(event, Change):
+                changes.append((event.event, event.platform, event.topic, event.feature))
+                if steps and steps[0][0] <= set(changes):
+                    steps.pop(0)[1]()
+    finally:
+        for node in nodes:
+            node.close()
+        for session in sessions:
+            session.close()
+    assert [c[:2] for c in changes if c[1] == "platform2" and c[0] in ("joined", "left")] == [
+        ("joined", "platform2"), ("left", "platform2"), ("joined", "platform2")]
+    assert ("subscribed", "platform2", "carstopic1", "Speed[car3]") in changes
+
+
+def test_a_platform_removed_and_added_again_matches_as_before(federation_km: KnowledgeManager):
+    kb = federation_km.kb
+    before = _request(kb, SPEEDING)
+    platform2 = kb.remove_platform("platform2")
+    assert "platform2" not in kb.platforms
+    assert _request(kb, SPEEDING)["Speed[car2]"] == {("platform1", "topic4")}
+    kb.add_platform(platform2)
+    assert _request(kb, SPEEDING) == before
+    with pytest.raises(DkError, match="local platform"):
+        kb.remove_platform("platform1")

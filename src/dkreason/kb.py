@@ -97,11 +97,15 @@ class KnowledgeBase:
         """Facts of the pending mappings whose platforms are both present, now active."""
         ready = tuple(m for m in self.pending
                       if m.source in self.platforms and m.target in self.platforms)
+        facts = self._facts_of(ready, check=True)
         self.pending = tuple(m for m in self.pending if m not in ready)
         self.mappings += ready
-        return {"mapping": [(m.source, m.target) for m in ready],
-                "bridge": [(m.source, r.source, m.target, r.target, r.type)
-                           for m in ready for r in self._checked(m)]}
+        return facts
+
+    def _facts_of(self, mappings: tuple[Mapping_, ...], check: bool = False) -> Facts:
+        return {"mapping": [(m.source, m.target) for m in mappings],
+                "bridge": [(m.source, r.source, m.target, r.target, r.type) for m in mappings
+                           for r in (self._checked(m) if check else m.rules)]}
 
     def _warn(self) -> None:
         joined = {m.source for m in self.mappings if m.target == self.local} | \
@@ -179,6 +183,22 @@ class KnowledgeBase:
         self._change(facts, self.engine.assert_rows)
         self._check_specs(p, list(p.resolved))
         self._warn()
+
+    def remove_platform(self, name: str) -> Platform:
+        """Forget a platform's knowledge (it came back with another ontology); its mappings
+        wait for it again."""
+        if name == self.local:
+            raise DkError(f"{name} is the local platform: its knowledge stays")
+        p = self.platform(name)
+        gone = tuple(m for m in self.mappings if name in (m.source, m.target))
+        self._change(merge(self._platform_facts(p), self._facts_of(gone),
+                           {"online": [(name,)] if self.is_online(name) else []}),
+                     self.engine.retract_rows)
+        del self.platforms[name]
+        self.mappings = tuple(m for m in self.mappings if m not in gone)
+        self.pending += gone
+        self._warn()
+        return p
 
     def set_online(self, name: str, online: bool) -> None:
         """Whether a known platform's topics are used; only what reads `online` is redone."""

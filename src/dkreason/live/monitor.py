@@ -110,6 +110,7 @@ class LiveMonitor:
         self.wait, self.ask_timeout = wait, ask_timeout
         self.names = {p.name for p in self.config.platforms}
         self.known: dict[str, Platform] = {}  # knowledge at hand, before the KB exists
+        self.texts: dict[str, str] = {}  # the ontology each fetched platform served
         for files in self.config.platforms:
             if files.ontology is not None:
                 specs = read_specs(files.specs).specs if files.specs is not None else ()
@@ -165,6 +166,7 @@ class LiveMonitor:
             raise wire.WireError(f"{p}'s ontology: expected {{\"file\": …, \"text\": …}}")
         name = Path(ont["file"]).name or "ontology.owl"
         ontology = parse_ontology(ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p)
+        self.texts[p] = ont["text"]
         platform = make_platform(ontology, parse_text(self._specs_text(p),
                                                       wire.key(p, "specs")).specs)
         for iri, sort, id_ in self._objects(p):
@@ -345,11 +347,30 @@ class LiveMonitor:
             self.kb.add_platform(self.known[p])
         else:
             try:
-                self._update(p)
+                self._refresh(p)
             except DkError as exc:
                 self._reject(p, "knowledge", str(exc))
             self.kb.set_online(p, True)
         return changes + self._rematch(p, f"platform {p} joined")
+
+    def _refresh(self, p: str) -> None:
+        """A platform back again: a new ontology replaces what was known of it; otherwise
+        only the differences in specs and objects are applied."""
+        assert self.kb is not None
+        before = self.texts.get(p)
+        if before is not None:
+            fresh = self._fetch(p)
+            if self.texts[p] != before:
+                if p == self.config.local:
+                    log.warning("%s came back with another ontology; the formulas keep the "
+                                "one they were checked against until restart", p)
+                else:
+                    log.info("%s came back with another ontology: its knowledge is replaced", p)
+                    self.kb.remove_platform(p)
+                    self.kb.add_platform(fresh)
+                    self.known[p] = fresh
+                    return
+        self._update(p)
 
     def _left(self, p: str) -> list[Event]:
         if p not in self.present:
