@@ -353,50 +353,68 @@ def test_a_node_publishes_json_lines_from_its_standard_input(procs: Processes, t
     assert (verdict["verdict"], verdict["time"], verdict["at_end"]) == (True, 3, True)
 
 
-def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Path):
-    """In one process, through the Python API: platform 2 says truck1 is an Automobile, then
-    drops a topic; the running monitor subscribes and unsubscribes accordingly."""
-    from dkreason.live.monitor import Change, LiveMonitor
-    from dkreason.live.serve import PlatformNode
-    from dkreason.live.wire import open_session
-    from dkreason.stream.processor import StreamPolicy
+class InProcess:
+    """Platforms 1 and 2 of the thesis scenario, with car3 mapped to platform 2's truck1 (a
+    GroundVehicle), as nodes in this process, and a monitor of Speed[car3] over them."""
 
-    map_car3_to_a_truck(scenario)
-    for n in (1, 2):
-        (scenario / f"p{n}.toml").write_text(
-            f'[platforms.platform{n}]\nontology = "ontologies/platform{n}.owl"\n'
-            f'specs = "specs/platform{n}.sslt"\n')
-    (scenario / "monitor.toml").write_text(
-        'local = "platform1"\n[platforms.platform1]\n[platforms.platform2]\n[[mappings]]\n'
-        'source = "platform1"\ntarget = "platform2"\n'
-        'file = "mappings/platform1-platform2.cowl.xml"\n')
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    sessions = [open_session([], [endpoint])] + [open_session([endpoint], []) for _ in (1, 2)]
-    nodes = [PlatformNode(KnowledgeManager.from_config(scenario / f"p{n}.toml"), s)
-             for n, s in zip((1, 2), sessions[1:], strict=True)]
-    monitor = LiveMonitor(scenario / "monitor.toml", ["always (Speed[car3] > 60)"],
-                          StreamPolicy(), sessions[0], wait=10)
-    # each step once the monitor shows what it waits for
-    steps = [({("joined", "platform2", "", ""), ("subscribed", "platform1", "topic5",
-                                                  "Speed[car3]")},
-              lambda: nodes[1].add_object("truck1", "Automobile")),
-             ({("subscribed", "platform2", "carstopic1", "Speed[car3]")},
-              lambda: nodes[1].remove_topic("carstopic1")),
-             ({("unsubscribed", "platform2", "carstopic1", "")}, monitor.stop.set)]
-    changes = []
-    try:
-        for event in monitor.run(duration=20):
-            if not isinstance(event, Change):
-                continue  # the end verdict
-            changes.append((event.event, event.platform, event.topic, event.feature))
-            if steps and steps[0][0] <= set(changes):
-                steps.pop(0)[1]()
-    finally:
-        for node in nodes:
-            node.close()
-        for session in sessions:
-            session.close()
-    assert ("subscribed", "platform2", "carstopic1", "Speed[car3]") in changes
+    def __init__(self, scenario: Path) -> None:
+        from dkreason.live.monitor import LiveMonitor
+        from dkreason.live.wire import open_session
+        from dkreason.stream.processor import StreamPolicy
+
+        self.scenario = scenario
+        map_car3_to_a_truck(scenario)
+        (scenario / "monitor.toml").write_text(
+            'local = "platform1"\n[platforms.platform1]\n[platforms.platform2]\n'
+            '[[mappings]]\nsource = "platform1"\ntarget = "platform2"\n'
+            'file = "mappings/platform1-platform2.cowl.xml"\n')
+        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self.sessions = [open_session([], [self.endpoint])]
+        self.nodes = [self.node(1), self.node(2)]
+        self.monitor = LiveMonitor(scenario / "monitor.toml", ["always (Speed[car3] > 60)"],
+                                   StreamPolicy(), self.sessions[0], wait=10)
+
+    def node(self, n: int) -> Any:
+        from dkreason.live.serve import PlatformNode
+        from dkreason.live.wire import open_session
+
+        config = self.scenario / f"p{n}.toml"
+        config.write_text(f'[platforms.platform{n}]\nontology = "ontologies/platform{n}.owl"\n'
+                          f'specs = "specs/platform{n}.sslt"\n')
+        self.sessions.append(open_session([self.endpoint], []))
+        return PlatformNode(KnowledgeManager.from_config(config), self.sessions[-1])
+
+    def run(self, steps: list[tuple[set[tuple[str, ...]], Any]]) -> list[tuple[str, ...]]:
+        """The monitor's changes, taking each step once the changes it waits for are seen."""
+        from dkreason.live.monitor import Change
+
+        changes: list[tuple[str, ...]] = []
+        try:
+            for event in self.monitor.run(duration=20):
+                if isinstance(event, Change):  # not the end verdict
+                    changes.append((event.event, event.platform, event.topic, event.feature))
+                    if steps and steps[0][0] <= set(changes):
+                        steps.pop(0)[1]()
+        finally:
+            for node in self.nodes:
+                node.close()
+            for session in self.sessions:
+                session.close()
+        return changes
+
+
+STARTED = {("joined", "platform2", "", ""), ("subscribed", "platform1", "topic5", "Speed[car3]")}
+CARSTOPIC1 = ("subscribed", "platform2", "carstopic1", "Speed[car3]")
+
+
+def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Path):
+    """Through the Python API: platform 2 says truck1 is an Automobile, then drops a topic;
+    the running monitor subscribes and unsubscribes accordingly."""
+    fed = InProcess(scenario)
+    changes = fed.run([(STARTED, lambda: fed.nodes[1].add_object("truck1", "Automobile")),
+                       ({CARSTOPIC1}, lambda: fed.nodes[1].remove_topic("carstopic1")),
+                       ({("unsubscribed", "platform2", "carstopic1", "")}, fed.monitor.stop.set)])
+    assert CARSTOPIC1 in changes
     assert ("unsubscribed", "platform2", "carstopic1", "") in changes
     assert not any(c[0] == "source_lost" for c in changes)  # topic5 still serves Speed[car3]
 
@@ -405,58 +423,24 @@ def test_a_platform_back_with_another_ontology_replaces_its_knowledge(scenario: 
     """Platform 2 restarts with a new sort, Truck ⊑ Automobile, and truck1 a Truck: no change
     of specs or objects could say that, so the monitor replaces what it knew of platform 2,
     and reads Speed[car3] from carstopic1."""
-    from dkreason.live.monitor import Change, LiveMonitor
-    from dkreason.live.serve import PlatformNode
-    from dkreason.live.wire import open_session
-    from dkreason.stream.processor import StreamPolicy
-
     from .test_federation import P2, add_to_ontology
 
-    map_car3_to_a_truck(scenario)
-    for n in (1, 2):
-        (scenario / f"p{n}.toml").write_text(
-            f'[platforms.platform{n}]\nontology = "ontologies/platform{n}.owl"\n'
-            f'specs = "specs/platform{n}.sslt"\n')
-    (scenario / "monitor.toml").write_text(
-        'local = "platform1"\n[platforms.platform1]\n[platforms.platform2]\n[[mappings]]\n'
-        'source = "platform1"\ntarget = "platform2"\n'
-        'file = "mappings/platform1-platform2.cowl.xml"\n')
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    sessions = [open_session([], [endpoint])] + [open_session([endpoint], []) for _ in (1, 2)]
-    nodes = [PlatformNode(KnowledgeManager.from_config(scenario / f"p{n}.toml"), s)
-             for n, s in zip((1, 2), sessions[1:], strict=True)]
-    monitor = LiveMonitor(scenario / "monitor.toml", ["always (Speed[car3] > 60)"],
-                          StreamPolicy(), sessions[0], wait=10)
+    fed = InProcess(scenario)
 
     def restart_platform2() -> None:
-        nodes[1].close()
-        sessions[2].close()
+        fed.nodes[1].close()
+        fed.sessions.pop().close()
         add_to_ontology(scenario / "ontologies" / "platform2.owl",
                         f'<owl:Class rdf:about="{P2}Truck"><rdfs:subClassOf '
                         f'rdf:resource="{P2}Automobile"/></owl:Class>'
                         f'<rdf:Description rdf:about="{P2}truck1">'
                         f'<rdf:type rdf:resource="{P2}Truck"/></rdf:Description>')
-        sessions[2] = open_session([endpoint], [])
-        nodes[1] = PlatformNode(KnowledgeManager.from_config(scenario / "p2.toml"), sessions[2])
+        fed.nodes[1] = fed.node(2)
 
-    steps = [({("joined", "platform2", "", ""), ("subscribed", "platform1", "topic5",
-                                                  "Speed[car3]")}, restart_platform2),
-             ({("subscribed", "platform2", "carstopic1", "Speed[car3]")}, monitor.stop.set)]
-    changes = []
-    try:
-        for event in monitor.run(duration=20):
-            if isinstance(event, Change):
-                changes.append((event.event, event.platform, event.topic, event.feature))
-                if steps and steps[0][0] <= set(changes):
-                    steps.pop(0)[1]()
-    finally:
-        for node in nodes:
-            node.close()
-        for session in sessions:
-            session.close()
+    changes = fed.run([(STARTED, restart_platform2), ({CARSTOPIC1}, fed.monitor.stop.set)])
     assert [c[:2] for c in changes if c[1] == "platform2" and c[0] in ("joined", "left")] == [
         ("joined", "platform2"), ("left", "platform2"), ("joined", "platform2")]
-    assert ("subscribed", "platform2", "carstopic1", "Speed[car3]") in changes
+    assert CARSTOPIC1 in changes
 
 
 def test_a_platform_removed_and_added_again_matches_as_before(federation_km: KnowledgeManager):
