@@ -238,13 +238,11 @@ class KnowledgeBase:
                              f"not an object", Span("<api>"))
         if (iri, sort_iri) in p.ontology.types:
             return iri
-        ids = dict(p.ontology.ids) | ({iri: id_} if id_ is not None else {})
-        p.ontology = replace(p.ontology, individuals=p.ontology.individuals | {iri},
-                             types=(*p.ontology.types, (iri, sort_iri)), ids=ids)
-        p.names = _name_index(p.ontology)
         facts: Facts = {"type_of": [(platform, iri, sort_iri)]}
-        if not self.engine.query("individual", platform, iri):
+        if iri not in p.ontology.individuals:
             facts["individual"] = [(platform, iri)]
+        p.ontology = with_object(p.ontology, iri, sort_iri, id_)
+        p.names = _name_index(p.ontology)
         self._change(facts, self.engine.assert_rows)
         return iri
 
@@ -311,6 +309,12 @@ class KnowledgeBase:
                                      f"in {ont.platform} ({ont.file}), expected {article(want)}",
                                      rule.span)
         return m.rules
+
+
+def with_object(ont: Ontology, iri: str, sort: str, id_: IdValue | None) -> Ontology:
+    """`ont` with one more rdf:type axiom (and the object's id, if given)."""
+    return replace(ont, individuals=ont.individuals | {iri}, types=(*ont.types, (iri, sort)),
+                   ids=dict(ont.ids) | ({iri: id_} if id_ is not None else {}))
 
 
 def make_platform(ontology: Ontology, specs: Iterable[TopicSpec],

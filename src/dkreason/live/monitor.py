@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DkError
-from ..kb import KnowledgeBase, Platform, make_platform
+from ..kb import KnowledgeBase, Platform, make_platform, with_object
 from ..manager import KnowledgeManager
 from ..model import Mapping_, StreamRequest
 from ..monitor import combined_request, in_seconds
@@ -155,27 +155,28 @@ class LiveMonitor:
                                    f"{p}'s {what}")
         raise wire.WireError(f"{p} did not answer the query for its {what}")
 
-    def _fetch(self, p: str) -> Platform:
-        """A platform's whole knowledge, asked over the network."""
-        from ..parse.owl import parse_ontology
-        from ..parse.sslt import parse_text
-
+    def _ontology(self, p: str) -> dict[str, str]:
         ont = self._ask(p, "ontology")
         if not isinstance(ont, dict) or not isinstance(ont.get("text"), str) or \
                 not isinstance(ont.get("file"), str):
             raise wire.WireError(f"{p}'s ontology: expected {{\"file\": …, \"text\": …}}")
+        return ont
+
+    def _fetch(self, p: str, ont: dict[str, str] | None = None) -> Platform:
+        """A platform's whole knowledge, asked over the network (the ontology reply may be
+        at hand already)."""
+        from ..parse.owl import parse_ontology
+        from ..parse.sslt import parse_text
+
+        ont = ont or self._ontology(p)
         name = Path(ont["file"]).name or "ontology.owl"
         ontology = parse_ontology(ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p)
         self.texts[p] = ont["text"]
-        platform = make_platform(ontology, parse_text(self._specs_text(p),
-                                                      wire.key(p, "specs")).specs)
         for iri, sort, id_ in self._objects(p):
-            if (iri, sort) not in platform.ontology.types:
-                ids = dict(platform.ontology.ids) | ({iri: id_} if id_ is not None else {})
-                platform.ontology = replace(
-                    platform.ontology, individuals=platform.ontology.individuals | {iri},
-                    types=(*platform.ontology.types, (iri, sort)), ids=ids)
-        return make_platform(platform.ontology, platform.specs.values())
+            if (iri, sort) not in ontology.types:
+                ontology = with_object(ontology, iri, sort, id_)
+        return make_platform(ontology, parse_text(self._specs_text(p),
+                                                  wire.key(p, "specs")).specs)
 
     def _specs_text(self, p: str) -> str:
         specs = self._ask(p, "specs")
@@ -358,18 +359,19 @@ class LiveMonitor:
         only the differences in specs and objects are applied."""
         assert self.kb is not None
         before = self.texts.get(p)
-        if before is not None:
-            fresh = self._fetch(p)
-            if self.texts[p] != before:
-                if p == self.config.local:
-                    log.warning("%s came back with another ontology; the formulas keep the "
-                                "one they were checked against until restart", p)
-                else:
-                    log.info("%s came back with another ontology: its knowledge is replaced", p)
-                    self.kb.remove_platform(p)
-                    self.kb.add_platform(fresh)
-                    self.known[p] = fresh
-                    return
+        ont = self._ontology(p) if before is not None else None
+        if ont is not None and ont["text"] != before:
+            if p == self.config.local:
+                self.texts[p] = ont["text"]
+                log.warning("%s came back with another ontology; the formulas keep the one "
+                            "they were checked against until restart", p)
+            else:
+                log.info("%s came back with another ontology: its knowledge is replaced", p)
+                fresh = self._fetch(p, ont)
+                self.kb.remove_platform(p)
+                self.kb.add_platform(fresh)
+                self.known[p] = fresh
+                return
         self._update(p)
 
     def _left(self, p: str) -> list[Event]:
