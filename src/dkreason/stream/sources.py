@@ -151,7 +151,7 @@ def _ros_reader(fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool,
 
     def slow(raw: Any) -> tuple[Any, ...]:
         msg = deserialize(raw, msgtype)
-        return tuple(_plain(get(msg)) for get in getters)
+        return tuple(plain(get(msg)) for get in getters)
 
     if fast is None:
         return slow, stamped
@@ -160,10 +160,6 @@ def _ros_reader(fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool,
         values = fast(raw)
         return values if values is not None else slow(raw)
     return read, stamped
-
-
-def _plain(value: Any) -> Any:
-    return value.item() if hasattr(value, "item") else value
 
 
 def dict_reader(name: str, wanted: Wanted) -> Any:
@@ -235,7 +231,7 @@ class JsonlSource:
         import contextlib
         import sys
 
-        with (contextlib.nullcontext(sys.stdin) if self.name == "<stdin>" else
+        with (contextlib.nullcontext(sys.stdin) if str(self.path) == "-" else
               self.path.open(encoding="utf-8")) as handle:
             for n, line in enumerate(iter(handle.readline, ""), 1):  # a pipe: line by line
                 if not line.strip():
