@@ -102,9 +102,12 @@ class LiveMonitor:
     def __init__(self, config: Path, formulas: list[str], policy: StreamPolicy, session: Any,
                  wait: float = 10.0, ask_timeout: float = 3.0) -> None:
         from ..parse.cowl import read_bridge_rules
+        from ..parse.formula import parse_formula
         from ..parse.owl import read_ontology
         from ..parse.sslt import read_specs
 
+        for formula in formulas:  # a typo is reported at once, not after the network wait
+            parse_formula(formula)
         self.config = read_config(config)
         self.formulas, self.policy, self.session = formulas, policy, session
         self.wait, self.ask_timeout = wait, ask_timeout
