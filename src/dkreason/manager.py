@@ -5,10 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .errors import DkError, NameError_, ParseError, Span
+from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform
 from .model import StreamRequest, TopicSpec
-from .parse.files import read_text, write_atomic
 
 if TYPE_CHECKING:
     from .explain import Explanation
@@ -107,35 +106,11 @@ class KnowledgeManager:
     def platforms(self) -> list[str]:
         return list(self.kb.platforms)
 
-    # ---- persistence: edit only the lines of the topic concerned -----------------------
+    # ---- persistence: the file is edited through its parsed model (parse/specedit.py) ----
 
     def _persist(self, p: Platform, *, added: TopicSpec | None = None,
                  removed: str | None = None) -> None:
-        path = p.specs_path
-        if path is None:
-            return
-        from .parse import sslt
+        if p.specs_path is not None:
+            from .parse.specedit import edit
 
-        xml = path.suffix.lower() == ".xml"
-        empty = sslt.format_xml(()) if xml else ""
-        text = read_text(path) if path.exists() else empty
-        current = sslt.parse_xml(text.encode(), str(path)) if xml else \
-            sslt.parse_text(text, str(path))
-        lines = text.splitlines(keepends=True)
-        if removed is not None:
-            index = [s.name for s in current.specs].index(removed)
-            first, last = current.lines[index]
-            del lines[first - 1:last]
-        if added is not None:
-            if xml:
-                close = max((i for i, line in enumerate(lines) if "</Topic_specs>" in line),
-                            default=None)
-                if close is None:
-                    raise ParseError("cannot add a topic: no </Topic_specs> closing tag",
-                                     Span(str(path)))
-                lines.insert(close, sslt.format_xml_topic(added) + "\n")
-            else:
-                if lines and not lines[-1].endswith("\n"):
-                    lines[-1] += "\n"
-                lines.append(sslt.format_spec(added) + "\n")
-        write_atomic(path, "".join(lines))
+            edit(p.specs_path, add=added, remove=removed)

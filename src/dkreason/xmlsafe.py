@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import pyexpat
 import xml.etree.ElementTree as ET
+from typing import NamedTuple
 
 from .errors import ParseError, Span
 
@@ -40,31 +41,55 @@ def check(data: bytes, file: str) -> None:
                          Span(file, exc.lineno, exc.offset + 1)) from None
 
 
-Lines = dict[ET.Element, tuple[int, int]]
+class Extent(NamedTuple):
+    """Where an element is: its first line, and byte offsets of its start tag's `<`, of its
+    end tag's `<` (`close`; the end of an empty-element tag), and just past its end."""
+
+    line: int
+    start: int
+    close: int
+    end: int
 
 
-def parse(data: bytes, file: str) -> tuple[ET.Element, Lines]:
-    """Check, then parse; also return each element's first and last line."""
+def parse(data: bytes, file: str) -> tuple[ET.Element, dict[ET.Element, Extent]]:
+    """Check, then parse; also return where each element is, so edits can touch only it."""
     check(data, file)
     parser = pyexpat.ParserCreate(namespace_separator="}")
     builder = ET.TreeBuilder()
-    lines: Lines = {}
-    stack: list[ET.Element] = []
+    where: dict[ET.Element, Extent] = {}
+    stack: list[tuple[ET.Element, int, int, bool]] = []
 
     def start(tag: str, attrs: dict[str, str]) -> None:
-        stack.append(builder.start(_clark(tag), {_clark(k): v for k, v in attrs.items()}))
-        lines[stack[-1]] = (parser.CurrentLineNumber, parser.CurrentLineNumber)
+        elem = builder.start(_clark(tag), {_clark(k): v for k, v in attrs.items()})
+        at = parser.CurrentByteIndex
+        stack.append((elem, parser.CurrentLineNumber, at, _empty_tag(data, at)))
 
     def end(tag: str) -> None:
         builder.end(_clark(tag))
-        elem = stack.pop()
-        lines[elem] = (lines[elem][0], parser.CurrentLineNumber)
+        elem, line, at, empty = stack.pop()
+        close = parser.CurrentByteIndex
+        stop = close if empty else data.index(b">", close) + 1
+        where[elem] = Extent(line, at, close, stop)
 
     parser.StartElementHandler = start
     parser.EndElementHandler = end
     parser.CharacterDataHandler = builder.data
     parser.Parse(data, True)
-    return builder.close(), lines
+    return builder.close(), where
+
+
+def _empty_tag(data: bytes, at: int) -> bool:
+    """Whether the start tag at `at` is an empty-element tag (`<a …/>`); quotes may hold `>`."""
+    quote = 0
+    for i in range(at, len(data)):
+        c = data[i]
+        if quote:
+            quote = 0 if c == quote else quote
+        elif c in b"'\"":
+            quote = c
+        elif c == 0x3E:  # >
+            return data[i - 1] == 0x2F  # /
+    return False
 
 
 def _clark(name: str) -> str:

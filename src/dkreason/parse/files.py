@@ -1,40 +1,153 @@
-"""Reading and atomically writing user files, with errors that name the file."""
+"""The one door for user files: bounded reads, line streams, locked and atomic edits.
+
+Every file a user names is read here, so every read has the same limits: only regular files
+(a device, FIFO or directory is refused at once instead of blocking or growing without end),
+at most `max_input()` bytes (DKREASON_MAX_INPUT, default 256 MB), lines of at most
+`MAX_LINE` bytes.  Edits hold an advisory lock beside the file, keep its mode, write through
+symlinks and never leave half a file or a stray temporary behind.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import os
+import stat
+import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 from ..errors import DkError
 
+DEFAULT_MAX_INPUT = 256 * 1024 * 1024
+MAX_LINE = 16 * 1024 * 1024  # bytes of one JSON line (a message or a state)
+_UNITS = {"": 1, "K": 1024, "M": 1024**2, "G": 1024**3}
+
+
+def max_input() -> int:
+    """Bytes one input file may hold: DKREASON_MAX_INPUT (`300M`, `2G`, bytes) or 256 MB."""
+    text = os.environ.get("DKREASON_MAX_INPUT", "").strip().upper().removesuffix("B")
+    if not text:
+        return DEFAULT_MAX_INPUT
+    unit = text[-1] if text[-1] in _UNITS else ""
+    number = text[: len(text) - len(unit)]
+    if not number.isascii() or not number.isdigit() or len(number) > 15:
+        raise DkError(f"DKREASON_MAX_INPUT={os.environ['DKREASON_MAX_INPUT']!r}: expected a "
+                      f"size such as 300M or 2G")
+    return int(number) * _UNITS[unit]
+
+
+def shown(path: Path | str) -> str:
+    """`path` for a one-line message: control characters escaped."""
+    text = str(path)
+    return text if text.isprintable() else repr(text)[1:-1]
+
+
+def _regular(path: Path) -> os.stat_result:
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise DkError(f"{shown(path)}: no such file") from None
+    except ValueError:  # an embedded NUL byte
+        raise DkError(f"{shown(path)}: not a valid file name") from None
+    except OSError as exc:
+        raise DkError(f"{shown(path)}: cannot read ({exc.strerror})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise DkError(f"{shown(path)}: is a directory, expected a file")
+    if not stat.S_ISREG(info.st_mode):
+        raise DkError(f"{shown(path)}: not a regular file (a device, FIFO or socket is "
+                      f"not read)")
+    return info
+
+
+def _too_big(path: Path, limit: int) -> DkError:
+    return DkError(f"{shown(path)}: larger than {limit} bytes (raise DKREASON_MAX_INPUT to "
+                   f"read it)")
+
 
 def read_bytes(path: Path) -> bytes:
+    limit = max_input()
+    if _regular(path).st_size > limit:
+        raise _too_big(path, limit)
     try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise DkError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise DkError(f"{path}: is a directory, expected a file") from None
+        with open(path, "rb") as handle:
+            data = handle.read(limit + 1)
     except OSError as exc:
-        raise DkError(f"{path}: cannot read ({exc.strerror})") from None
+        raise DkError(f"{shown(path)}: cannot read ({exc.strerror})") from None
+    if len(data) > limit:
+        raise _too_big(path, limit)
+    return data
 
 
-def read_text(path: Path) -> str:
-    data = read_bytes(path)
+def decode(data: bytes, path: Path | str) -> str:
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise DkError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+        raise DkError(f"{shown(path)}: not UTF-8 text (byte {exc.start})") from None
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Replace `path` in one step so a crash never leaves half a file behind."""
+def read_text(path: Path) -> str:
+    return decode(read_bytes(path), path)
+
+
+def lines(path: Path, name: str) -> Iterator[tuple[int, bytes]]:
+    """(number, line) of a file or of standard input (`-`), bounded per line, read as they
+    come (a pipe is followed line by line).  A line longer than MAX_LINE is an error."""
+    if str(path) == "-":
+        handle = sys.stdin.buffer
+    else:
+        _regular(path)
+        try:
+            handle = open(path, "rb")  # noqa: SIM115 - closed below, also when abandoned
+        except OSError as exc:
+            raise DkError(f"{shown(path)}: cannot read ({exc.strerror})") from None
+    with contextlib.closing(handle) if handle is not sys.stdin.buffer else \
+            contextlib.nullcontext(handle):
+        n = 0
+        while line := handle.readline(MAX_LINE + 1):
+            n += 1
+            if len(line) > MAX_LINE:
+                raise DkError(f"{name}:{n}: line longer than {MAX_LINE} bytes")
+            yield n, line
+
+
+# ---- edits -------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def locked(path: Path) -> Iterator[Path]:
+    """Hold an exclusive advisory lock for editing `path`; yield the real file to edit (a
+    symlink's target).  Temporaries that a killed editor left are removed under the lock."""
+    target = Path(os.path.realpath(path))
+    lock = target.parent / f".{target.name}.lock"
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise DkError(f"{shown(lock)}: cannot create the lock file ({exc.strerror})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        for stale in target.parent.glob(f".{target.name}.*.tmp"):
+            stale.unlink(missing_ok=True)
+        yield target
+    finally:
+        os.close(fd)
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Replace `path` in one step so a crash never leaves half a file behind; the file keeps
+    its mode (new files get the umask's)."""
+    try:
+        mode = stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as out:
-            out.write(text)
+        with os.fdopen(fd, "wb") as out:
+            out.write(data)
             out.flush()
+            os.fchmod(out.fileno(), mode)
             os.fsync(out.fileno())
         os.replace(tmp, path)
     except BaseException:

@@ -31,10 +31,13 @@ def _parser() -> Lark:
 
 @dataclass(frozen=True, slots=True)
 class SpecFile:
-    """Specs with the line range each came from, so edits can touch only their own lines."""
+    """Specs with the source extent each came from (character offsets in text, byte offsets
+    in XML), so an edit touches only its own topic whatever the layout and line ends; `tail`
+    is where a new topic goes (before `</Topic_specs>` in XML, the end of a text)."""
 
     specs: tuple[TopicSpec, ...]
-    lines: tuple[tuple[int, int], ...]
+    extents: tuple[tuple[int, int], ...]
+    tail: int
 
 
 # ---- text ------------------------------------------------------------------------------------
@@ -45,7 +48,7 @@ class _Entry:
     name: str
     field: str
     span: Span
-    end: int  # the line the entry ends on
+    end: int  # offset just past the entry
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,7 +64,7 @@ class _Feature:
     args: tuple[_Arg, ...]
     field: str
     span: Span
-    end: int
+    end: int  # offset just past the feature's field
 
 
 _FILE: ContextVar[str] = ContextVar("sslt_file", default="<sslt>")  # the file being parsed
@@ -82,24 +85,24 @@ class _ToModel(Transformer[Token, Any]):
     def sort_entry(self, children: list[Any]) -> _Entry:
         kind, name, field = children
         return _Entry(str(kind), str(name), str(field), _span(kind),  # type: ignore[arg-type]
-                      field.end_line or 0)
+                      field.end_pos or 0)
 
     def object_entry(self, children: list[Any]) -> _Entry:
         name, field = children
-        return _Entry("object", str(name), str(field), _span(name), field.end_line or 0)
+        return _Entry("object", str(name), str(field), _span(name), field.end_pos or 0)
 
     def feature(self, children: list[Any]) -> list[Any]:
         name, *rest = children
         args = tuple(c for c in rest if isinstance(c, _Arg))
         field = next(c for c in rest if isinstance(c, Token))
         entries = [c for c in rest if isinstance(c, _Entry)]
-        return [_Feature(str(name), args, str(field), _span(name), field.end_line or 0),
+        return [_Feature(str(name), args, str(field), _span(name), field.end_pos or 0),
                 *entries]
 
     def topic(self, children: list[Any]) -> tuple[TopicSpec, int, int]:
         keyword, name, msgtype, *items = children
         flat = [x for item in items for x in (item if isinstance(item, list) else [item])]
-        span, lines = _span(keyword), (keyword.line, max(x.end for x in flat))
+        span, lines = _span(keyword), (keyword.start_pos or 0, max(x.end for x in flat))
         if isinstance(flat[0], _Entry):
             if len(flat) > 1:
                 raise ParseError(f"topic {name} lists {len(flat)} entities; a sort or object "
@@ -152,7 +155,7 @@ def parse_text(text: str, file: str = "<sslt>") -> SpecFile:
         _FILE.reset(token)
     specs = tuple(spec for spec, _, _ in rows)
     _no_duplicates(specs)
-    return SpecFile(specs, tuple((first, last) for _, first, last in rows))
+    return SpecFile(specs, tuple((first, last) for _, first, last in rows), len(text))
 
 
 def _syntax_error(exc: UnexpectedInput, file: str) -> ParseError:
@@ -212,12 +215,12 @@ def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
     root, where = xmlsafe.parse(data, file)
 
     def span(elem: Any) -> Span:
-        return Span(file, where.get(elem, (0, 0))[0])
+        return Span(file, where[elem].line if elem in where else 0)
 
     if root.tag != "Topic_specs":
         raise ParseError(f"root element is <{root.tag}>, expected <Topic_specs>",
                          span(root))
-    specs, lines = [], []
+    specs, extents = [], []
     for topic in root:
         tspan = span(topic)
         if topic.tag != "Topic":
@@ -243,10 +246,10 @@ def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
                              tspan)
         entity = None if features else _xml_arg(children[0], span(children[0]), in_feature=False)
         specs.append(TopicSpec(name, msgtype, tuple(features), entity, tspan))
-        lines.append(where[topic])
+        extents.append((where[topic].start, where[topic].end))
     out = tuple(specs)
     _no_duplicates(out)
-    return SpecFile(out, tuple(lines))
+    return SpecFile(out, tuple(extents), where[root].close)
 
 
 def _attr(elem: Any, name: str, span: Span) -> str:
