@@ -195,7 +195,7 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
         broken = rogue.declare_queryable(
             "dkreason/platform9/ontology",
             lambda q: q.reply("dkreason/platform9/ontology",
-                              b'{"file": "p9.owl", "text": "<rdf:RDF"}'))
+                              b'{"file": "p9.owl", "turtle": "@prefix broken"}'))
         token9 = rogue.liveliness().declare_token("dkreason/platform9/alive")
         origin = time.time() + 4
         procs.start("serve", "--config", str(tmp_path / "platform1.toml"), "--connect",
@@ -206,7 +206,10 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
         bad = rogue.declare_publisher("dkreason/platform1/topic/topic3",
                                       congestion_control=zenoh.CongestionControl.BLOCK)
         for payload in (b"not json", b"[" * 100_000, b'{"valid": "soon", "msg": {}}',
-                        b'{"valid": 1, "msg": {"id": 1}}', bytes([0xff, 0xfe])):
+                        b'{"valid": 1, "msg": {"id": 1}}', bytes([0xff, 0xfe]),
+                        b"[" * 30_000, b'{"valid": 1, "msg": {"id": 1, "spd": ' + b"9" * 5000
+                        + b"}}", b'{"valid": 1, "msg": {"id": 1, "spd": "far"}}',
+                        b'{"valid": 1, "msg": {"id": [1], "spd": 3}}'):
             bad.put(payload)
         rogue.put("dkreason/intruder/topic/topic3", b'{"valid": 1, "msg": {"id": 1}}')
         assert monitor.wait(timeout=30) == 0
@@ -221,7 +224,7 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
     log = monitor.stderr.read()
     assert log.count("ignoring platform intruder") == 1
     assert "more than the 65536 allowed" in log and "not JSON" in log
-    assert "has no field msg.spd" in log
+    assert "has no field msg.spd" in log and "str 'far' is not a number or boolean" in log
     assert "rejected knowledge from platform9" in log and "p9.owl" in log
     assert "Traceback" not in log
     assert not any(e.get("platform") == "intruder" for e in seen)

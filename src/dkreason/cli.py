@@ -22,7 +22,13 @@ if TYPE_CHECKING:
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, like every other input error
-        self.exit(2, f"{self.prog}: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+
+def one_line(text: str) -> str:
+    """`text` with line breaks and other control characters escaped: an error is one line."""
+    return text if text.isprintable() else "".join(
+        c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -33,7 +39,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         code: int = args.run(args)
         return code
     except DkError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print(f"error: {one_line(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
@@ -75,10 +81,10 @@ def _build() -> _Parser:
     p.add_argument("--live", action="store_true",
                    help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
     network(p)
-    p.add_argument("--wait", type=float, default=10.0,
+    p.add_argument("--wait", type=_positive, default=10.0,
                    help="live: seconds to wait for the local platform (default 10)")
     p.add_argument("--until", type=_seconds, help="live: stop when the stream clock passes it")
-    p.add_argument("--duration", type=float, help="live: stop after this many wall seconds")
+    p.add_argument("--duration", type=_positive, help="live: stop after this many wall seconds")
     p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
                    help="pkg/msg/Name.msg definitions for recordings that carry none")
     p.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
@@ -107,11 +113,11 @@ def _build() -> _Parser:
                         "stdin, published as they come)")
     p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
                    help="pkg/msg/Name.msg definitions for recordings that carry none")
-    p.add_argument("--origin", type=float,
+    p.add_argument("--origin", type=_finite,
                    help="wall time (Unix s) the replay starts at; nodes given the same one "
                         "replay in step (default: now)")
-    p.add_argument("--speed", type=float, default=1.0, help="replay speed factor (default 1)")
-    p.add_argument("--heartbeat", type=float, default=0.02,
+    p.add_argument("--speed", type=_positive, default=1.0, help="replay speed factor (default 1)")
+    p.add_argument("--heartbeat", type=_positive, default=0.02,
                    help="seconds between clock messages (default 0.02)")
     p.set_defaults(run=_serve)
 
@@ -204,12 +210,33 @@ def _progress(args: argparse.Namespace) -> int:
 
 
 def _seconds(text: str) -> Fraction:
+    from .numbers import exact
+
     try:
-        value = Fraction(text)
-    except (ValueError, ZeroDivisionError):
-        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+        value = exact(text, "seconds")
+    except DkError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"must not be negative: {text}")
+    return value
+
+
+def _finite(text: str) -> float:
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite: {text}")
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _finite(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive: {text}")
     return value
 
 
@@ -244,8 +271,6 @@ def _serve(args: argparse.Namespace) -> int:
     from .live.serve import PlatformNode
     from .stream.sources import open_source
 
-    if args.speed <= 0 or args.heartbeat <= 0:
-        raise DkError("--speed and --heartbeat must be positive")
     _logging()
     km = _km(args)
     source = open_source(args.source, args.msg) if args.source is not None else None
@@ -282,6 +307,9 @@ def _monitor(args: argparse.Namespace) -> int:
     policy = StreamPolicy(args.period, args.deviation, args.approximation, args.max_age,
                           args.delay, args.start, args.end, args.max_delay, args.ordered,
                           args.unique)
+    if args.plot is not None and not args.plot.parent.is_dir():
+        raise DkError(f"--plot {one_line(str(args.plot))}: no such directory "
+                      f"{one_line(str(args.plot.parent))}")
     if args.live:
         return _monitor_live(args, policy)
     if args.source is None:

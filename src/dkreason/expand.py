@@ -5,12 +5,15 @@ sameAs each other expand once, named by the smallest local name among them."""
 from __future__ import annotations
 
 import itertools
+import math
 from collections import defaultdict
 
 from .check import CheckedFeature
+from .errors import DkError
 from .kb import KnowledgeBase
 from .model import GroundFeature
 from .names import local_name
+from .parse.formula import MAX_EXPANSION
 
 
 def expand(kb: KnowledgeBase, checked: list[CheckedFeature]) -> list[GroundFeature]:
@@ -22,6 +25,10 @@ def expand(kb: KnowledgeBase, checked: list[CheckedFeature]) -> list[GroundFeatu
         variables = list(dict.fromkeys(a.name for a in c.ref.args if a.is_variable))
         sort_of = {a.name: iri for a, iri in zip(c.ref.args, c.arg_iris, strict=True)
                    if a.is_variable}
+        count = math.prod(len(members_of[sort_of[v]]) for v in variables)
+        if count > MAX_EXPANSION:
+            raise DkError(f"{c.ref.span}: {c.ref.name} expands to {count} ground features, "
+                          f"more than the {MAX_EXPANSION} one formula takes")
         for values in itertools.product(*(members_of[sort_of[v]] for v in variables)):
             env = dict(zip(variables, values, strict=True))
             iris = tuple(env[a.name] if a.is_variable else iri

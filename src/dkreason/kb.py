@@ -32,7 +32,7 @@ from .parse.config import RULES_HOME, Config, read_config
 from .parse.sslt import without_spans
 
 RULES_DIR = RULES_HOME / "rules"
-_TRAILING_DIGITS = re.compile(r"(\d+)$")
+_TRAILING_DIGITS = re.compile(r"(?<![0-9])([0-9]{1,18})$")  # longer: no id, not a hang
 
 
 @dataclass

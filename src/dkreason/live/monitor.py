@@ -98,6 +98,11 @@ class _Live:
         pass
 
 
+def _logged(n: int) -> bool:
+    """1, 10, 100, 1000…: how often a repeated warning is worth a line."""
+    return n == 1 or (n % 10 == 0 and _logged(n // 10))
+
+
 class LiveMonitor:
     def __init__(self, config: Path, formulas: list[str], policy: StreamPolicy, session: Any,
                  wait: float = 10.0, ask_timeout: float = 3.0) -> None:
@@ -113,7 +118,7 @@ class LiveMonitor:
         self.wait, self.ask_timeout = wait, ask_timeout
         self.names = {p.name for p in self.config.platforms}
         self.known: dict[str, Platform] = {}  # knowledge at hand, before the KB exists
-        self.texts: dict[str, str] = {}  # the ontology each fetched platform served
+        self.digests: dict[str, str] = {}  # of the ontology each platform served
         for files in self.config.platforms:
             if files.ontology is not None:
                 specs = read_specs(files.specs).specs if files.specs is not None else ()
@@ -125,8 +130,9 @@ class LiveMonitor:
         self.present: set[str] = set()
         self.clocks: dict[tuple[str, str], int] = {}  # (platform, topic) → sent up to
         self.since: dict[tuple[str, str], float] = {}  # (platform, topic) → subscribed at
-        self.seen_strangers: set[str] = set()
-        self.rejected: dict[tuple[str, str], int] = {}
+        self.seen_strangers: set[str] = set()  # the first few, named in the log
+        self.strangers = 0
+        self.rejected: dict[tuple[str, str, str], int] = {}
         self.kb: KnowledgeBase | None = None
         self.subs: dict[tuple[str, str], Any] = {}  # (platform, topic) → subscriber
         self.topics: dict[str, set[tuple[str, str]]] = {}  # feature → its (platform, topic)s
@@ -160,10 +166,10 @@ class LiveMonitor:
 
     def _ontology(self, p: str) -> dict[str, str]:
         ont = self._ask(p, "ontology")
-        if not isinstance(ont, dict) or not isinstance(ont.get("text"), str) or \
+        if not isinstance(ont, dict) or not isinstance(ont.get("turtle"), str) or \
                 not isinstance(ont.get("file"), str):
-            raise wire.WireError(f"{p}'s ontology: expected {{\"file\": …, \"text\": …}}")
-        return ont
+            raise wire.WireError(f"{p}'s ontology: expected {{\"file\": …, \"turtle\": …}}")
+        return {"file": ont["file"], "text": ont["turtle"], "digest": str(ont.get("digest"))}
 
     def _fetch(self, p: str, ont: dict[str, str] | None = None) -> Platform:
         """A platform's whole knowledge, asked over the network (the ontology reply may be
@@ -172,9 +178,10 @@ class LiveMonitor:
         from ..parse.sslt import parse_text
 
         ont = ont or self._ontology(p)
-        name = Path(ont["file"]).name or "ontology.owl"
-        ontology = parse_ontology(ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p)
-        self.texts[p] = ont["text"]
+        name = Path(ont["file"]).name or "ontology"  # shown in messages only
+        ontology = parse_ontology(ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p,
+                                  fmt="turtle")
+        self.digests[p] = ont["digest"]
         for iri, sort, id_ in self._objects(p):
             if (iri, sort) not in ontology.types:
                 ontology = with_object(ontology, iri, sort, id_)
@@ -300,9 +307,7 @@ class LiveMonitor:
     def _handle(self, event: tuple[Any, ...]) -> list[Event]:
         kind, p = event[0], event[1]
         if p not in self.names:
-            if p not in self.seen_strangers:
-                self.seen_strangers.add(p)
-                log.warning("ignoring platform %s: not in the config", p)
+            self._stranger(p)
             return []
         try:
             if kind == "sample":
@@ -312,13 +317,31 @@ class LiveMonitor:
             elif kind == "changed" and p in self.present:
                 return self._changed(p)
         except DkError as exc:  # a peer's bad payload or knowledge: its fault, not ours
-            self._reject(p, kind, str(exc))
+            self._reject(p, kind, str(exc), getattr(exc, "kind", "knowledge"))
+        except Exception as exc:  # noqa: BLE001 - one bad sample must not end monitoring
+            if kind != "sample":
+                raise
+            self._reject(p, kind, f"unexpected {type(exc).__name__}: {str(exc)[:200]}",
+                         type(exc).__name__)
         return []
 
-    def _reject(self, p: str, what: str, why: str) -> None:
-        n = self.rejected[(p, what)] = self.rejected.get((p, what), 0) + 1
-        if n <= 10 or n % 1000 == 0:
-            log.warning("rejected %s from %s (%d so far): %s", what, p, n, why)
+    def _stranger(self, p: str) -> None:
+        """Platforms outside the config: the first few named, then only counted."""
+        self.strangers += 1
+        if len(self.seen_strangers) < 10 and p not in self.seen_strangers:
+            self.seen_strangers.add(p)
+            log.warning("ignoring platform %s: not in the config%s", p,
+                        "" if len(self.seen_strangers) < 10 else
+                        " (further unknown platforms are counted, not named)")
+        elif _logged(self.strangers) and self.strangers >= 100:
+            log.warning("ignored %d announcements or samples of platforms outside the config",
+                        self.strangers)
+
+    def _reject(self, p: str, what: str, why: str, kind: str = "knowledge") -> None:
+        """Logged once per peer and kind of fault, then at 10, 100, 1000… rejections."""
+        n = self.rejected[(p, what, kind)] = self.rejected.get((p, what, kind), 0) + 1
+        if _logged(n):
+            log.warning("rejected %s from %s (%s, %d so far): %s", what, p, kind, n, why)
 
     def _sample(self, p: str, topic: str, payload: bytes) -> None:
         if p not in self.present or (p, topic) not in self.subs:
@@ -329,8 +352,11 @@ class LiveMonitor:
             try:
                 values = self.read(name, valid, msg)
             except DkError as exc:
-                raise wire.WireError(str(exc)) from None
-            self.processor.put(name, available, valid, values)
+                raise wire.WireError(str(exc), "field") from None
+            try:
+                self.processor.put(name, available, valid, values)
+            except DkError as exc:
+                raise wire.WireError(str(exc), "value") from None
             self.received += 1
         self.clocks[(p, topic)] = max(available, self.clocks.get((p, topic), available))
 
@@ -361,11 +387,11 @@ class LiveMonitor:
         """A platform back again: a new ontology replaces what was known of it; otherwise
         only the differences in specs and objects are applied."""
         assert self.kb is not None
-        before = self.texts.get(p)
+        before = self.digests.get(p)
         ont = self._ontology(p) if before is not None else None
-        if ont is not None and ont["text"] != before:
+        if ont is not None and ont["digest"] != before:
             if p == self.config.local:
-                self.texts[p] = ont["text"]
+                self.digests[p] = ont["digest"]
                 log.warning("%s came back with another ontology; the formulas keep the one "
                             "they were checked against until restart", p)
             else:

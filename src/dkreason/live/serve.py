@@ -20,6 +20,7 @@ from typing import Any
 from ..errors import DkError
 from ..manager import KnowledgeManager
 from ..model import IdValue, TopicSpec
+from ..parse.owl import digest, turtle
 from ..stream.sources import NS, Record
 from . import wire
 
@@ -38,8 +39,8 @@ class PlatformNode:
         self.closed = threading.Event()
         platform = km.kb.platform(self.name)
         ontology = Path(platform.ontology.file)
-        self._ontology = wire.encode({"file": ontology.name,
-                                      "text": ontology.read_text(encoding="utf-8")})
+        self._ontology = wire.encode({"file": ontology.name, "turtle": turtle(ontology),
+                                      "digest": digest(ontology)})
         self._answers = {"ontology": lambda: self._ontology, "specs": self._specs,
                          "objects": self._objects}
         self.queryables = [session.declare_queryable(

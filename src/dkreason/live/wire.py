@@ -3,7 +3,8 @@
 Key expressions, for platform P (every payload is UTF-8 JSON):
 
     dkreason/P/alive          liveliness token: P is present
-    dkreason/P/ontology       query → {"file": "platform2.owl", "text": "<the OWL document>"}
+    dkreason/P/ontology       query → {"file": "platform2.owl", "turtle": "<the ontology>"}:
+                              always Turtle, whatever syntax the platform's file is in
     dkreason/P/specs          query → {"sslt": "<every topic specification, SSL_T>"}
     dkreason/P/objects        query → {"<object IRI>": {"sorts": ["<sort IRI>", …], "id": 12}}
     dkreason/P/changed        put {"version": n}: P's specs or objects changed; ask again
@@ -20,9 +21,11 @@ from __future__ import annotations
 
 import json
 import re
+from pathlib import Path
 from typing import Any
 
-from ..errors import DkError
+from ..errors import DkError, ParseError, Span
+from ..parse.files import json_value, read_text
 
 MAX_SAMPLE = 64 * 1024  # bytes of one sample or clock payload
 MAX_KNOWLEDGE = 16 * 1024 * 1024  # bytes of one ontology, specs or objects reply
@@ -31,7 +34,12 @@ ENDPOINT = re.compile(r"^[a-z][a-z0-9+-]*/\S+$")
 
 
 class WireError(DkError):
-    """A peer sent something malformed: logged and dropped, never fatal."""
+    """A peer sent something malformed: logged and dropped, never fatal.  `kind` (size, json,
+    shape, time, field, value, knowledge) groups what is logged once per peer."""
+
+    def __init__(self, message: str, kind: str = "knowledge") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def key(platform: str, *parts: str) -> str:
@@ -48,12 +56,14 @@ def encode(value: Any) -> bytes:
 
 
 def decode(payload: bytes, limit: int, what: str) -> Any:
+    """A peer's JSON payload; any failure (size, syntax, encoding, nesting, a number too long)
+    is a WireError."""
     if len(payload) > limit:
-        raise WireError(f"{what}: {len(payload)} bytes, more than the {limit} allowed")
+        raise WireError(f"{what}: {len(payload)} bytes, more than the {limit} allowed", "size")
     try:
-        return json.loads(payload)
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise WireError(f"{what}: not JSON ({exc})") from None
+        return json_value(payload, Span(what), exact=False)
+    except ParseError as exc:
+        raise WireError(f"{what}: {exc.message}", "json") from None
 
 
 def topic_message(payload: bytes, what: str) -> tuple[int, int, Any]:
@@ -64,7 +74,7 @@ def topic_message(payload: bytes, what: str) -> tuple[int, int, Any]:
         return t, t, None
     if not isinstance(data, dict) or not isinstance(data.get("msg"), dict):
         raise WireError(f"{what}: expected {{\"valid\": ns, \"msg\": {{…}}}} or "
-                        f"{{\"clock\": ns}}")
+                        f"{{\"clock\": ns}}", "shape")
     valid = _time(data.get("valid"), what)
     available = _time(data.get("available", valid), what)
     return available, valid, data["msg"]
@@ -72,7 +82,8 @@ def topic_message(payload: bytes, what: str) -> tuple[int, int, Any]:
 
 def _time(value: Any, what: str) -> int:
     if type(value) is not int:
-        raise WireError(f"{what}: times must be integer nanoseconds, not {value!r}")
+        raise WireError(f"{what}: times must be integer nanoseconds, not {str(value)[:40]}",
+                        "time")
     return value
 
 
@@ -86,14 +97,24 @@ def open_session(connect: list[str], listen: list[str], config_file: str | None 
         if not ENDPOINT.match(endpoint):
             raise DkError(f"zenoh: bad endpoint {endpoint!r} (expected <protocol>/<address>, "
                           f"e.g. tcp/192.168.1.10:7447)")
+    text = read_text(Path(config_file)) if config_file else None
     try:
-        config = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
+        config = zenoh.Config.from_json5(text) if text is not None else zenoh.Config()
         config.insert_json5("mode", '"peer"')
         config.insert_json5("scouting/multicast/enabled", "false")
         config.insert_json5("connect/endpoints", json.dumps(connect))
         config.insert_json5("listen/endpoints", json.dumps(listen))
         return zenoh.open(config)
     except zenoh.ZError as exc:
-        why = str(exc).split(" at /")[0][:300]
+        why = _zenoh_error(str(exc), config_file)
         raise DkError(f"zenoh: cannot open a session (connect {connect}, listen {listen}"
                       f"{', config ' + config_file if config_file else ''}): {why}") from None
+
+
+def _zenoh_error(text: str, config_file: str | None) -> str:
+    """Zenoh's error text in one line: a JSON5 syntax error as `line:column: expected …`."""
+    where = re.match(r"\s*-->\s*(\d+:\d+)", text)
+    expected = re.search(r"=\s*(.+)\s*$", text)
+    if where and expected:
+        return f"{config_file}:{where.group(1)}: {expected.group(1)}"
+    return (text.split(" at /")[0].strip().splitlines() or [""])[0][:300]

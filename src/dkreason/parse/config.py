@@ -58,6 +58,8 @@ def read_config(path: Path) -> Config:
     file = str(path)
     try:
         data = tomllib.loads(read_text(path))
+    except RecursionError:
+        raise ParseError("TOML nested too deeply", Span(file)) from None
     except tomllib.TOMLDecodeError as exc:  # position only in the message before Python 3.14
         where = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
         line, col = (int(where.group(1)), int(where.group(2))) if where else (0, 0)
@@ -75,6 +77,8 @@ def read_config(path: Path) -> Config:
         value = table.get(key)
         if not isinstance(value, str) or not value:
             raise fail(f"{where}: {key!r} must be a non-empty string")
+        if not value.isprintable():
+            raise fail(f"{where}: {key!r} holds a control character ({value!r})")
         return value
 
     _only(data, {"local", "platforms", "mappings", "rules"}, "top level", fail)
@@ -98,6 +102,8 @@ def read_config(path: Path) -> Config:
         raise fail(f"local = {local!r} names no platform (platforms: {', '.join(names)})"
                    if local is not None else "several platforms: say which one is local")
     mappings = []
+    if not isinstance(data.get("mappings", []), list):
+        raise fail("mappings must be an array of tables ([[mappings]])")
     for i, table in enumerate(data.get("mappings", []), 1):
         if not isinstance(table, dict):
             raise fail(f"mappings entry {i} must be a table")
@@ -111,7 +117,8 @@ def read_config(path: Path) -> Config:
             raise fail(f"[[mappings]] {i}: source and target are both {src!r}")
         mappings.append(MappingFiles(src, tgt, at(text(table, "file", f"[[mappings]] {i}"))))
     rules = data.get("rules", [])
-    if not isinstance(rules, list) or not all(isinstance(r, str) for r in rules):
+    if not isinstance(rules, list) or not all(isinstance(r, str) and r.isprintable()
+                                              for r in rules):
         raise fail("rules must be a list of rule file paths")
     return Config(path, local, tuple(platforms), tuple(mappings),
                   tuple(_rule_path(base, r, fail) for r in rules))

@@ -11,14 +11,17 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
 import os
 import stat
 import sys
 import tempfile
 from collections.abc import Iterator
+from decimal import Decimal
 from pathlib import Path
+from typing import Any
 
-from ..errors import DkError
+from ..errors import DkError, ParseError, Span
 
 DEFAULT_MAX_INPUT = 256 * 1024 * 1024
 MAX_LINE = 16 * 1024 * 1024  # bytes of one JSON line (a message or a state)
@@ -110,6 +113,22 @@ def lines(path: Path, name: str) -> Iterator[tuple[int, bytes]]:
             if len(line) > MAX_LINE:
                 raise DkError(f"{name}:{n}: line longer than {MAX_LINE} bytes")
             yield n, line
+
+
+def json_value(data: bytes | str, where: Span, exact: bool = True) -> Any:
+    """One JSON document (numbers with a fraction or exponent as exact decimals unless not
+    `exact`); any failure — syntax, encoding, nesting, a number too long — is a ParseError."""
+    try:
+        return json.loads(data, parse_float=Decimal if exact else float)
+    except json.JSONDecodeError as exc:
+        why, column = f"not JSON: {exc.msg}", exc.colno
+    except UnicodeDecodeError as exc:
+        why, column = "not UTF-8 text", exc.start + 1
+    except RecursionError:
+        why, column = "JSON nested too deeply", 0
+    except ValueError as exc:  # an integer of more than 4300 digits
+        why, column = f"not JSON ({str(exc).split(';')[0][:80]})", 0
+    raise ParseError(why, Span(where.file, where.line, column if where.line else 0))
 
 
 # ---- edits -------------------------------------------------------------------------------

@@ -6,8 +6,8 @@ One grammar serves the matcher (which only needs the features) and the progressi
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from functools import cache
 from typing import Any
@@ -19,6 +19,7 @@ from ..errors import ParseError, Span
 from ..model import Arg, FeatureRef
 
 FILE = "<formula>"
+MAX_NUMBER = 100  # characters of a number literal
 UNITS = {"ms": Fraction(1, 1000), "s": Fraction(1), "min": Fraction(60), "h": Fraction(3600)}
 
 
@@ -146,6 +147,9 @@ class _ToAst(Transformer[Token, Any]):
 
     def number(self, children: list[Token]) -> Num:
         text = str(children[0])
+        if len(text) > MAX_NUMBER:
+            raise ParseError(f"number of {len(text)} characters (at most {MAX_NUMBER})",
+                             self._span(children[0]))
         return Num(int(text) if text.isdigit() else float(text))
 
     def boolean(self, children: list[Token]) -> BoolConst:
@@ -195,6 +199,9 @@ class _ToAst(Transformer[Token, Any]):
         if token.type == "INFINITY":
             return None
         text = str(token)
+        if len(text) > MAX_NUMBER:
+            raise ParseError(f"time bound of {len(text)} characters (at most {MAX_NUMBER})",
+                             self._span(token))
         unit = text.lstrip("0123456789.")
         return Fraction(text[: len(text) - len(unit)]) * UNITS[unit or "s"]
 
@@ -240,9 +247,55 @@ def _where(node: Any) -> Span:
 
 def parse_formula(text: str) -> Formula:
     try:
-        return _formula(_parser().parse(text))
+        return _balanced(_formula(_parser().parse(text)), 0)  # type: ignore[no-any-return]
     except UnexpectedInput as exc:
         raise _syntax_error(exc, text) from None
+
+
+MAX_DEPTH = 100  # nesting levels of a formula as written (and/or chains count once)
+MAX_EXPANSION = 100_000  # ground features, or atoms of a formula, once quantifiers expand
+ASSOCIATIVE = ("and", "or")
+
+
+def chain(op: str, parts: Sequence[Formula]) -> Formula:
+    """`parts` joined by the associative `op` as a balanced tree: a conjunction of a thousand
+    parts nests ten levels deep, not a thousand (walkers recurse, Python's parser nests)."""
+    if len(parts) == 1:
+        return parts[0]
+    mid = len(parts) // 2
+    return Connective(op, chain(op, parts[:mid]), chain(op, parts[mid:]))
+
+
+def _links(node: Connective) -> list[Formula]:
+    """The operands of a maximal chain of `node.op`, left to right, found without recursion."""
+    out: list[Formula] = []
+    todo: list[Formula] = [node]
+    while todo:
+        n = todo.pop()
+        if isinstance(n, Connective) and n.op == node.op:
+            todo += [n.right, n.left]
+        else:
+            out.append(n)
+    return out
+
+
+def _balanced(node: Any, depth: int) -> Any:
+    """`node` with and/or chains balanced, refused past MAX_DEPTH levels of other nesting."""
+    if depth > MAX_DEPTH:
+        raise ParseError(f"formula nested more than {MAX_DEPTH} levels deep", _where(node))
+    if isinstance(node, Connective) and node.op in ASSOCIATIVE:
+        return chain(node.op, [_balanced(n, depth + 1) for n in _links(node)])
+    if isinstance(node, Compare | Connective | Arith):
+        return replace(node, left=_balanced(node.left, depth + 1),
+                       right=_balanced(node.right, depth + 1))
+    if isinstance(node, Until):
+        return replace(node, left=_balanced(node.left, depth + 1),
+                       right=_balanced(node.right, depth + 1))
+    if isinstance(node, Not | Temporal | Neg):
+        return replace(node, arg=_balanced(node.arg, depth + 1))
+    if isinstance(node, Quant):
+        return replace(node, body=_balanced(node.body, depth + 1))
+    return node
 
 
 def _syntax_error(exc: UnexpectedInput, text: str) -> ParseError:
@@ -296,10 +349,12 @@ def children(node: Any) -> tuple[Any, ...]:
 
 
 def _feature_refs(node: Any) -> Iterator[FeatureRef]:
-    if isinstance(node, Atom | Ref):
-        yield node.feature
-    for child in children(node):
-        yield from _feature_refs(child)
+    todo = [node]  # without recursion: it also locates errors in formulas nested too deeply
+    while todo:
+        n = todo.pop()
+        if isinstance(n, Atom | Ref):
+            yield n.feature
+        todo += reversed(children(n))
 
 
 def quantifiers(formula: Formula) -> Iterator[Quant]:

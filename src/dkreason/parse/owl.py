@@ -7,13 +7,16 @@ signatures (thesis 6.1).  The closures the matcher needs are Datalog rules (rule
 
 from __future__ import annotations
 
+import logging
 import re
+import warnings
 from pathlib import Path
+from typing import Any
 
 from ..errors import DkError, ParseError, Span
 from ..model import IdValue, Ontology, Signature
 from ..names import local_name
-from .files import read_bytes
+from .files import json_value, read_bytes
 
 ARITY = {"UnaryRelation": 1, "BinaryRelation": 2, "TernaryRelation": 3}
 ARG = re.compile(r"arg([1-9])$")
@@ -24,22 +27,85 @@ def read_ontology(path: Path, platform: str) -> Ontology:
     return parse_ontology(read_bytes(path), str(path), platform, path.resolve().as_uri())
 
 
-def parse_ontology(data: bytes, file: str, platform: str, base: str | None = None) -> Ontology:
-    """`file` names the data in messages and tells its RDF syntax by its suffix."""
-    from rdflib import BNode, Graph, Literal, URIRef
-    from rdflib.collection import Collection
-    from rdflib.namespace import OWL, RDF, RDFS
+def turtle(path: Path) -> str:
+    """The ontology at `path` as Turtle, the one syntax a live platform serves (a peer never
+    chooses the parser its monitor runs)."""
+    text: str = _graph(read_bytes(path), str(path), path.resolve().as_uri(), None).serialize(
+        format="turtle")
+    return text
+
+
+def digest(path: Path) -> str:
+    """What tells a returning platform's ontology from the one it served before."""
+    import hashlib
+
+    return hashlib.sha256(read_bytes(path)).hexdigest()
+
+
+SYNTAXES = {"xml", "trix", "turtle", "nt", "nquads", "trig", "n3", "json-ld"}
+XML_SYNTAXES = {"xml", "trix"}
+
+
+def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
+    """The RDF graph of `data`, in `fmt` or the syntax its name says; nothing outside `data`
+    is ever read: XML passes the XML hardening, JSON-LD may not name a remote context."""
+    from rdflib import Graph
     from rdflib.util import guess_format
 
-    fmt = guess_format(file) or "xml"
-    if fmt == "xml":
+    fmt = fmt or guess_format(file) or "xml"
+    if fmt not in SYNTAXES:
+        raise ParseError(f"RDF syntax {fmt!r} is not read (use RDF/XML, Turtle, N-Triples, "
+                         f"N-Quads, TriG, TriX, N3 or JSON-LD)", Span(file))
+    if fmt in XML_SYNTAXES:
         from .. import xmlsafe
         xmlsafe.check(data, file)
+    elif fmt == "json-ld":
+        _local_contexts(json_value(data, Span(file)), file)
     graph = Graph(bind_namespaces="none")
+    quiet = logging.getLogger("rdflib.term")  # ill-typed literals: reported by us, once
+    quiet.disabled = True
     try:
-        graph.parse(data=data, format=fmt, publicID=base)
+        with warnings.catch_warnings():  # rdflib's own deprecations are not the user's concern
+            warnings.simplefilter("ignore", DeprecationWarning)
+            graph.parse(data=data, format=fmt, publicID=base)
+    except RecursionError:
+        raise ParseError("malformed RDF: nested too deeply", Span(file)) from None
     except Exception as exc:  # rdflib raises many types; all mean "this file is not RDF"
         raise _rdf_error(exc, file) from None
+    finally:
+        quiet.disabled = False
+    return graph
+
+
+def _local_contexts(doc: Any, file: str) -> None:
+    """Refuse a JSON-LD document whose @context or @import names anything to fetch."""
+    todo, seen = [doc], 0
+    while todo:
+        node = todo.pop()
+        seen += 1
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key in ("@context", "@import") and (
+                        isinstance(value, str) or
+                        isinstance(value, list) and any(isinstance(v, str) for v in value)):
+                    shown = value if isinstance(value, str) else \
+                        next(v for v in value if isinstance(v, str))
+                    raise ParseError(f"JSON-LD context {shown[:100]!r} refused (external "
+                                     f"references are not followed)", Span(file))
+                todo.append(value)
+        elif isinstance(node, list):
+            todo.extend(node)
+
+
+def parse_ontology(data: bytes, file: str, platform: str, base: str | None = None,
+                   fmt: str | None = None) -> Ontology:
+    """`file` names the data in messages and, unless `fmt` is given, tells its RDF syntax
+    by its suffix."""
+    from rdflib import BNode, Literal, URIRef
+    from rdflib.collection import Collection
+    from rdflib.namespace import OWL, RDF, RDFS
+
+    graph = _graph(data, file, base, fmt)
 
     def named(node: object) -> bool:
         return isinstance(node, URIRef)
@@ -103,6 +169,9 @@ def parse_ontology(data: bytes, file: str, platform: str, base: str | None = Non
             raise ParseError(f"object <{ind}> has several id values ({shown})", Span(file))
         if values:
             (lit,) = values
+            if lit.ill_typed:
+                raise ParseError(f"object <{ind}>: id {str(lit)[:40]!r} is not a valid "
+                                 f"{local_name(str(lit.datatype))}", Span(file))
             value = lit.toPython()
             ids[str(ind)] = value if isinstance(value, int) and not isinstance(value, bool) \
                 else str(lit)

@@ -16,6 +16,7 @@ from ..errors import DkError
 from ..model import Arg, FeatureRef
 from ..parse.formula import (
     ANY,
+    MAX_EXPANSION,
     Atom,
     BoolConst,
     Connective,
@@ -26,6 +27,7 @@ from ..parse.formula import (
     Ref,
     Temporal,
     Until,
+    chain,
 )
 from .nodes import (
     BoolNode,
@@ -52,22 +54,32 @@ def exact(value: Fraction | None) -> Time | None:
     return value.numerator if value.denominator == 1 else value
 
 
+def _size(f: Any, objects: Expander) -> int:
+    """Atoms and comparisons of `f` once expanded, counted without expanding."""
+    if isinstance(f, Quant):
+        return len(objects(f.sort)) * _size(f.body, objects)
+    if isinstance(f, Connective | Until):
+        return _size(f.left, objects) + _size(f.right, objects)
+    if isinstance(f, Not | Temporal):
+        return _size(f.arg, objects)
+    return 1
+
+
 def expand(f: Formula, objects: Expander | None) -> Formula:
     """Replace quantifiers by conjunctions/disjunctions over the sort's objects."""
     if isinstance(f, Quant):
         if objects is None:
             raise DkError(f"{f.span}: quantifier over {f.sort} needs a knowledge base "
                           f"(give --config)")
+        size = _size(f, objects)
+        if size > MAX_EXPANSION:
+            raise DkError(f"{f.span}: the quantifiers expand to {size} subformulas, more than "
+                          f"the {MAX_EXPANSION} one monitor takes")
         names = list(objects(f.sort))
         body = expand(f.body, objects)
         parts: list[Formula] = [_substitute(body, f.var, name) for name in names]
         op = "and" if f.op == "forall" else "or"
-        if not parts:
-            return BoolConst(op == "and")
-        out = parts[0]
-        for part in parts[1:]:
-            out = Connective(op, out, part)
-        return out
+        return chain(op, parts) if parts else BoolConst(op == "and")
     if isinstance(f, Not):
         return Not(expand(f.arg, objects))
     if isinstance(f, Connective):

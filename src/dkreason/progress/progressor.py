@@ -17,6 +17,7 @@ from fractions import Fraction
 from typing import Any
 
 from ..errors import DkError
+from ..numbers import exact
 from ..parse.formula import parse_formula
 from .compile import Expander, Graph, expand, formula_features, scaled
 from .fused import FusedSet, Member, shapes
@@ -67,17 +68,7 @@ def exact_time(t: Any) -> Time:
     """Times compared without floating-point error: 0.1 is 1/10, as written."""
     if type(t) is int:
         return t
-    if isinstance(t, bool) or t is None:
-        raise DkError(f"time must be a number, not {t!r}")
-    if isinstance(t, float):
-        value = Fraction(repr(t))
-    elif isinstance(t, Fraction | Decimal | int | str):
-        try:
-            value = Fraction(t)
-        except (ValueError, ZeroDivisionError):
-            raise DkError(f"time must be a number, not {t!r}") from None
-    else:
-        raise DkError(f"time must be a number, not {t!r}")
+    value = exact(t)
     return value.numerator if value.denominator == 1 else value
 
 

@@ -7,6 +7,7 @@ when all are known, and falls back to a three-valued interpreter otherwise.
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable, Mapping
 from typing import Any
@@ -175,7 +176,7 @@ def _py(n: Any, names: dict[str, str]) -> str:
     if isinstance(n, Atom | Ref):
         return names[key(n.feature)]
     if isinstance(n, Num):
-        return repr(n.value)
+        return repr(n.value) if math.isfinite(n.value) else "1e999" if n.value > 0 else "-1e999"
     if isinstance(n, Compare | Arith):
         return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
     if isinstance(n, Neg):

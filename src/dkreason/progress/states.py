@@ -4,31 +4,38 @@ Numbers are read as decimals, so times compare exactly (0.1 is one tenth, as wri
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator
 from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
-from ..errors import ParseError, Span
+from ..errors import DkError, ParseError, Span
+from ..numbers import datum
+from ..parse import files
+from .progressor import exact_time
 
 
 def read_states(path: Path) -> Iterator[tuple[Any, dict[str, Any]]]:
-    try:
-        handle = path.open(encoding="utf-8")
-    except OSError as exc:
-        raise ParseError(f"cannot read states ({exc.strerror})", Span(str(path))) from None
-    with handle:
-        for n, line in enumerate(handle, 1):
-            if not line.strip():
-                continue
-            try:
-                row = json.loads(line, parse_float=Decimal)
-            except json.JSONDecodeError as exc:
-                raise ParseError(f"not JSON: {exc.msg}", Span(str(path), n, exc.colno)) \
-                    from None
-            if not isinstance(row, dict) or "time" not in row or \
-                    not isinstance(row.get("values"), dict):
-                raise ParseError('expected {"time": …, "values": {…}}', Span(str(path), n))
-            yield row["time"], {k: float(v) if isinstance(v, Decimal) else v
-                                for k, v in row["values"].items()}
+    """(time, values) per line; a value is a boolean, a number or null (unknown); NaN and
+    infinities are unknown too."""
+    for n, line in files.lines(path, str(path)):
+        if not line.strip():
+            continue
+        where = Span(str(path), n)
+        row = files.json_value(line, where)
+        if not isinstance(row, dict) or "time" not in row or \
+                not isinstance(row.get("values"), dict):
+            raise ParseError('expected {"time": …, "values": {…}}', where)
+        try:
+            exact_time(row["time"])  # finite and bounded, before the progressor converts it
+        except DkError as exc:
+            raise ParseError(str(exc), where) from None
+        values = {}
+        for key, value in row["values"].items():
+            if isinstance(value, Decimal):
+                value = float(value)
+            elif value is not None and not isinstance(value, bool | int | float):
+                raise ParseError(f"value of {key} must be a boolean, a number or null, not "
+                                 f"{type(value).__name__}", where)
+            values[key] = datum(value)
+        yield row["time"], values

@@ -26,15 +26,18 @@ from __future__ import annotations
 
 import bisect
 import heapq
+import numbers
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from decimal import Decimal
 from fractions import Fraction
 from operator import itemgetter
 from typing import Any, Literal
 
 from ..errors import DkError
 from ..model import StreamRequest
+from ..numbers import datum
 from .sources import NS, Source
 
 
@@ -107,7 +110,10 @@ class _Group:
     def routes(self, msg: Any) -> list[_Route]:
         getters = self.getters
         key = getters[0](msg) if len(getters) == 1 else tuple(get(msg) for get in getters)
-        found = self.index.get(key)
+        try:
+            found = self.index.get(key)
+        except TypeError:  # an unhashable id (a list or a map): no object has it
+            return []
         if found is None:
             text = str(key) if len(getters) == 1 else tuple(str(v) for v in key)
             found = self.index.get(text, [])
@@ -212,7 +218,25 @@ class StreamProcessor:
         """A message, without making states: a live source says when time has passed."""
         for group in self.groups[topic]:
             for route in group.routes(values):
-                self._sample(route, available, valid, route.get(values))
+                value = route.get(values)
+                cls = value.__class__
+                if cls is float:
+                    if value - value:  # NaN or an infinity: unknown, never compared
+                        value = None
+                elif cls is not int and cls is not bool:
+                    value = self._odd(route, valid, value)
+                self._sample(route, available, valid, value)
+
+    def _odd(self, route: _Route, valid: int, value: Any) -> Any:
+        """A value that is not a plain number or boolean: a numeric subclass as it is, else an
+        error naming the feature, the stream and the value's type."""
+        if isinstance(value, float | Decimal):
+            return datum(float(value))
+        if isinstance(value, numbers.Real):
+            return value
+        shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "…"
+        raise DkError(f"{self.keys[route.q]} from {route.stream} at {seconds(valid)} s: "
+                      f"{type(value).__name__} {shown} is not a number or boolean")
 
     def advance(self, available: int) -> None:
         """Every source has passed `available`: make the states due by then."""

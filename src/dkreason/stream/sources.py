@@ -9,15 +9,15 @@ field by field where their layout allows (fastread.py) and deserialised in full 
 
 from __future__ import annotations
 
-import json
 import queue
 from collections.abc import Iterator, Sequence
 from decimal import Decimal
-from fractions import Fraction
 from pathlib import Path
 from typing import Any, Protocol
 
 from ..errors import DkError, ParseError, Span
+from ..numbers import exact
+from ..parse import files
 from . import fields
 
 Message = tuple[str, int, int, tuple[Any, ...]]
@@ -28,11 +28,7 @@ NS = 10**9
 
 def to_ns(seconds: Any, what: str = "time") -> int:
     """Exact seconds (JSON decimals, ints, Fractions) → integer nanoseconds."""
-    try:
-        value = Fraction(seconds) if not isinstance(seconds, float) else Fraction(repr(seconds))
-    except (TypeError, ValueError):
-        raise DkError(f"{what} must be a number, not {seconds!r}") from None
-    ns = value * NS
+    ns = exact(seconds, what) * NS
     if ns.denominator != 1:
         raise DkError(f"{what} {seconds} is finer than a nanosecond")
     return int(ns)
@@ -228,25 +224,24 @@ class JsonlSource:
                 yield topic, available, valid, read(topic, valid, msg)
 
     def records(self) -> Iterator[Record]:
-        import contextlib
-        import sys
-
-        with (contextlib.nullcontext(sys.stdin) if str(self.path) == "-" else
-              self.path.open(encoding="utf-8")) as handle:
-            for n, line in enumerate(iter(handle.readline, ""), 1):  # a pipe: line by line
-                if not line.strip():
-                    continue
-                try:
-                    row = json.loads(line, parse_float=Decimal)
-                    topic, msg = row["topic"], row["msg"]
-                    valid = to_ns(row["time"])
-                    available = to_ns(row.get("available", row["time"]), "available time")
-                except (json.JSONDecodeError, KeyError, TypeError, DkError) as exc:
-                    what = exc.msg if isinstance(exc, json.JSONDecodeError) else \
-                        f"missing {exc}" if isinstance(exc, KeyError) else str(exc)
-                    raise ParseError(f"not a message line ({what})", Span(self.name, n)) \
-                        from None
-                yield topic, available, valid, _floats(msg)
+        for n, line in files.lines(self.path, self.name):
+            if not line.strip():
+                continue
+            where = Span(self.name, n)
+            row = files.json_value(line, where)
+            if not isinstance(row, dict) or not isinstance(row.get("topic"), str) or \
+                    not isinstance(row.get("msg"), dict) or "time" not in row:
+                raise ParseError('not a message line (expected {"topic": "…", "time": '
+                                 'seconds, "msg": {…}})', where)
+            try:
+                valid = to_ns(row["time"])
+                available = to_ns(row.get("available", row["time"]), "available time")
+                msg = _floats(row["msg"])
+            except DkError as exc:
+                raise ParseError(f"not a message line ({exc})", where) from None
+            except RecursionError:
+                raise ParseError("message nested too deeply", where) from None
+            yield row["topic"], available, valid, msg
 
     def close(self) -> None:
         pass

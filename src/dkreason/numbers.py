@@ -1,0 +1,57 @@
+"""Numbers from outside — times, durations, JSON values — made exact, finite and bounded.
+
+A time or duration is kept exact (0.1 is 1/10, as written).  Converting an unbounded decimal
+exactly can take forever (`1e999999999` has a billion digits), so a time must lie within
+10**19 (epoch nanoseconds fit) and carry at most 60 decimal places; NaN and infinities are
+not times.  A data value that is NaN or infinite is unknown (`datum`), never compared.
+"""
+
+from __future__ import annotations
+
+import math
+from decimal import Decimal, InvalidOperation
+from fractions import Fraction
+from typing import Any
+
+from .errors import DkError
+
+MAX_ADJUSTED = 18  # a time's largest decimal exponent
+MIN_EXPONENT = -60  # a time's finest decimal place
+
+
+def exact(value: Any, what: str = "time") -> Fraction:
+    """`value` (int, float, Decimal, Fraction or decimal text) as an exact Fraction."""
+    if isinstance(value, bool) or value is None:
+        raise DkError(f"{what} must be a number, not {value!r}")
+    if isinstance(value, int | Fraction):
+        if abs(value) >= 10 ** (MAX_ADJUSTED + 1):
+            raise DkError(f"{what} {_short(value)} is out of range")
+        return Fraction(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise DkError(f"{what} must be finite, not {value}")
+        value = Decimal(repr(value))
+    elif isinstance(value, str):
+        try:
+            value = Decimal(value.strip())
+        except (InvalidOperation, ValueError):
+            raise DkError(f"{what} must be a number, not {_short(value)!r}") from None
+    if not isinstance(value, Decimal):
+        raise DkError(f"{what} must be a number, not {_short(value)!r}")
+    if not value.is_finite():
+        raise DkError(f"{what} must be finite, not {value}")
+    exponent = value.as_tuple().exponent
+    if value and (value.adjusted() > MAX_ADJUSTED or
+                  (isinstance(exponent, int) and exponent < MIN_EXPONENT)):
+        raise DkError(f"{what} {_short(value)} is out of range or finer than 1e{MIN_EXPONENT}")
+    return Fraction(value)
+
+
+def datum(value: Any) -> Any:
+    """A sample value as compared: NaN and infinities are unknown (None)."""
+    return None if isinstance(value, float) and not math.isfinite(value) else value
+
+
+def _short(value: Any) -> str:
+    text = str(value)
+    return text if len(text) <= 40 else text[:20] + "…" + text[-10:]

@@ -1,0 +1,353 @@
+"""Hostile and careless input, one regression test per defect of issue 12: every bad input is
+one line and exit 2 (or a result), never a traceback, a hang or unbounded memory."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from dkreason.cli import main
+from dkreason.errors import ParseError
+from dkreason.live import wire
+from dkreason.parse.formula import parse_formula
+from dkreason.parse.owl import parse_ontology
+from dkreason.progress import Progressor
+
+from .conftest import entity_bomb
+
+REPO = Path(__file__).resolve().parents[1]
+SINGLE = REPO / "examples" / "single.toml"
+
+
+def one_line_error(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
+    """Run the CLI in-process; it must exit 2 with exactly one line on stderr."""
+    code = main(list(argv))
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith(("error: ", "dkreason")), err
+    return err
+
+
+def rows(path: Path, lines: list[str | bytes]) -> Path:
+    path.write_bytes(b"".join((x if isinstance(x, bytes) else x.encode()) + b"\n"
+                              for x in lines))
+    return path
+
+
+# ---- 5. live payloads ----------------------------------------------------------------------
+
+@pytest.mark.parametrize("payload", [b"[" * 30000, b'{"valid": 1, "msg": {"x": ' +
+                                     b"9" * 5000 + b"}}", bytes([0x80, 0x81]),
+                                     b'{"valid": 1, "msg": ' + b'{"a":' * 5000 + b"1" +
+                                     b"}" * 5001])
+def test_a_bad_payload_is_a_wire_error(payload):
+    with pytest.raises(wire.WireError):
+        wire.topic_message(payload, "platform2/topic3")
+    with pytest.raises(wire.WireError):
+        wire.decode(payload, wire.MAX_KNOWLEDGE, "platform2's objects")
+
+
+def test_a_string_sample_value_is_an_error_and_nan_is_unknown(tmp_path, capsys):
+    source = rows(tmp_path / "r.jsonl", [
+        json.dumps({"topic": "topic3", "time": t, "msg": {"id": 1, "spd": 50}})
+        for t in range(3)] + ['{"topic": "topic3", "time": 3, "msg": {"id": 1, "spd": NaN}}',
+                              '{"topic": "topic3", "time": 4, "msg": {"id": 1, "spd": "far"}}'])
+    code = main(["monitor", "--config", str(SINGLE), "--source", str(source), "--json",
+                 "always (Speed[car1] >= 0)"])
+    out = capsys.readouterr()
+    assert code == 2 and "str 'far' is not a number or boolean" in out.err
+    assert out.err.count("\n") == 1 and '"verdict": false' not in out.out
+
+
+def test_nan_in_a_sample_is_unknown_not_a_violation(tmp_path, capsys):
+    source = rows(tmp_path / "r.jsonl", [
+        json.dumps({"topic": "topic3", "time": t, "msg": {"id": 1, "spd": 50}})
+        for t in range(3)] + ['{"topic": "topic3", "time": 3, "msg": {"id": 1, "spd": NaN}}',
+                              '{"topic": "topic3", "time": 4, "msg": {"id": 1, "spd": '
+                              'Infinity}}'])
+    code = main(["monitor", "--config", str(SINGLE), "--source", str(source), "--json",
+                 "always (Speed[car1] >= 0)"])
+    verdicts = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert code == 3 and verdicts[-1]["verdict"] is None
+
+
+def test_an_unhashable_id_matches_no_object(tmp_path, capsys):
+    source = rows(tmp_path / "r.jsonl", [
+        '{"topic": "topic3", "time": 0, "msg": {"id": [1], "spd": 50}}',
+        '{"topic": "topic3", "time": 1, "msg": {"id": 1, "spd": 50}}'])
+    assert main(["monitor", "--config", str(SINGLE), "--source", str(source), "--json",
+                 "always (Speed[car1] >= 0)"]) == 0
+
+
+# ---- 6. the compiled progressor takes formulas of any size ---------------------------------
+
+def test_hundreds_of_conjuncts_under_a_temporal_operator():
+    formula = "always (" + " and ".join(f"X[a{i}] > {i}" for i in range(400)) + ")"
+    progressor = Progressor()
+    progressor.add(formula)
+    assert progressor.step(0, {f"X[a{i}]": i + 1 for i in range(400)}) == []
+    (verdict,) = progressor.step(1, {f"X[a{i}]": i for i in range(400)})
+    assert verdict.verdict is False
+
+
+def test_a_forall_over_hundreds_of_objects_compiles():
+    progressor = Progressor(objects=lambda sort: [f"car{i}" for i in range(303)])
+    progressor.add("forall c in Car: always (Speed[c] > 0)")
+    (verdict,) = progressor.step(0, {f"Speed[car{i}]": -1 for i in range(303)})
+    assert verdict.verdict is False
+
+
+def test_an_infinite_literal_compiles():
+    progressor = Progressor()
+    progressor.add("always (X[a] < 1e309)")
+    assert progressor.step(0, {"X[a]": 5.0}) == []
+    (verdict,) = progressor.finish()
+    assert verdict.verdict is True
+
+
+# ---- 7. formula parser ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("formula", [
+    "not " * 1000 + "P[a]", "(not " * 1000 + "P[a]" + ")" * 1000,
+    "always " * 600 + "P[a]", "X[a] > " + "9" * 4400, "always[٣,٤] P[a]",
+    "always[0, " + "1" * 5000 + "] P[a]", "P[a] -> " * 1000 + "P[a]"])
+def test_formulas_past_the_limits_are_parse_errors(formula):
+    with pytest.raises(ParseError):
+        parse_formula(formula)
+
+
+def test_a_long_flat_conjunction_and_redundant_parentheses_are_not_too_deep():
+    parse_formula(" and ".join(f"P[a{i}]" for i in range(5000)))
+    parse_formula("(" * 1000 + "X[a] > 1" + ")" * 1000)
+
+
+def test_deep_formula_on_the_cli_is_one_line(capsys):
+    one_line_error(capsys, "match", "--config", str(SINGLE), "not " * 1000 + "P[a]")
+    one_line_error(capsys, "progress", "--states", str(REPO / "tests/data/thesis-states.jsonl"),
+                   "not " * 1000 + "P[a]")
+
+
+# ---- 8. JSONL recordings and state files ---------------------------------------------------
+
+BAD_LINES = {
+    "non-UTF-8": bytes([0x7b, 0xff, 0x7d]),
+    "deep": "[" * 100_000,
+    "long number": '{"topic": "topic3", "time": ' + "9" * 5000 + ', "msg": {}}',
+    "topic list": '{"topic": ["topic3"], "time": 1, "msg": {"id": 1, "spd": 2}}',
+    "huge time": '{"topic": "topic3", "time": 1e999999999, "msg": {"id": 1, "spd": 2}}',
+    "tiny time": '{"topic": "topic3", "time": 1e-999999999, "msg": {"id": 1, "spd": 2}}',
+    "nan time": '{"topic": "topic3", "time": NaN, "msg": {"id": 1, "spd": 2}}',
+    "deep msg": '{"topic": "topic3", "time": 1, "msg": ' + '{"a":' * 900 + "1" + "}" * 901,
+}
+
+
+@pytest.mark.parametrize("bad", BAD_LINES.values(), ids=BAD_LINES.keys())
+def test_a_bad_recording_line_keeps_the_lines_before_it(tmp_path, capsys, bad):
+    good = [json.dumps({"topic": "topic3", "time": t, "msg": {"id": 1, "spd": 70 if t < 3
+                                                               else 10}}) for t in range(6)]
+    source = rows(tmp_path / "r.jsonl", [*good, bad, good[0]])
+    code = main(["monitor", "--config", str(SINGLE), "--source", str(source), "--json",
+                 "always (Speed[car1] > 50)"])
+    out = capsys.readouterr()
+    assert code == 2 and out.err.count("\n") == 1 and "r.jsonl:7" in out.err
+    assert '"verdict": false' in out.out  # decided on the lines before the damage
+
+
+STATE_LINES = {
+    "non-UTF-8": bytes([0x7b, 0xff, 0x7d]),
+    "deep": "[" * 100_000,
+    "long number": '{"time": 1, "values": {"P[a]": ' + "9" * 5000 + "}}",
+    "string value": '{"time": 1, "values": {"P[a]": "yes"}}',
+    "object value": '{"time": 1, "values": {"P[a]": {"x": 1}}}',
+    "huge time": '{"time": 1e999999999, "values": {}}',
+    "string time": '{"time": "1e999999999", "values": {}}',
+}
+
+
+@pytest.mark.parametrize("bad", STATE_LINES.values(), ids=STATE_LINES.keys())
+def test_a_bad_state_line_is_one_line(tmp_path, capsys, bad):
+    states = rows(tmp_path / "s.jsonl", ['{"time": 0, "values": {"P[a]": true}}', bad])
+    err = one_line_error(capsys, "progress", "--states", str(states), "always P[a]")
+    assert "s.jsonl:2" in err
+
+
+def test_nan_in_a_state_is_unknown(tmp_path, capsys):
+    states = rows(tmp_path / "s.jsonl", ['{"time": 0, "values": {"X[a]": 1}}',
+                                         '{"time": 1, "values": {"X[a]": NaN}}'])
+    assert main(["progress", "--states", str(states), "always (X[a] > 0)"]) == 3
+
+
+# ---- 9. config, ontology and command-line values -------------------------------------------
+
+def config_with(tmp_path: Path, body: str) -> Path:
+    shutil.copy(REPO / "ontologies" / "platform1.owl", tmp_path / "p1.owl")
+    path = tmp_path / "c.toml"
+    path.write_text(body)
+    return path
+
+
+@pytest.mark.parametrize("body", [
+    'local = "p"\n[platforms.p]\nontology = "p1\\u0000.owl"\n',
+    'rules = ' + "[" * 5000 + "]" * 5000 + '\n[platforms.p]\nontology = "p1.owl"\n',
+    'mappings = 5\n[platforms.p]\nontology = "p1.owl"\n',
+    'local = "p"\n[platforms.p]\nontology = "p1\\n.owl"\n',
+])
+def test_bad_configs_are_one_line(tmp_path, capsys, body):
+    one_line_error(capsys, "match", "--config", str(config_with(tmp_path, body)), "P[a]")
+
+
+TTL = """@prefix : <http://ex.org/o#> . @prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix xsd: <http://www.w3.org/2001/XMLSchema#> .
+:Car a owl:Class . {extra}
+"""
+
+
+@pytest.mark.parametrize("extra", [
+    ":car" + "1" * 5000 + " a :Car .",
+    ':car1 a :Car ; :id "abc"^^xsd:integer .',
+])
+def test_odd_individuals(tmp_path, capsys, extra):
+    (tmp_path / "o.ttl").write_text(TTL.replace("{extra}", extra))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.ttl"\n')
+    code = main(["match", "--config", str(tmp_path / "c.toml"), "forall c in Car: true"])
+    err = capsys.readouterr().err
+    assert code in (0, 2) and err.count("\n") <= 1 and "Traceback" not in err
+    if "abc" in extra:
+        assert code == 2 and "not a valid integer" in err
+
+
+@pytest.mark.parametrize("argv", [
+    ["serve", "--config", str(SINGLE), "--speed", "inf"],
+    ["serve", "--config", str(SINGLE), "--speed", "nan"],
+    ["serve", "--config", str(SINGLE), "--origin", "nan"],
+    ["serve", "--config", str(SINGLE), "--heartbeat", "nan"],
+    ["monitor", "--config", str(SINGLE), "--live", "--wait", "nan", "P[a]"],
+    ["monitor", "--config", str(SINGLE), "--source", "x.jsonl", "--max-age", "1e999999999",
+     "P[a]"],
+])
+def test_bad_numbers_on_the_command_line(capsys, argv):
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and err.count("\n") == 1
+
+
+def test_plot_into_a_missing_directory_is_refused_before_the_run(tmp_path, capsys):
+    source = rows(tmp_path / "r.jsonl", ['{"topic": "topic3", "time": 0, "msg": '
+                                         '{"id": 1, "spd": 1}}'])
+    one_line_error(capsys, "monitor", "--config", str(SINGLE), "--source", str(source),
+                   "--plot", str(tmp_path / "no" / "x.png"), "Speed[car1] > 0")
+
+
+def test_a_malformed_zenoh_config_is_one_line(tmp_path, capsys):
+    (tmp_path / "z.json5").write_text('{ mode: "peer", bad bad\n')
+    err = one_line_error(capsys, "monitor", "--live", "--config", str(SINGLE),
+                         "--zenoh-config", str(tmp_path / "z.json5"), "P[a]")
+    assert "z.json5:1:" in err
+
+
+# ---- 10. devices, FIFOs, huge files --------------------------------------------------------
+
+@pytest.mark.parametrize("what", ["ontology", "specs", "mapping", "config", "states", "zenoh"])
+def test_a_device_is_refused_at_once(tmp_path, capsys, what):
+    zero = "/dev/zero"
+    cfg = config_with(tmp_path, "")
+    mapping = tmp_path / "m.toml"
+    text = {"ontology": f'[platforms.p]\nontology = "{zero}"\n',
+            "specs": f'[platforms.p]\nontology = "p1.owl"\nspecs = "{zero}.sslt"\n',
+            "mapping": f'local = "p"\n[platforms.p]\nontology = "p1.owl"\n[platforms.q]\n'
+                       f'ontology = "p1.owl"\n[[mappings]]\nsource = "p"\ntarget = "q"\n'
+                       f'file = "{zero}"\n'}.get(what, '[platforms.p]\nontology = "p1.owl"\n')
+    if what == "specs":
+        os.symlink(zero, tmp_path / "zero.sslt")
+        text = text.replace(f"{zero}.sslt", "zero.sslt")
+    cfg.write_text(text)
+    mapping.write_text("")
+    if what == "config":
+        err = one_line_error(capsys, "match", "--config", zero, "P[a]")
+    elif what == "states":
+        err = one_line_error(capsys, "progress", "--states", zero, "P[a]")
+    elif what == "zenoh":
+        err = one_line_error(capsys, "monitor", "--live", "--config", str(cfg),
+                             "--zenoh-config", zero, "P[a]")
+    else:
+        err = one_line_error(capsys, "match", "--config", str(cfg), "P[a]")
+    assert "not a regular file" in err
+
+
+def test_a_fifo_is_refused_not_waited_on(tmp_path, capsys):
+    os.mkfifo(tmp_path / "o.owl")
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.owl"\n')
+    assert "not a regular file" in one_line_error(capsys, "match", "--config",
+                                                  str(tmp_path / "c.toml"), "P[a]")
+
+
+def test_a_huge_line_is_refused_in_bounded_memory(tmp_path, capsys):
+    path = tmp_path / "sparse.jsonl"
+    with path.open("wb") as out:
+        out.truncate(64 * 1024 * 1024)  # sparse: 64 MiB of NUL bytes, no newline
+    assert "line longer than" in one_line_error(
+        capsys, "monitor", "--config", str(SINGLE), "--source", str(path), "Speed[car1] > 0")
+
+
+def test_a_file_over_the_input_limit_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("DKREASON_MAX_INPUT", "1K")
+    assert "larger than 1024 bytes" in one_line_error(capsys, "match", "--config", str(SINGLE),
+                                                      "Speed[car1] > 0")
+
+
+# ---- 11. no external fetch in any RDF syntax -----------------------------------------------
+
+@pytest.mark.parametrize("context", ["http://127.0.0.1:9/ctx.jsonld", "file:///etc/passwd",
+                                     ["x.jsonld", {"@vocab": "http://ex.org/"}]])
+def test_json_ld_names_no_context_to_fetch(context):
+    doc = json.dumps({"@context": context, "@id": "http://ex.org/a", "@type": "Car"})
+    with pytest.raises(ParseError, match="refused"):
+        parse_ontology(doc.encode(), "o.jsonld", "p")
+
+
+def test_json_ld_with_an_inline_context_is_read():
+    doc = {"@context": {"@vocab": "http://ex.org/o#"}, "@id": "http://ex.org/o#car1",
+           "@type": "Car"}
+    ontology = parse_ontology(json.dumps(doc).encode(), "o.jsonld", "p")
+    assert "http://ex.org/o#car1" in ontology.individuals
+
+
+def test_trix_goes_through_the_xml_hardening():
+    with pytest.raises(ParseError, match="refused|malformed"):
+        parse_ontology(entity_bomb("TriX").encode(), "o.trix", "p")
+    external = ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
+                '<TriX>&x;</TriX>')
+    with pytest.raises(ParseError, match="refused"):
+        parse_ontology(external.encode(), "o.trix", "p")
+
+
+def test_a_peer_cannot_choose_the_parser():
+    """The wire fixes Turtle: an RDF/XML reply named .owl is not read as XML."""
+    xml = (REPO / "ontologies" / "platform1.owl").read_bytes()
+    with pytest.raises(ParseError):
+        parse_ontology(xml, "dkreason/p/ontology/p1.owl", "p", fmt="turtle")
+
+
+# ---- 13. bounded expansion -----------------------------------------------------------------
+
+def test_nested_quantifiers_past_the_bound_are_one_line(capsys):
+    formula = "".join(f"forall x{i} in UAV: " for i in range(20)) + \
+        " and ".join(f"Altitude[x{i}] > 0" for i in range(20))
+    states = str(REPO / "tests/data/thesis-states.jsonl")
+    err = one_line_error(capsys, "progress", "--config", str(SINGLE), "--states", states,
+                         formula)
+    assert "more than the 100000" in err
+
+
+def test_no_traceback_from_the_installed_command(tmp_path):
+    """The console script itself: one line on stderr, exit 2."""
+    done = subprocess.run([sys.executable, "-m", "dkreason.cli", "match", "--config",
+                           "/dev/zero", "P[a]"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
