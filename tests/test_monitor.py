@@ -250,7 +250,8 @@ def test_a_truncated_recording_still_gives_what_was_decided_before_the_damage(ca
     assert code == 2
     assert lines[0]["verdict"] is False and lines[0]["time"] == 3
     assert lines[-1]["error"].count("\n") == 1  # the note about reading sequentially, the error
-    assert f"error: {bag}: damaged recording after" in lines[-1]["error"]
+    assert f"error: {bag}: damaged recording: the file ends in the middle of a record" \
+        in lines[-1]["error"] and "messages before it were monitored" in lines[-1]["error"]
 
 
 @pytest.mark.parametrize("content", [b"not a bag at all", b""])

@@ -14,6 +14,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
+from .errors import DkError
 from .manager import KnowledgeManager
 from .model import FeatureRequest, StreamRequest
 from .progress import Progressor, Verdict
@@ -46,6 +47,10 @@ class Monitor:
 
         try:
             processor = StreamProcessor(self.request, self.policy, source, on_state, out.append)
+        except BaseException:
+            source.close()
+            raise
+        try:
             feed = processor.feed
             for n, (topic, available, valid, values) in enumerate(
                     source.messages(processor.wanted), 1):
@@ -55,6 +60,10 @@ class Monitor:
                     out.clear()
                 if progress is not None and not n & 4095:
                     progress(n)
+        except DkError:  # damage or bad data: first what the messages before it decided
+            processor.finish()
+            yield from out
+            raise
         finally:
             source.close()
         processor.finish()

@@ -44,7 +44,7 @@ def compile_extractor(fielddefs: Mapping[str, Any], msgtype: str, fields: Sequen
     if not ros1:
         head.append("    if raw[1] != 1:\n        return None  # big-endian CDR")
     body = "\n".join([*head, f"    o = {0 if ros1 else 4}", *lines,
-                      f"    return ({', '.join(f'v{n}' for n in range(len(fields)))},)"])
+                      f"    return ({''.join(f'v{n}, ' for n in range(len(fields)))})"])
     scope: dict[str, Any] = {}
     import struct
 

@@ -97,14 +97,20 @@ class RosbagSource:
         fielddefs = self.reader.typestore.fielddefs
         readers = {id(c): _ros_reader(fielddefs, c.msgtype, wanted[c.topic], not self.reader.is2,
                                       self.reader.deserialize) for c in connections}
+        n = 0
         try:
             for connection, t_ns, raw in self.reader.messages(connections=connections):
                 read, stamped = readers[id(connection)]
                 values = read(raw)
                 valid = values[-2] * NS + values[-1] if stamped else t_ns
+                n += 1
                 yield connection.topic, t_ns, valid, values
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
-            raise DkError(f"{self.name}: damaged recording ({_why(exc)})") from None
+            from .damaged import DamagedRecording
+
+            raise DamagedRecording(f"{self.name}: damaged recording ({_why(exc)}); {n} "
+                                   f"messages before it were monitored, the rest is lost") \
+                from None
 
     def records(self) -> Iterator[Record]:
         """Every message in full, as plain data (what a live platform node publishes)."""
@@ -294,103 +300,22 @@ class PushSource:
                 yield topic, available, valid, read(topic, valid, msg)
 
 
-class McapStreamSource:
-    """An MCAP file whose index is damaged (a recording cut off mid-write): read it record by
-    record, so every message before the damage is used, then say where it broke."""
-
-
-    def __init__(self, path: Path, msg_files: Sequence[Path] = ()) -> None:
-        self.name, self.path = str(path), path
-        self.note = f"{path}: index damaged or missing, reading the recording sequentially"
-        self.store = _typestore(msg_files, ros1=False)
-        self.channels: dict[int, tuple[str, str]] = {}  # id → topic, msgtype
-        self._scan_types()
-
-    def _records(self) -> Iterator[Any]:
-        from mcap.stream_reader import StreamReader
-
-        with self.path.open("rb") as handle:
-            yield from StreamReader(handle).records
-
-    def _learn(self, record: Any, schemas: dict[int, str]) -> None:
-        from mcap.records import Channel, Schema
-        from rosbags.typesys import get_types_from_msg
-
-        if isinstance(record, Schema) and record.encoding == "ros2msg":
-            schemas[record.id] = record.name
-            try:
-                self.store.register(get_types_from_msg(record.data.decode(), record.name))
-            except Exception as exc:
-                raise DkError(f"{self.name}: message definition {record.name} unreadable "
-                              f"({_why(exc)})") from None
-        elif isinstance(record, Channel) and record.schema_id in schemas:
-            self.channels[record.id] = (record.topic, schemas[record.schema_id])
-
-    def _scan_types(self) -> None:
-        from mcap.records import Message as McapMessage
-
-        schemas: dict[int, str] = {}
-        try:
-            for record in self._records():
-                if isinstance(record, McapMessage) and self.channels:
-                    break
-                self._learn(record, schemas)
-        except Exception as exc:
-            if not self.channels:
-                raise DkError(f"{self.name}: not a readable ROS recording ({_why(exc)})") \
-                    from None
-
-    def types(self) -> dict[str, str]:
-        return dict(self.channels.values())
-
-    def check_field(self, topic: str, field: str) -> str | None:
-        msgtype = self.types().get(topic)
-        return None if msgtype is None else fields.check(self.store.fielddefs, msgtype, field)
-
-    def count(self, topics: set[str] | None) -> int | None:
-        return None
-
-    def close(self) -> None:
-        pass
-
-    def messages(self, wanted: Wanted) -> Iterator[Message]:
-        from mcap.records import Message as McapMessage
-
-        schemas: dict[int, str] = {}
-        readers: dict[int, tuple[Any, bool]] = {}
-        n = 0
-        try:
-            for record in self._records():
-                if not isinstance(record, McapMessage):
-                    self._learn(record, schemas)
-                    continue
-                topic, msgtype = self.channels.get(record.channel_id, ("", ""))
-                if topic not in wanted:
-                    continue
-                if record.channel_id not in readers:
-                    readers[record.channel_id] = _ros_reader(
-                        self.store.fielddefs, msgtype, wanted[topic], False,
-                        self.store.deserialize_cdr)
-                read, stamped = readers[record.channel_id]
-                values = read(record.data)
-                valid = values[-2] * NS + values[-1] if stamped else record.log_time
-                n += 1
-                yield topic, record.log_time, valid, values
-        except Exception as exc:
-            why = "the file ends in the middle of a record" if type(exc).__name__ == \
-                "EndOfFile" else _why(exc)
-            raise DkError(f"{self.name}: damaged recording after {n} messages ({why})") \
-                from None
-
-
 def open_source(path: Path, msg_files: Sequence[Path] = ()) -> Source:
+    """The source for `path`; a recording whose index or metadata rosbags cannot read is read
+    sequentially up to its damage (stream/damaged.py)."""
+    from .damaged import SequentialSource, declared_size, kind_of
+
     if path.suffix == ".jsonl" or path.suffix == ".json" or str(path) == "-":
         return JsonlSource(path)
+    found = kind_of(path) if path.exists() else None
+    if found is not None and found[0] == "db3" and declared_size(found[1]) > \
+            found[1].stat().st_size:  # SQLite would read a cut file without a word
+        return SequentialSource(found[1], "db3", msg_files, "the file is shorter than its "
+                                "header says (cut off)")
     try:
         return RosbagSource(path, msg_files)
-    except DkError:
-        mcap = path if path.suffix == ".mcap" else next(iter(sorted(path.glob("*.mcap"))), None) \
-            if path.is_dir() else None
-        if mcap is None:
+    except DkError as exc:
+        if found is None:
             raise
-        return McapStreamSource(mcap, msg_files)
+        why = str(exc).removeprefix(f"{path}: ")
+        return SequentialSource(found[1], found[0], msg_files, why)
