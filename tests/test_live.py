@@ -459,3 +459,55 @@ def test_a_platform_removed_and_added_again_matches_as_before(federation_km: Kno
     assert _request(kb, SPEEDING) == before
     with pytest.raises(DkError, match="local platform"):
         kb.remove_platform("platform1")
+
+
+def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path):
+    """A node signs with --sign; a monitor given its key with --trust rejects and counts what
+    anyone else puts on the node's keys, and keeps the signed verdict."""
+    from cryptography.hazmat.primitives import serialization
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+    from dkreason.live.wire import open_session
+
+    key = Ed25519PrivateKey.generate()
+    (tmp_path / "p1.pem").write_bytes(key.private_bytes(
+        serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+        serialization.NoEncryption()))
+    (tmp_path / "p1.pub.pem").write_bytes(key.public_key().public_bytes(
+        serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo))
+    (tmp_path / "keys.toml").write_text('platform1 = "p1.pub.pem"\n')
+    (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    port = free_port()
+    monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
+                          "--listen", f"tcp/127.0.0.1:{port}", "--until", "3", "--json",
+                          "--trust", str(tmp_path / "keys.toml"), "always (Speed[car1] < 100)")
+    events, seen = lines_of(monitor), []
+    node = procs.start("serve", "--config", str(REPO / "examples" / "live" / "platform1.toml"),
+                       "--connect", f"tcp/127.0.0.1:{port}", "--source", "-",
+                       "--sign", str(tmp_path / "p1.pem"), stdin=subprocess.PIPE)
+    wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
+    rogue = open_session([f"tcp/127.0.0.1:{port}"], [])
+    try:
+        time.sleep(1)  # the subscription's declaration reaches the rogue session
+        for t in range(3):  # an injector on the node's own key, unsigned and forged
+            rogue.put("dkreason/platform1/topic/topic3", json.dumps(
+                {"valid": t * 10**9, "msg": {"id": 1, "spd": 500.0}}).encode())
+            rogue.put("dkreason/platform1/topic/topic3", json.dumps(
+                {"valid": t * 10**9, "msg": {"id": 1, "spd": 501.0}}).encode(),
+                attachment=b"\0" * 64)
+        assert node.stdin is not None
+        for t in range(6):
+            node.stdin.write(json.dumps({"topic": "/platform1/topic3", "time": t,
+                                         "msg": {"id": 1, "spd": 50.0 + t}}) + "\n")
+            node.stdin.flush()
+        assert monitor.wait(timeout=30) == 0
+    finally:
+        rogue.close()
+    node.stdin.close()
+    while (event := events.get(timeout=5)) is not None:
+        seen.append(event)
+    (verdict,) = [e for e in seen if "verdict" in e]
+    assert verdict["verdict"] is True
+    assert monitor.stderr is not None
+    log = monitor.stderr.read()
+    assert "unsigned sample" in log and "bad signature" in log and "Traceback" not in log

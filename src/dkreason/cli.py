@@ -84,6 +84,9 @@ def _build() -> _Parser:
     p.add_argument("--wait", type=_positive, default=10.0,
                    help="live: seconds to wait for the local platform (default 10)")
     p.add_argument("--until", type=_seconds, help="live: stop when the stream clock passes it")
+    p.add_argument("--trust", type=Path, metavar="KEYS",
+                   help="live: TOML of platform = Ed25519 public key (PEM); their samples "
+                        "must be signed (`serve --sign`)")
     p.add_argument("--duration", type=_positive, help="live: stop after this many wall seconds")
     p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
                    help="pkg/msg/Name.msg definitions for recordings that carry none")
@@ -119,6 +122,8 @@ def _build() -> _Parser:
     p.add_argument("--speed", type=_positive, default=1.0, help="replay speed factor (default 1)")
     p.add_argument("--heartbeat", type=_positive, default=0.02,
                    help="seconds between clock messages (default 0.02)")
+    p.add_argument("--sign", type=Path, metavar="KEY",
+                   help="sign every sample with this Ed25519 private key (PEM)")
     p.set_defaults(run=_serve)
 
     p = sub.add_parser("explain", help="why each topic matched, or why one did not")
@@ -268,6 +273,7 @@ def _interrupt(*_: object) -> None:
 
 
 def _serve(args: argparse.Namespace) -> int:
+    from .live import wire
     from .live.serve import PlatformNode
     from .stream.sources import open_source
 
@@ -277,8 +283,9 @@ def _serve(args: argparse.Namespace) -> int:
     records = getattr(source, "records", None)
     if source is not None and records is None:
         raise DkError(f"{source.name}: a damaged recording cannot be replayed live")
+    sign = wire.signer(args.sign) if args.sign is not None else None
     session = _session(args)
-    node = PlatformNode(km, session, args.heartbeat)
+    node = PlatformNode(km, session, args.heartbeat, sign)
     print(f"serving {km.local}: {len(km.list_topics())} topic specification(s)", flush=True)
     _on_signals(_interrupt)
     try:
@@ -345,14 +352,16 @@ def _monitor(args: argparse.Namespace) -> int:
 
 def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
     from .live.monitor import Change, LiveMonitor
+    from .live.wire import trusted_keys
     from .progress import Verdict
 
     if args.source is not None or args.plot is not None:
         raise DkError("--live takes no --source and no --plot")
     _logging()
+    trust = trusted_keys(args.trust) if args.trust is not None else None
     session = _session(args)
     try:
-        monitor = LiveMonitor(args.config, args.formulas, policy, session, args.wait)
+        monitor = LiveMonitor(args.config, args.formulas, policy, session, args.wait, trust=trust)
         _on_signals(lambda *_: monitor.stop.set())
         verdicts, violations = [], 0
         for event in monitor.run(args.until, args.duration):

@@ -105,7 +105,10 @@ def _logged(n: int) -> bool:
 
 class LiveMonitor:
     def __init__(self, config: Path, formulas: list[str], policy: StreamPolicy, session: Any,
-                 wait: float = 10.0, ask_timeout: float = 3.0) -> None:
+                 wait: float = 10.0, ask_timeout: float = 3.0,
+                 trust: dict[str, Any] | None = None) -> None:
+        """`trust`: platform → Ed25519 public key (wire.trusted_keys); the samples of those
+        platforms must be signed by it."""
         from ..parse.cowl import read_bridge_rules
         from ..parse.formula import parse_formula
         from ..parse.owl import read_ontology
@@ -116,6 +119,7 @@ class LiveMonitor:
         self.config = read_config(config)
         self.formulas, self.policy, self.session = formulas, policy, session
         self.wait, self.ask_timeout = wait, ask_timeout
+        self.trust = trust or {}
         self.names = {p.name for p in self.config.platforms}
         self.known: dict[str, Platform] = {}  # knowledge at hand, before the KB exists
         self.digests: dict[str, str] = {}  # of the ontology each platform served
@@ -311,7 +315,7 @@ class LiveMonitor:
             return []
         try:
             if kind == "sample":
-                self._sample(p, event[2], event[3])
+                self._sample(p, event[2], event[3], event[4])
             elif kind == "alive":
                 return self._alive(p) if event[2] else self._left(p)
             elif kind == "changed" and p in self.present:
@@ -343,9 +347,11 @@ class LiveMonitor:
         if _logged(n):
             log.warning("rejected %s from %s (%s, %d so far): %s", what, p, kind, n, why)
 
-    def _sample(self, p: str, topic: str, payload: bytes) -> None:
+    def _sample(self, p: str, topic: str, payload: bytes, signature: bytes | None) -> None:
         if p not in self.present or (p, topic) not in self.subs:
             return  # in flight when its subscription was dropped
+        if p in self.trust:
+            wire.verify(self.trust[p], wire.key(p, "topic", topic), payload, signature)
         name = f"{p}/{topic}"
         available, valid, msg = wire.topic_message(payload, name)
         if msg is not None and (self.end is None or valid <= self.end):
@@ -449,7 +455,8 @@ class LiveMonitor:
                 self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
                     wire.key(q, "topic", t), lambda s, q=q, t=t: self.events.put(
-                        ("sample", q, t, s.payload.to_bytes())))
+                        ("sample", q, t, s.payload.to_bytes(),
+                         None if s.attachment is None else s.attachment.to_bytes())))
                 changes.append(Change("subscribed", now, q, feature=key, topic=t))
         for (q, t) in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()

@@ -28,8 +28,10 @@ log = logging.getLogger("dkreason.live")
 
 
 class PlatformNode:
-    def __init__(self, km: KnowledgeManager, session: Any, heartbeat: float = 0.02) -> None:
-        self.km, self.session = km, session
+    def __init__(self, km: KnowledgeManager, session: Any, heartbeat: float = 0.02,
+                 sign: Any = None) -> None:
+        """`sign`: (key expression, payload) → signature (wire.signer), or None."""
+        self.km, self.session, self.sign = km, session, sign
         self.name = km.local
         self.heartbeat = heartbeat
         self.lock = threading.RLock()  # orders samples before the clock that covers them
@@ -145,14 +147,21 @@ class PlatformNode:
         return pub
 
     def _put(self, topic: str, available: int, valid: int, msg: Any) -> None:
-        self._publisher(topic).put(wire.encode({"valid": valid, "available": available,
-                                                "msg": msg}))
+        self._send(topic, wire.encode({"valid": valid, "available": available, "msg": msg}))
+
+    def _send(self, topic: str, payload: bytes) -> None:
+        """Put `payload` on the topic's key, signed when the node has a key."""
+        if self.sign is None:
+            self._publisher(topic).put(payload)
+        else:
+            key_expr = wire.key(self.name, "topic", topic)
+            self._publisher(topic).put(payload, attachment=self.sign(key_expr, payload))
 
     def _clock(self, now: int) -> None:
         """Tell every topic (specified or published) that all of it up to `now` is sent."""
         tick = wire.encode({"clock": now})
         for topic in {*self.km.list_topics(), *self.publishers}:
-            self._publisher(topic).put(tick)
+            self._send(topic, tick)
 
     def feed(self, records: Iterator[Record], watch: float = 0.5) -> None:
         """Publish `records` as they come (a JSON-lines pipe): their times are the clock."""

@@ -1,0 +1,123 @@
+"""Property tests for everything that takes outside input: formulas, SSL_T, specs XML, configs,
+JSON lines and live payloads give a result or one DkError line — never another exception.
+
+Examples are bounded (`max_examples`, sizes) so the suite stays within its time budget; the
+strategies mix valid fragments with hostile ones so both paths are exercised."""
+
+from __future__ import annotations
+
+import string
+from pathlib import Path
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from dkreason.errors import DkError
+from dkreason.live import wire
+from dkreason.parse.config import read_config
+from dkreason.parse.formula import parse_formula
+from dkreason.parse.sslt import parse_text, parse_xml
+from dkreason.progress import Progressor
+from dkreason.progress.states import read_states
+from dkreason.stream.sources import JsonlSource
+
+FAST = settings(max_examples=150, deadline=None,
+                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+
+FORMULA_TOKENS = ["always", "eventually", "next", "historically", "once", "previous", "not",
+                  "and", "or", "->", "<->", "until", "since", "forall x in Car:",
+                  "exists y in UAV:", "(", ")", "[", "]", ",", "0", "1.5", "2e3", "inf", "oo",
+                  "300ms", "2min", "٣", "9" * 50, "X[a]", "P[x]", "Speed[car1]", ">", "<=",
+                  "==", "+", "-", "*", "/", "true", "false", "□", "◇", "∀", "<http://e.org/#A>"]
+
+SSLT_TOKENS = ["topic", "t1", "t2", ":", "Msg", "contains", "Speed", "(", ")", "car1", "=",
+               "msg.spd", "msg.id", "for", "some", "every", "sort", "Car", ",", "as", "a1",
+               "#c\n", "\n", "\r", "\x0c", "hr:Heading", "<http://e.org/#A>", "msg.a[1]"]
+
+JSON_PIECES = ['{"topic": "topic3", "time": 1, "msg": {"id": 1, "spd": 2}}', "{", "}", "[",
+               "]", '"time"', ": ", "1e999999999", "NaN", "Infinity", "-0", '"x"', "null",
+               "true", "9" * 5000, ",", '{"a":', "\xff", "\x00", '"values": {"P[a]": 1}']
+
+
+def _total(call, *args):
+    """`call(*args)` returns or raises DkError — nothing else."""
+    try:
+        return call(*args)
+    except DkError as exc:
+        assert "\n" not in str(exc).strip() or str(exc).count("\n") <= 1
+        return None
+
+
+@FAST
+@given(st.lists(st.sampled_from(FORMULA_TOKENS), max_size=40).map(" ".join))
+def test_formulas(text):
+    formula = _total(parse_formula, text)
+    if formula is not None:
+        progressor = Progressor(objects=lambda sort: ["a", "b"])
+        if _total(progressor.add, text) is None and not progressor.keys:
+            return
+        values = dict.fromkeys(progressor.keys, 1.0)
+        _total(progressor.step, 0, values)
+        _total(progressor.finish)
+
+
+@FAST
+@given(st.lists(st.sampled_from(SSLT_TOKENS), max_size=40).map(" ".join))
+def test_sslt(text):
+    _total(parse_text, text, "f.sslt")
+
+
+XML_PIECES = ['<?xml version="1.0"?>', "<Topic_specs>", "</Topic_specs>", "<Topic_specs/>",
+              '<Topic name="t" msgtype="M">', "</Topic>", '<feature name="F" value="msg.a">',
+              "</feature>", '<object name="o" value="msg.id"/>',
+              '<sort all_objects="true" name="S" value="msg.id"/>', "<!DOCTYPE r [",
+              '<!ENTITY x SYSTEM "file:///etc/passwd">', "]>", "&x;", "&amp;", "<SSL/>"]
+
+
+@FAST
+@given(st.lists(st.sampled_from(XML_PIECES), max_size=20).map("".join))
+def test_specs_xml(text):
+    _total(parse_xml, text.encode(), "f.xml")
+
+
+CONFIG_PIECES = ['local = "p"\n', "[platforms.p]\n", 'ontology = "o.owl"\n',
+                 'specs = "s.sslt"\n', "[[mappings]]\n", 'source = "p"\n', 'target = "q"\n',
+                 'file = "m.xml"\n', "mappings = 5\n", 'rules = ["x.dl"]\n', "rules = [[[]]]\n",
+                 'ontology = "a\\u0000b"\n', "[platforms]\n", "x = {\n", "= 1\n"]
+
+
+@FAST
+@given(st.lists(st.sampled_from(CONFIG_PIECES), max_size=12).map("".join))
+def test_configs(tmp_path_factory, text):
+    path = tmp_path_factory.mktemp("c") / "c.toml"
+    path.write_text(text)
+    _total(read_config, path)
+
+
+@FAST
+@given(st.lists(st.one_of(st.sampled_from(JSON_PIECES), st.text(string.printable, max_size=5)),
+                max_size=12).map("".join))
+def test_json_lines(tmp_path_factory, line):
+    folder = tmp_path_factory.mktemp("j")
+    path = folder / "r.jsonl"
+    path.write_bytes(line.encode("utf-8", "surrogateescape") + b"\n")
+    _total(lambda: list(JsonlSource(path).records()))
+    states = folder / "s.jsonl"
+    states.write_bytes(line.encode("utf-8", "surrogateescape") + b"\n")
+    _total(lambda: list(read_states(states)))
+
+
+@FAST
+@given(st.one_of(st.binary(max_size=200),
+                 st.lists(st.sampled_from(JSON_PIECES), max_size=12).map(
+                     lambda xs: "".join(xs).encode("utf-8", "surrogateescape"))))
+def test_live_payloads(payload):
+    _total(wire.topic_message, payload, "p/t")
+    _total(wire.decode, payload, wire.MAX_SAMPLE, "p/t")
+
+
+def test_the_strategies_reach_valid_input():
+    """The fuzzers are not only testing error paths."""
+    assert parse_formula("always (X[a] > 1)")
+    assert parse_text("topic t1:Msg contains Speed(car1) = msg.spd for car1 = msg.id")
+    assert Path(__file__).exists()
