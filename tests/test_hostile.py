@@ -351,3 +351,18 @@ def test_no_traceback_from_the_installed_command(tmp_path):
     done = subprocess.run([sys.executable, "-m", "dkreason.cli", "match", "--config",
                            "/dev/zero", "P[a]"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 2 and done.stderr.count("\n") == 1
+
+
+# ---- 14. thousands of platform names outside the config ------------------------------------
+
+def test_unknown_platforms_are_named_a_few_times_then_counted(caplog):
+    from types import SimpleNamespace
+
+    from dkreason.live.monitor import LiveMonitor
+
+    monitor = SimpleNamespace(seen_strangers=set(), strangers=0)
+    with caplog.at_level("WARNING", logger="dkreason.live"):
+        for n in range(2000):
+            LiveMonitor._stranger(monitor, f"fake{n}")  # type: ignore[arg-type]
+    assert len(caplog.records) == 10 + 2  # ten named, then a count at 100 and 1000
+    assert len(monitor.seen_strangers) == 10 and monitor.strangers == 2000
