@@ -13,7 +13,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from .errors import DkError
+from .errors import DkError, one_line
 
 if TYPE_CHECKING:
     from .manager import KnowledgeManager
@@ -23,12 +23,6 @@ if TYPE_CHECKING:
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, like every other input error
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
-
-
-def one_line(text: str) -> str:
-    """`text` with line breaks and other control characters escaped: an error is one line."""
-    return text if text.isprintable() else "".join(
-        c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -315,8 +309,7 @@ def _monitor(args: argparse.Namespace) -> int:
                           args.delay, args.start, args.end, args.max_delay, args.ordered,
                           args.unique)
     if args.plot is not None and not args.plot.parent.is_dir():
-        raise DkError(f"--plot {one_line(str(args.plot))}: no such directory "
-                      f"{one_line(str(args.plot.parent))}")
+        raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
     if args.live:
         return _monitor_live(args, policy)
     if args.source is None:

@@ -30,6 +30,12 @@ class Span:
         return self.file
 
 
+def one_line(text: str) -> str:
+    """`text` with line breaks and other control characters escaped: an error is one line."""
+    return text if text.isprintable() else "".join(
+        c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 class DkError(Exception):
     """Base of every error caused by input; `str()` is the one line shown to the user."""
 

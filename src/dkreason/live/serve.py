@@ -20,7 +20,7 @@ from typing import Any
 from ..errors import DkError
 from ..manager import KnowledgeManager
 from ..model import IdValue, TopicSpec
-from ..parse.owl import digest, turtle
+from ..parse.owl import served
 from ..stream.sources import NS, Record
 from . import wire
 
@@ -41,8 +41,8 @@ class PlatformNode:
         self.closed = threading.Event()
         platform = km.kb.platform(self.name)
         ontology = Path(platform.ontology.file)
-        self._ontology = wire.encode({"file": ontology.name, "turtle": turtle(ontology),
-                                      "digest": digest(ontology)})
+        text, digest = served(ontology)
+        self._ontology = wire.encode({"file": ontology.name, "turtle": text, "digest": digest})
         self._answers = {"ontology": lambda: self._ontology, "specs": self._specs,
                          "objects": self._objects}
         self.queryables = [session.declare_queryable(

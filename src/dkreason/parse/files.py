@@ -21,7 +21,7 @@ from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
-from ..errors import DkError, ParseError, Span
+from ..errors import DkError, ParseError, Span, one_line
 
 DEFAULT_MAX_INPUT = 256 * 1024 * 1024
 MAX_LINE = 16 * 1024 * 1024  # bytes of one JSON line (a message or a state)
@@ -43,11 +43,12 @@ def max_input() -> int:
 
 def shown(path: Path | str) -> str:
     """`path` for a one-line message: control characters escaped."""
-    text = str(path)
-    return text if text.isprintable() else repr(text)[1:-1]
+    return one_line(str(path))
 
 
-def _regular(path: Path) -> os.stat_result:
+def regular(path: Path) -> os.stat_result:
+    """`path`'s status, if it is a regular file; else one error line (no such file, a
+    directory, a device, FIFO or socket, a name with a NUL byte)."""
     try:
         info = os.stat(path)
     except FileNotFoundError:
@@ -71,7 +72,7 @@ def _too_big(path: Path, limit: int) -> DkError:
 
 def read_bytes(path: Path) -> bytes:
     limit = max_input()
-    if _regular(path).st_size > limit:
+    if regular(path).st_size > limit:
         raise _too_big(path, limit)
     try:
         with open(path, "rb") as handle:
@@ -100,7 +101,7 @@ def lines(path: Path, name: str) -> Iterator[tuple[int, bytes]]:
     if str(path) == "-":
         handle = sys.stdin.buffer
     else:
-        _regular(path)
+        regular(path)
         try:
             handle = open(path, "rb")  # noqa: SIM115 - closed below, also when abandoned
         except OSError as exc:

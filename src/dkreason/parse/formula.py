@@ -285,10 +285,7 @@ def _balanced(node: Any, depth: int) -> Any:
         raise ParseError(f"formula nested more than {MAX_DEPTH} levels deep", _where(node))
     if isinstance(node, Connective) and node.op in ASSOCIATIVE:
         return chain(node.op, [_balanced(n, depth + 1) for n in _links(node)])
-    if isinstance(node, Compare | Connective | Arith):
-        return replace(node, left=_balanced(node.left, depth + 1),
-                       right=_balanced(node.right, depth + 1))
-    if isinstance(node, Until):
+    if isinstance(node, Compare | Connective | Arith | Until):
         return replace(node, left=_balanced(node.left, depth + 1),
                        right=_balanced(node.right, depth + 1))
     if isinstance(node, Not | Temporal | Neg):

@@ -27,19 +27,16 @@ def read_ontology(path: Path, platform: str) -> Ontology:
     return parse_ontology(read_bytes(path), str(path), platform, path.resolve().as_uri())
 
 
-def turtle(path: Path) -> str:
-    """The ontology at `path` as Turtle, the one syntax a live platform serves (a peer never
-    chooses the parser its monitor runs)."""
-    text: str = _graph(read_bytes(path), str(path), path.resolve().as_uri(), None).serialize(
-        format="turtle")
-    return text
-
-
-def digest(path: Path) -> str:
-    """What tells a returning platform's ontology from the one it served before."""
+def served(path: Path) -> tuple[str, str]:
+    """The ontology at `path` as a live platform serves it: as Turtle (a peer never chooses
+    the parser its monitor runs), and the SHA-256 of the file (what tells a returning
+    platform's ontology from the one it served before)."""
     import hashlib
 
-    return hashlib.sha256(read_bytes(path)).hexdigest()
+    data = read_bytes(path)
+    text: str = _graph(data, str(path), path.resolve().as_uri(), None).serialize(
+        format="turtle")
+    return text, hashlib.sha256(data).hexdigest()
 
 
 SYNTAXES = {"xml", "trix", "turtle", "nt", "nquads", "trig", "n3", "json-ld"}
@@ -79,10 +76,9 @@ def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
 
 def _local_contexts(doc: Any, file: str) -> None:
     """Refuse a JSON-LD document whose @context or @import names anything to fetch."""
-    todo, seen = [doc], 0
+    todo = [doc]
     while todo:
         node = todo.pop()
-        seen += 1
         if isinstance(node, dict):
             for key, value in node.items():
                 if key in ("@context", "@import") and (

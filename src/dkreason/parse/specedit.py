@@ -25,8 +25,7 @@ def edit(path: Path, *, add: TopicSpec | None = None, remove: str | None = None)
         data = files.read_bytes(target) if target.exists() else \
             (sslt.format_xml(()).encode() if xml else b"")
         where = files.shown(path)
-        current = sslt.parse_xml(data, where) if xml else \
-            sslt.parse_text(files.decode(data, path), where)
+        current = sslt.parse_specs(data, where, xml=xml)
         names = [s.name for s in current.specs]
         intended = [s for s in current.specs if s.name != remove]
         if remove is not None and remove not in names:
@@ -40,9 +39,7 @@ def edit(path: Path, *, add: TopicSpec | None = None, remove: str | None = None)
             intended.append(add)
         new = _apply(data, current, xml, names.index(remove) if remove is not None else None,
                      add)
-        result = sslt.parse_xml(new, where) if xml else \
-            sslt.parse_text(files.decode(new, path), where)
-        if list(result.specs) != intended:
+        if list(sslt.parse_specs(new, where, xml=xml).specs) != intended:
             raise ParseError("this edit would change other topics of the file (an unusual "
                              "layout); the file is left unchanged", Span(where))
         files.write_atomic(target, new)

@@ -19,7 +19,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..errors import DkError, ParseError, Span
 from ..model import ArgKind, TopicArg, TopicFeature, TopicSpec
-from .files import read_bytes, read_text
+from .files import decode, read_bytes
 
 
 @cache
@@ -303,11 +303,14 @@ def format_xml(specs: tuple[TopicSpec, ...]) -> str:
 # ---- files -------------------------------------------------------------------------------------
 
 def read_specs(path: Path) -> SpecFile:
-    if path.suffix.lower() == ".xml":
-        return parse_xml(read_bytes(path), str(path))
-    if path.suffix.lower() != ".sslt":
+    if path.suffix.lower() not in (".xml", ".sslt"):
         raise DkError(f"{path}: topic specifications must be .sslt (SSL_T text) or .xml")
-    return parse_text(read_text(path), str(path))
+    return parse_specs(read_bytes(path), str(path), xml=path.suffix.lower() == ".xml")
+
+
+def parse_specs(data: bytes, file: str, *, xml: bool) -> SpecFile:
+    """Spec file bytes in XML or SSL_T text (UTF-8)."""
+    return parse_xml(data, file) if xml else parse_text(decode(data, file), file)
 
 
 def without_spans(spec: TopicSpec) -> TopicSpec:

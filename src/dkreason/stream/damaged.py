@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import bz2
 import contextlib
+import io
 import os
 import shutil
 import sqlite3
@@ -256,24 +257,9 @@ def _fields(header: bytes) -> dict[str, bytes]:
     return out
 
 
-def _ros1_records(data: BinaryIO | memoryview) -> Iterator[tuple[dict[str, bytes], bytes]]:
-    """(header fields, data) of each record of a file or of a chunk's bytes; raises _Cut at a
+def _ros1_records(data: BinaryIO) -> Iterator[tuple[dict[str, bytes], bytes]]:
+    """(header fields, data) of each record of a bag or of a chunk's bytes; raises _Cut at a
     torn record, after yielding the complete records of a torn uncompressed chunk."""
-    if isinstance(data, memoryview):
-        pos = 0
-        while pos < len(data):
-            if pos + 4 > len(data):
-                raise _Cut("a chunk ends in the middle of a record")
-            (hlen,) = struct.unpack_from("<I", data, pos)
-            if pos + 8 + hlen > len(data):
-                raise _Cut("a chunk ends in the middle of a record")
-            (dlen,) = struct.unpack_from("<I", data, pos + 4 + hlen)
-            if pos + 8 + hlen + dlen > len(data):
-                raise _Cut("a chunk ends in the middle of a record")
-            yield _fields(bytes(data[pos + 4:pos + 4 + hlen])), \
-                bytes(data[pos + 8 + hlen:pos + 8 + hlen + dlen])
-            pos += 8 + hlen + dlen
-        return
     while head := data.read(4):
         (hlen,) = struct.unpack("<I", head.ljust(4, b"\0"))
         header = data.read(hlen)
@@ -284,8 +270,8 @@ def _ros1_records(data: BinaryIO | memoryview) -> Iterator[tuple[dict[str, bytes
             fields_ = _fields(header)
             if fields_.get("op") == b"\x05" and fields_.get("compression") == b"none":
                 with contextlib.suppress(_Cut):
-                    yield from _ros1_records(memoryview(body))
-            raise _Cut("the file ends in the middle of a record")
+                    yield from _ros1_records(io.BytesIO(body))
+            raise _Cut("the data ends in the middle of a record")
         yield _fields(header), body
 
 
@@ -316,7 +302,7 @@ def _ros1_chunk(fields_: dict[str, bytes], body: bytes) -> Iterator[Item]:
         body = lz4.frame.decompress(body)
     elif compression != b"none":
         raise _Cut(f"unknown chunk compression {compression!r}")
-    for inner, data in _ros1_records(memoryview(body)):
+    for inner, data in _ros1_records(io.BytesIO(body)):
         yield from _ros1_item(inner.get("op", b""), inner, data)
 
 

@@ -211,8 +211,8 @@ class JsonlSource:
     def __init__(self, path: Path) -> None:
         """`-` reads standard input (a live feed)."""
         self.name, self.path = ("<stdin>" if str(path) == "-" else str(path)), path
-        if str(path) != "-" and not path.is_file():
-            raise DkError(f"{path}: no such file")
+        if str(path) != "-":
+            files.regular(path)
 
     def types(self) -> dict[str, str]:
         return {}
