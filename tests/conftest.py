@@ -1,8 +1,7 @@
-"""Shared fixtures: the thesis scenarios (../shared/scenarios/thesis) and comparison helpers."""
+"""Shared fixtures: the thesis scenarios (tests/data/thesis) and comparison helpers."""
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 from typing import Any
@@ -12,23 +11,13 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _scenarios() -> Path | None:
-    for candidate in (os.environ.get("DKREASON_SCENARIOS"),
-                      REPO.parent / "shared" / "scenarios" / "thesis",
-                      Path("/work/shared/scenarios/thesis")):
-        if candidate and Path(candidate, "README.md").is_file():
-            return Path(candidate)
-    return None
-
-
-SCENARIOS = _scenarios()
-needs_scenarios = pytest.mark.skipif(SCENARIOS is None,
-                                     reason="thesis scenarios (../shared/scenarios/thesis) absent")
+SCENARIOS = REPO / "tests" / "data" / "thesis"
+"""The thesis' case studies, cleaned, with expected outputs (vendored from the project's
+shared reference material: they are the golden test data)."""
 
 
 def formulas() -> dict[str, str]:
     """formulas.txt: id → formula text."""
-    assert SCENARIOS is not None
     out = {}
     for line in (SCENARIOS / "formulas.txt").read_text(encoding="utf-8").splitlines():
         if line.strip() and not line.startswith("#"):
@@ -55,8 +44,6 @@ def topic_sets(request_json: dict[str, Any]) -> dict[tuple[str, tuple[str, ...]]
 @pytest.fixture
 def scenario(tmp_path: Path) -> Path:
     """A writable copy of the thesis scenario folder."""
-    if SCENARIOS is None:
-        pytest.skip("thesis scenarios absent")
     target = tmp_path / "thesis"
     shutil.copytree(SCENARIOS, target)
     for path in target.rglob("*"):

@@ -7,7 +7,7 @@ import pytest
 from dkreason import KnowledgeManager
 from dkreason.errors import NameError_, SortError
 
-from .conftest import SCENARIOS, needs_scenarios
+from .conftest import SCENARIOS
 
 
 @pytest.fixture(scope="module")
@@ -16,7 +16,6 @@ def single() -> KnowledgeManager:
     return KnowledgeManager.from_config(SCENARIOS / "single.toml")
 
 
-@needs_scenarios
 @pytest.mark.parametrize(("formula", "error", "column", "says"), [
     ("always (Altitud[uav1] > 3)", NameError_, 9, "unknown feature 'Altitud'"),
     ("Altitude[uav9] > 3", NameError_, 10, "unknown object 'uav9'"),
@@ -33,7 +32,6 @@ def test_bad_formulas_are_errors_pointing_into_the_formula(single, formula, erro
     assert err.value.span.column == column and says in str(err.value)
 
 
-@needs_scenarios
 def test_a_variable_of_a_subsort_is_accepted(single):
     request = single.check_formula("forall x in UAV: Altitude[x] > 3")  # UAV ⊑ AerialVehicle
     assert [f.feature.args for f in request.features] == [("uav1",), ("uav2",)]

@@ -11,7 +11,7 @@ import pytest
 
 from dkreason.cli import main
 
-from .conftest import SCENARIOS, entity_bomb, needs_scenarios, topic_sets
+from .conftest import SCENARIOS, entity_bomb, topic_sets
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str]:
@@ -20,7 +20,6 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str]:
     return code, out.out + out.err
 
 
-@needs_scenarios
 @pytest.mark.parametrize("n", [1, 2, 3])
 def test_match_json_reproduces_the_federation_listings(capsys, n):
     want = json.loads((SCENARIOS / "expected" / f"federation-F{n}.json").read_text())
@@ -29,7 +28,6 @@ def test_match_json_reproduces_the_federation_listings(capsys, n):
     assert code == 0 and topic_sets(json.loads(out)) == topic_sets(want)
 
 
-@needs_scenarios
 def test_match_text_follows_the_thesis_listings(capsys):
     code, out = run(capsys, "match", "--config", str(SCENARIOS / "federation.toml"),
                     "Altitude[uav2] > 1")
@@ -126,13 +124,19 @@ def test_usage_errors_are_one_line_too():
     assert (proc.stdout + proc.stderr).count("\n") == 1
 
 
-@needs_scenarios
 @pytest.mark.parametrize(("rule", "says", "line"), [
     ("relevant(X) <= wanted(X, _A, _B, _C, _D) &", "not a rule", 2),
     ("relevant(X) <= wanted(X, _, _, _, _)", "bare `_`", 2),
     ("relevant(X) <= wanted(X + 1, _A, _B, _C, _D)", "unsupported term 'X + 1'", 2),
     ("relevant(X)", "expected a rule", 2),
-    ("# materialized: relevant\nrelevant(X) <= local(X)", "expected name/arity", 2),
+    (".decl relevant(X) materialized\nrelevant(X) <= local(X)", "expected `.decl name", 2),
+    (".decl relevant(X)\n.decl relevant(Y)", "relevant is declared twice (first at", 3),
+    # a misspelt relation, a wrong arity, an undeclared one, a query no rule derives
+    (".decl near(L, R)\nnear(L, R) <= contxt(L, R)", "undeclared relation contxt/2 (did you "
+     "mean context/2?)", 3),
+    ("feature_candidate(R, F) <= local(R) & feature(R, F, _N)", "feature_candidate has 3 "
+     "columns (Platform, LocalFeature, Feature, declared at", 2),
+    ("zzz(X) <= local(X)", "undeclared relation zzz/1 (declare it with `.decl`)", 2),
 ])
 def test_a_bad_rule_file_is_one_line_naming_file_and_line(capsys, scenario: Path, rule, says,
                                                           line):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import string
 from pathlib import Path
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from dkreason.errors import DkError
@@ -97,6 +97,7 @@ def test_configs(tmp_path_factory, text):
 @FAST
 @given(st.lists(st.one_of(st.sampled_from(JSON_PIECES), st.text(string.printable, max_size=5)),
                 max_size=12).map("".join))
+@example("1e" + "9" * 5000)
 def test_json_lines(tmp_path_factory, line):
     folder = tmp_path_factory.mktemp("j")
     path = folder / "r.jsonl"

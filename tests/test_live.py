@@ -112,6 +112,28 @@ def wait_for(events: queue.Queue[dict[str, Any] | None], seen: list[dict[str, An
             return event
 
 
+def heard(publisher: Any, timeout: float = 30.0) -> Any:
+    """The publisher, once a subscriber on its key is known to its session (an event, not a
+    sleep: on a loaded machine a declaration may take seconds to arrive)."""
+    deadline = time.monotonic() + timeout
+    while not publisher.matching_status.matching:
+        assert time.monotonic() < deadline, f"nobody subscribed to {publisher.key_expr}"
+        time.sleep(0.02)
+    return publisher
+
+
+def subscription_known(port: int, key: str) -> None:
+    """Wait until a fresh session on the monitor's endpoint sees its subscription to `key`:
+    the declaration has then reached the peers connected there."""
+    from dkreason.live.wire import open_session
+
+    probe = open_session([f"tcp/127.0.0.1:{port}"], [])
+    try:
+        heard(probe.declare_publisher(key)).undeclare()
+    finally:
+        probe.close()
+
+
 def serve(procs: Processes, site: Path, n: int, port: int, recording: Path, origin: float,
           speed: float) -> subprocess.Popen[str]:
     return procs.start("serve", "--config", str(site / f"platform{n}.toml"),
@@ -125,16 +147,24 @@ def test_live_federation_adapts_and_gives_the_recorded_verdict(
                  str(traffic), "--delay", "0.1", "--json", SPEEDING]) == 1
     recorded = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
 
-    port, speed = free_port(), 20.0
-    monitor = procs.start("monitor", "--live", "--config", str(site / "monitor.toml"),
-                          "--listen", f"tcp/127.0.0.1:{port}", "--delay", "0.1", "--until",
-                          "330", "--wait", "20", "--json", SPEEDING, POSITION, ALTITUDE)
-    events, seen = lines_of(monitor), []
-    origin = time.time() + 6  # every node is up by then, even on a loaded machine
-    nodes = {n: serve(procs, site, n, port, traffic, origin, speed) for n in (1, 2, 3)}
-    for n in (1, 2, 3):
-        wait_for(events, seen, event="joined", platform=f"platform{n}")
-    wait_for(events, seen, event="subscribed", platform="platform2", topic="carstopic3")
+    speed = 20.0
+    for margin in (6.0, 20.0, 60.0):  # the replay starts once everything is in place
+        port = free_port()
+        monitor = procs.start("monitor", "--live", "--config", str(site / "monitor.toml"),
+                              "--listen", f"tcp/127.0.0.1:{port}", "--delay", "0.1", "--until",
+                              "330", "--wait", "20", "--json", SPEEDING, POSITION, ALTITUDE)
+        events, seen = lines_of(monitor), []
+        origin = time.time() + margin
+        nodes = {n: serve(procs, site, n, port, traffic, origin, speed) for n in (1, 2, 3)}
+        for n in (1, 2, 3):
+            wait_for(events, seen, event="joined", platform=f"platform{n}", timeout=60)
+        wait_for(events, seen, event="subscribed", platform="platform2", topic="carstopic3",
+                 timeout=60)
+        subscription_known(port, "dkreason/platform2/topic/carstopic3")
+        if time.time() < origin - 1:
+            break
+        procs.stop()  # too slow for this margin: the first samples could be lost; again
+        procs.all.clear()
 
     # platform 2 crashes at about 60 s of stream time: Position[car2] loses its only topic
     time.sleep(max(0.0, origin + 60 / speed - time.time()))
@@ -202,16 +232,16 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
                     f"tcp/127.0.0.1:{port}", "--source", str(traffic), "--origin", str(origin),
                     "--speed", "60")
         wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
-        time.sleep(1)  # the subscription's declaration reaches the rogue session
-        bad = rogue.declare_publisher("dkreason/platform1/topic/topic3",
-                                      congestion_control=zenoh.CongestionControl.BLOCK)
+        bad = heard(rogue.declare_publisher("dkreason/platform1/topic/topic3",
+                                            congestion_control=zenoh.CongestionControl.BLOCK))
         for payload in (b"not json", b"[" * 100_000, b'{"valid": "soon", "msg": {}}',
                         b'{"valid": 1, "msg": {"id": 1}}', bytes([0xff, 0xfe]),
                         b"[" * 30_000, b'{"valid": 1, "msg": {"id": 1, "spd": ' + b"9" * 5000
                         + b"}}", b'{"valid": 1, "msg": {"id": 1, "spd": "far"}}',
                         b'{"valid": 1, "msg": {"id": [1], "spd": 3}}'):
             bad.put(payload)
-        rogue.put("dkreason/intruder/topic/topic3", b'{"valid": 1, "msg": {"id": 1}}')
+        rogue.put("dkreason/intruder/topic/topic3", b'{"valid": 1, "msg": {"id": 1}}',
+                  congestion_control=zenoh.CongestionControl.BLOCK)
         assert monitor.wait(timeout=30) == 0
         for entity in (token, token9, broken):
             entity.undeclare()
@@ -345,7 +375,7 @@ def test_a_node_publishes_json_lines_from_its_standard_input(procs: Processes, t
                        "--connect", f"tcp/127.0.0.1:{port}", "--source", "-",
                        stdin=subprocess.PIPE)
     wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
-    time.sleep(0.5)
+    subscription_known(port, "dkreason/platform1/topic/topic3")
     assert node.stdin is not None
     for t in range(6):  # the stream clock passes --until at 4: the monitor stops
         node.stdin.write(json.dumps({"topic": "/platform1/topic3", "time": t,
@@ -464,6 +494,7 @@ def test_a_platform_removed_and_added_again_matches_as_before(federation_km: Kno
 def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path):
     """A node signs with --sign; a monitor given its key with --trust rejects and counts what
     anyone else puts on the node's keys, and keeps the signed verdict."""
+    import zenoh
     from cryptography.hazmat.primitives import serialization
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
@@ -488,13 +519,12 @@ def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path):
     wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
     rogue = open_session([f"tcp/127.0.0.1:{port}"], [])
     try:
-        time.sleep(1)  # the subscription's declaration reaches the rogue session
+        bad = heard(rogue.declare_publisher("dkreason/platform1/topic/topic3",
+                                            congestion_control=zenoh.CongestionControl.BLOCK))
         for t in range(3):  # an injector on the node's own key, unsigned and forged
-            rogue.put("dkreason/platform1/topic/topic3", json.dumps(
-                {"valid": t * 10**9, "msg": {"id": 1, "spd": 500.0}}).encode())
-            rogue.put("dkreason/platform1/topic/topic3", json.dumps(
-                {"valid": t * 10**9, "msg": {"id": 1, "spd": 501.0}}).encode(),
-                attachment=b"\0" * 64)
+            bad.put(json.dumps({"valid": t * 10**9, "msg": {"id": 1, "spd": 500.0}}).encode())
+            bad.put(json.dumps({"valid": t * 10**9, "msg": {"id": 1, "spd": 501.0}}).encode(),
+                    attachment=b"\0" * 64)
         assert node.stdin is not None
         for t in range(6):
             node.stdin.write(json.dumps({"topic": "/platform1/topic3", "time": t,

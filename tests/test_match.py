@@ -7,16 +7,16 @@ import json
 import pytest
 
 from dkreason import KnowledgeManager
+from dkreason.errors import DkError
 
-from .conftest import SCENARIOS, formulas, needs_scenarios, topic_sets
+from .conftest import SCENARIOS, formulas, topic_sets
 
-CASES = sorted((SCENARIOS / "expected").glob("*.json")) if SCENARIOS else []
+CASES = sorted((SCENARIOS / "expected").glob("*.json"))
 _managers: dict[str, KnowledgeManager] = {}
 
 
 def manager(config: str) -> KnowledgeManager:
     if config not in _managers:
-        assert SCENARIOS is not None
         _managers[config] = KnowledgeManager.from_config(SCENARIOS / config)
     return _managers[config]
 
@@ -27,7 +27,6 @@ def twin(formula: str) -> str:
     return table[f"{key}-ascii"]
 
 
-@needs_scenarios
 @pytest.mark.parametrize("case", CASES, ids=lambda p: p.stem)
 @pytest.mark.parametrize("spelling", ["thesis", "ascii"])
 @pytest.mark.parametrize("form", ["sslt", "xml"])
@@ -40,7 +39,6 @@ def test_thesis_case_matches_listing(case, spelling, form):
     assert len(got["features"]) == len(want["features"])
 
 
-@needs_scenarios
 def test_json_shape_is_exactly_the_documented_one():
     got = manager("single.toml").check_formula("always (Speed[uav1] > 50)").to_json()
     assert got == {"formula": "always (Speed[uav1] > 50)", "features": [
@@ -49,8 +47,39 @@ def test_json_shape_is_exactly_the_documented_one():
              "field": "msg.spd", "filter": {"msg.id": 1}}]}]}
 
 
-@needs_scenarios
 def test_remote_topics_say_what_they_were_matched_as():
     got = manager("federation.toml").check_formula("Altitude[uav2] > 3").to_json()
     (remote,) = [t for t in got["features"][0]["topics"] if t["platform"] != "platform1"]
     assert remote["as"] == {"feature": "Alt", "args": ["uas21"]}
+
+
+STRICT = """# A strict policy of a user's own: local topics only, each feature read as itself, objects
+# named by the topic (no sorts, no sameAs), selected by the digits of their names.
+object_id(P, O, V) <= name_digits(P, O, V)
+relevant_topic(Q, P, T, K, O1, '', '', V1, '', '') <= wanted(Q, F, O1, '', '') & local(P) & topic_feature(P, T, K, F, _Field) & topic_arg(P, T, K, 1, 'object', O1, Id) & (Id != '') & object_id(P, O1, V1)
+match_result(Q, 'topic', P, T, K, O1, O2, O3, V1, V2, V3) <= relevant_topic(Q, P, T, K, O1, O2, O3, V1, V2, V3)
+"""
+
+
+def test_a_config_may_replace_the_shipped_matching_policy(scenario):
+    (scenario / "strict.dl").write_text(STRICT)
+    config = scenario / "strict.toml"
+    config.write_text('replace_rules = true\nrules = ["rules/ontology.dl", "rules/signature.dl", '
+                      '"rules/expansion.dl", "strict.dl"]\n'
+                      + (scenario / "single.toml").read_text())
+    formula = "always (Altitude[uav1] > 1)"
+    shipped = KnowledgeManager.from_config(scenario / "single.toml").check_formula(formula)
+    strict = KnowledgeManager.from_config(config).check_formula(formula)
+    assert [t.topic for t in shipped.features[0].topics] == ["topic1", "topic2"]
+    assert [(t.topic, t.filter) for t in strict.features[0].topics] == [
+        ("topic1", (("msg.id", 1),))]
+
+
+def test_a_replacing_policy_must_derive_what_dkreason_asks(scenario):
+    (scenario / "half.dl").write_text("object_id(P, O, V) <= name_digits(P, O, V)\n")
+    config = scenario / "half.toml"
+    config.write_text('replace_rules = true\nrules = ["half.dl"]\n'
+                      + (scenario / "single.toml").read_text())
+    with pytest.raises(DkError, match=r"schema.dl:\d+: the rules derive no expansion/3, which "
+                                      r"dkreason asks for"):
+        KnowledgeManager.from_config(config)

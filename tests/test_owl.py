@@ -10,7 +10,7 @@ from dkreason.errors import ParseError
 from dkreason.names import local_name
 from dkreason.parse.owl import read_ontology
 
-from .conftest import SCENARIOS, needs_scenarios
+from .conftest import SCENARIOS
 
 HEAD = """<?xml version="1.0"?>
 <rdf:RDF xmlns="http://x.org/o#" xml:base="http://x.org/o"
@@ -25,7 +25,6 @@ def signature(ont, name: str) -> list[list[str]]:
     return [sorted(local_name(x) for x in arg) for arg in sig.arg_sorts]
 
 
-@needs_scenarios
 def test_signatures_come_from_told_axioms_so_equivalent_features_keep_their_own():
     ont = read_ontology(SCENARIOS / "ontologies" / "platform1.owl", "p1")
     assert signature(ont, "GroundSpeed") == [["UAV"]]
@@ -33,13 +32,11 @@ def test_signatures_come_from_told_axioms_so_equivalent_features_keep_their_own(
     assert signature(ont, "Between") == [["Object"]] * 3
 
 
-@needs_scenarios
 def test_union_of_sorts_per_argument():
     ont = read_ontology(SCENARIOS / "ontologies" / "chapter4.owl", "ch4")
     assert signature(ont, "Behind") == [["Car", "UAV"], ["Car", "UAV"]]
 
 
-@needs_scenarios
 def test_any_rdf_syntax_rdflib_reads(tmp_path: Path):
     from rdflib import Graph
 

@@ -20,7 +20,7 @@ from dkreason.parse.formula import (
     parse_formula,
 )
 
-from .conftest import formulas, needs_scenarios
+from .conftest import formulas
 
 
 def shape(formula: str) -> list[tuple[str, tuple[tuple[str, str | None], ...]]]:
@@ -28,7 +28,6 @@ def shape(formula: str) -> list[tuple[str, tuple[tuple[str, str | None], ...]]]:
             for f in features(parse_formula(formula))]
 
 
-@needs_scenarios
 def test_every_thesis_formula_and_its_ascii_twin_give_the_same_features():
     table = formulas()
     for key, text in table.items():

@@ -8,18 +8,16 @@ from dkreason.errors import ParseError
 from dkreason.model import TopicArg
 from dkreason.parse.sslt import format_spec, format_xml, parse_text, parse_xml, read_specs
 
-from .conftest import SCENARIOS, needs_scenarios
+from .conftest import SCENARIOS
 
 SPEC_FILES = sorted((SCENARIOS / "specs").glob("*.sslt")) if SCENARIOS else []
 
 
-@needs_scenarios
 @pytest.mark.parametrize("path", SPEC_FILES, ids=lambda p: p.stem)
 def test_text_and_xml_forms_of_every_thesis_spec_agree(path):
     assert read_specs(path).specs == read_specs(path.with_suffix(".xml")).specs
 
 
-@needs_scenarios
 @pytest.mark.parametrize("path", SPEC_FILES, ids=lambda p: p.stem)
 def test_text_to_xml_to_text_round_trip_loses_nothing(path):
     specs = read_specs(path).specs

@@ -9,7 +9,7 @@ import pytest
 
 from dkreason.cli import main
 
-from .conftest import SCENARIOS, formulas, needs_scenarios
+from .conftest import SCENARIOS, formulas
 
 STATES = Path(__file__).parent / "data" / "thesis-states.jsonl"
 
@@ -26,7 +26,6 @@ def run(capsys, *argv: str) -> tuple[int, list[dict]]:
     return code, [json.loads(line) for line in out.out.splitlines()]
 
 
-@needs_scenarios
 @pytest.mark.parametrize("spelling", ["", "-ascii"])
 def test_thesis_formulas_give_the_hand_checked_verdicts(capsys, spelling):
     assert SCENARIOS is not None

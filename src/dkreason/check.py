@@ -42,11 +42,7 @@ def check_formula(kb: KnowledgeBase, formula: Formula) -> list[CheckedFeature]:
         for i, (a, x) in enumerate(zip(c.ref.args, c.arg_iris, strict=True), 1):
             asks.setdefault((c.iri, i, x, "sort" if a.is_variable else "object"), (n, a))
     if asks:
-        kb.engine.assert_rows("check_arg", list(asks))
-        try:
-            fitting = set(kb.engine.query("arg_fits", None, None, None))
-        finally:
-            kb.engine.retract_rows("check_arg", list(asks))
+        fitting = set(kb.engine.ask("arg_fits", {"check_arg": list(asks)}, None, None, None))
         for (f, i, x, _kind), (n, arg) in asks.items():
             if (f, i, x) not in fitting:
                 how = kb.misfit(local, f, i, x) if not arg.is_variable else \

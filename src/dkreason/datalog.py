@@ -5,6 +5,12 @@ source on every call (~60 µs a fact, ~1 ms a query).  This wrapper gives each k
 own engine, asserts facts and asks queries through `pyEngine` directly (~6 µs a fact), and loads
 rule files with errors that name the file and line.
 
+Every relation is declared once, as Soufflé does: `.decl name(Column, …) [input|view|query]`
+on a line of its own.  `input`: facts Python asserts; `view`: depends only on the knowledge
+base, so `materialize()` computes it once and keeps its rows; `query`: Python asks it, so the
+policy must derive it; no kind: derived at query time.  `check_policy()` refuses a rule that
+names an undeclared relation or uses a wrong arity, with file:line and a "did you mean".
+
 pyDatalog finds a lookup's facts by intersecting the index sets of its bound arguments in
 argument order, starting from the first: with the platform bound, that is every fact of the
 relation.  `_lookup` intersects from the smallest set instead, so a lookup costs what it
@@ -14,6 +20,7 @@ finds, not what the relation holds (at scale 100 of thesis chapter 7 that is 4×
 from __future__ import annotations
 
 import ast
+import difflib
 import gc
 import os
 import re
@@ -63,7 +70,27 @@ class Rule:
     span: Span
 
 
-_MATERIALIZED = re.compile(r"^#\s*materialized:\s*(.+)$", re.M)
+@dataclass(frozen=True, slots=True)
+class Relation:
+    """A declared relation: what Python and the rules agree on."""
+
+    name: str
+    columns: tuple[str, ...]
+    kind: str  # 'input', 'view', 'query' or '' (derived at query time)
+    span: Span
+
+    @property
+    def arity(self) -> int:
+        return len(self.columns)
+
+    def row(self, values: Sequence[Value]) -> dict[str, Value]:
+        """A row of this relation with its columns named."""
+        return dict(zip(self.columns, values, strict=True))
+
+
+_DECL = re.compile(r"^\.decl\b(.*)$", re.M)
+_DECL_BODY = re.compile(r"\s+([a-z_]\w*)\(\s*(\w+(?:\s*,\s*\w+)*)\s*\)\s*(input|view|query)?"
+                        r"\s*(?:#.*)?$")
 
 
 @contextmanager
@@ -112,7 +139,7 @@ class Datalog:
         pyEngine.relevant_clauses = _lookup
         self._logic = Logic()  # a fresh engine, current in this thread
         self.rules: list[Rule] = []
-        self.views: dict[str, int] = {}
+        self.schema: dict[str, Relation] = {}
         self._frozen: dict[str, tuple[list[object], list[Row]]] = {}
 
     def _activate(self) -> None:
@@ -127,18 +154,67 @@ class Datalog:
         self.load_text(read_text(path), str(shown))
 
     def load_text(self, text: str, file: str) -> None:
-        rules = _clauses(text, file)
-        for line in _MATERIALIZED.findall(text):
-            for item in filter(None, (x.strip() for x in line.split(","))):
-                name, _, arity = item.partition("/")
-                if not arity.isdigit():
-                    raise RuleError(f"materialized: expected name/arity, got {item!r}",
-                                    Span(file, text[: text.find(line)].count("\n") + 1))
-                self.views[name] = int(arity)
+        for decl in _DECL.finditer(text):
+            self._declare(decl.group(1), Span(file, text.count("\n", 0, decl.start()) + 1))
+        rules = _clauses(_DECL.sub("", text), file)  # blanked, so lines keep their numbers
         self._activate()
         for rule in rules:  # straight into the engine: pyParser would parse the text again
             _assert_rule(rule)
         self.rules += rules
+
+    def _declare(self, text: str, span: Span) -> None:
+        found = _DECL_BODY.fullmatch(text)
+        if not found:
+            raise RuleError("expected `.decl name(Column, …)` and optionally input, view or "
+                            "query", span)
+        name, columns, kind = found.group(1), found.group(2), found.group(3) or ""
+        if name in self.schema:
+            raise RuleError(f"{name} is declared twice (first at {self.schema[name].span})", span)
+        self.schema[name] = Relation(name, tuple(c.strip() for c in columns.split(",")), kind,
+                                     span)
+
+    @property
+    def views(self) -> dict[str, int]:
+        return {r.name: r.arity for r in self.schema.values() if r.kind == "view"}
+
+    def check_policy(self) -> None:
+        """Every relation a rule names is declared, with its arity; every query is derived."""
+        for rule in self.rules:
+            for lit in (rule.head, *(b for b in rule.body if isinstance(b, Literal))):
+                relation = self.schema.get(lit.predicate)
+                if relation is None:
+                    near = difflib.get_close_matches(lit.predicate, self.schema, 1)
+                    hint = f" (did you mean {near[0]}/{self.schema[near[0]].arity}?)" if near \
+                        else " (declare it with `.decl`)"
+                    raise RuleError(f"undeclared relation {lit.predicate}/{len(lit.args)}{hint}",
+                                    rule.span)
+                if len(lit.args) != relation.arity:
+                    raise RuleError(f"{lit.predicate} has {relation.arity} columns "
+                                    f"({', '.join(relation.columns)}, declared at "
+                                    f"{relation.span}), not {len(lit.args)}", rule.span)
+        derived = {rule.head.predicate for rule in self.rules}
+        for relation in self.schema.values():
+            if relation.kind in ("query", "view") and relation.name not in derived:
+                raise RuleError(f"the rules derive no {relation.name}/{relation.arity}, which "
+                                f"dkreason asks for", relation.span)
+
+    @contextmanager
+    def given(self, inputs: dict[str, list[Row]]) -> Iterator[None]:
+        """These input facts, for the queries inside the block: how a formula asks the rules
+        (asserted on entry, retracted on exit, whatever happens)."""
+        for name, rows in inputs.items():
+            self.assert_rows(name, rows)
+        try:
+            yield
+        finally:
+            for name, rows in inputs.items():
+                self.retract_rows(name, rows)
+
+    def ask(self, predicate: str, inputs: dict[str, list[Row]],
+            *args: Value | None) -> list[Row]:
+        """`query` with these input facts given."""
+        with self.given(inputs):
+            return self.query(predicate, *args)
 
     def assert_rows(self, predicate: str, rows: Iterable[Sequence[Value]]) -> None:
         from pyDatalog import pyEngine
@@ -230,6 +306,9 @@ class Datalog:
         """All rows of `predicate` matching `args` (None = any value)."""
         from pyDatalog import pyEngine
 
+        relation = self.schema.get(predicate)
+        if relation is not None and len(args) != relation.arity:
+            raise TypeError(f"{predicate} has {relation.arity} columns, asked with {len(args)}")
         self._activate()
         terms = [pyEngine.Var(f"V{i}") if a is None else pyEngine.Const(a)
                  for i, a in enumerate(args)]

@@ -43,12 +43,8 @@ def members(kb: KnowledgeBase, sorts: set[str]) -> dict[str, list[str]]:
     """Each sort's objects, one representative per sameAs class, sorted by local name."""
     if not sorts:
         return {}
-    rows = [(s,) for s in sorted(sorts)]
-    kb.engine.assert_rows("expand_sort", rows)
-    try:
-        pairs = kb.engine.query("expansion", None, None, None)
-    finally:
-        kb.engine.retract_rows("expand_sort", rows)
+    pairs = kb.engine.ask("expansion", {"expand_sort": [(s,) for s in sorted(sorts)]},
+                          None, None, None)
     same: dict[str, set[str]] = defaultdict(set)
     objects: dict[str, set[str]] = defaultdict(set)
     for sort, obj, other in pairs:

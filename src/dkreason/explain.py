@@ -7,7 +7,7 @@ where they came from: the spec statement, the ontology axiom, the bridge rule, t
 
 Why-not looks at each candidate of `rules/matching.dl` (`candidate/7`: the feature read as a
 feature of one platform, its arguments as that platform's objects) and reports the first
-condition of `sound_candidate/6` or `relevant_topic/7` that fails for it, descending through
+condition of `sound_candidate/6` or `matched_topic/7` that fails for it, descending through
 the rules to the told facts that are missing.
 """
 
@@ -399,9 +399,7 @@ def explain(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
         raise DkError(f"no topic {topic!r} on any platform")
     reader = Reader(kb, ground)
     replay = Replayer(kb, reader)
-    wanted = wanted_rows(ground)
-    kb.engine.assert_rows("wanted", wanted)
-    try:
+    with kb.engine.given({"wanted": wanted_rows(ground)}):
         features = []
         for q in selected:
             mine = [m for m in matches if m.query == q and topic in (None, m.topic)]
@@ -412,8 +410,6 @@ def explain(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
                     if topic else [str(r[1]) for r in replay.rows(("context", kb.local, None))]
                 why_not = tuple(w for p in platforms for w in _why_not(kb, replay, q, p, topic))
             features.append(FeatureExplanation(ground[q].key, why, why_not))
-    finally:
-        kb.engine.retract_rows("wanted", wanted)
     return Explanation(formula, tuple(features))
 
 
@@ -422,7 +418,7 @@ def _why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
     from .request import topic_match
 
     fact: Row = ("relevant_topic", m.query, m.platform, m.topic, m.feature_index,
-                 *padded(m.objects))
+                 *padded(m.objects), *m.ids, *("",) * (3 - len(m.ids)))
     proof = replay.prove(fact)
     assert proof is not None, f"the engine derived {fact} but no clause replays it"
     entry = topic_match(kb, m)
@@ -448,7 +444,7 @@ def _why_not(kb: KnowledgeBase, replay: Replayer, q: int, platform: str,
             failure = replay.refute(sound)
             reason = f"{mapped} rejected: {_reason(kb, replay, failure)}"
         else:
-            failure = replay.refute(("relevant_topic", q, platform, topic, None, *objects))
+            failure = replay.refute(("matched_topic", q, platform, topic, None, *objects))
             reason = f"{_reason(kb, replay, failure)}; {key} maps to {mapped}" + \
                 (f" on {platform}" if platform != kb.local else "")
         out.append(TopicWhyNot(platform, topic, reason, failure))

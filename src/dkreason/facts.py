@@ -6,14 +6,18 @@ their kind ('object', 'some', 'every') and id field ('' for an implicit object).
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from collections.abc import Iterable
 from dataclasses import dataclass
+from functools import lru_cache
 
 from .datalog import Row
 from .model import ArgKind, Ontology
+from .names import local_name
 
 THING = "http://www.w3.org/2002/07/owl#Thing"
+_TRAILING_DIGITS = re.compile(r"(?<![0-9])([0-9]{1,18})$")  # longer: no id, not a hang
 
 Facts = dict[str, list[Row]]
 
@@ -64,7 +68,17 @@ def ontology_facts(ont: Ontology) -> Facts:
     out["type_of"] = [(p, o, c) for o, c in ont.types]
     out["type_of"] += [(p, o, THING) for o in sorted(ont.individuals - typed)]
     out["same_as"] = [(p, a, b) for a, b in ont.same_as]
+    out["id_property"] = [(p, o, v) for o, v in sorted(ont.ids.items(), key=str)]
+    out["name_digits"] = [(p, o, d) for o in sorted(ont.individuals)
+                          if (d := name_digits(local_name(o))) is not None]
     return out
+
+
+@lru_cache(maxsize=1 << 16)
+def name_digits(name: str) -> int | None:
+    """The digits ending a name (uav12 → 12), which the thesis uses as an object's id."""
+    match = _TRAILING_DIGITS.search(name)
+    return int(match.group(1)) if match else None
 
 
 def spec_facts(platform: str, spec: ResolvedSpec) -> Facts:

@@ -7,10 +7,8 @@ rules against both ontologies they join, so a bad file fails at load time with i
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 from pathlib import Path
 
 from .datalog import Datalog, Row, gc_paused
@@ -22,17 +20,15 @@ from .facts import (
     ResolvedFeature,
     ResolvedSpec,
     merge,
+    name_digits,
     ontology_facts,
     rows_of,
     spec_facts,
 )
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
-from .parse.config import RULES_HOME, Config, read_config
+from .parse.config import SCHEMA, Config, read_config, shipped_policy
 from .parse.sslt import without_spans
-
-RULES_DIR = RULES_HOME / "rules"
-_TRAILING_DIGITS = re.compile(r"(?<![0-9])([0-9]{1,18})$")  # longer: no id, not a hang
 
 
 @dataclass
@@ -47,26 +43,15 @@ class Platform:
     def name(self) -> str:
         return self.ontology.platform
 
-    def object_id(self, iri: str) -> IdValue | None:
-        """The object's `id` data property, else the digits ending its local name (thesis)."""
-        if iri in self.ontology.ids:
-            return self.ontology.ids[iri]
-        return _digits_id(local_name(iri))
-
-
-@lru_cache(maxsize=1 << 16)
-def _digits_id(name: str) -> int | None:
-    match = _TRAILING_DIGITS.search(name)
-    return int(match.group(1)) if match else None
-
 
 class KnowledgeBase:
     def __init__(self, local: str, platforms: dict[str, Platform],
-                 mappings: tuple[Mapping_, ...], rule_files: tuple[Path, ...] = (),
+                 mappings: tuple[Mapping_, ...], policy: tuple[Path, ...] | None = None,
                  config: Config | None = None, online: set[str] | None = None) -> None:
         """`platforms` are those whose knowledge is at hand; a mapping waits until both of its
-        platforms are (live federations add them as they appear).  `online`: the platforms
-        whose topics are used (default: all)."""
+        platforms are (live federations add them as they appear).  `policy`: the rule files
+        (default: the shipped ones).  `online`: the platforms whose topics are used (default:
+        all)."""
         self.local = local
         self.platforms = platforms
         self.mappings: tuple[Mapping_, ...] = ()
@@ -76,8 +61,9 @@ class KnowledgeBase:
         self.rederived: list[str] = []  # the views the last change computed again
         self.warnings: list[str] = []
         self.engine = Datalog()
-        for path in (*sorted(RULES_DIR.glob("*.dl")), *rule_files):
+        for path in (SCHEMA, *(shipped_policy() if policy is None else policy)):
             self.engine.load_file(path)
+        self.engine.check_policy()
         facts = merge(STATIC, {"local": [(local,)]},
                       *(self._platform_facts(p) for p in platforms.values()),
                       self._mapping_facts(), {"online": [
@@ -207,6 +193,11 @@ class KnowledgeBase:
             self._change({"online": [(name,)]},
                          self.engine.assert_rows if online else self.engine.retract_rows)
 
+    def object_id(self, platform: str, iri: str) -> IdValue | None:
+        """The id selecting the object in topic messages, by the policy's `object_id`."""
+        rows = self.engine.query("object_id", platform, iri, None)
+        return rows[0][2] if rows else None
+
     def is_online(self, name: str) -> bool:
         return bool(self.engine.query("online", name))
 
@@ -241,6 +232,11 @@ class KnowledgeBase:
         facts: Facts = {"type_of": [(platform, iri, sort_iri)]}
         if iri not in p.ontology.individuals:
             facts["individual"] = [(platform, iri)]
+            digits = name_digits(local_name(iri))
+            if digits is not None:
+                facts["name_digits"] = [(platform, iri, digits)]
+        if id_ is not None and iri not in p.ontology.ids:
+            facts["id_property"] = [(platform, iri, id_)]
         p.ontology = with_object(p.ontology, iri, sort_iri, id_)
         p.names = _name_index(p.ontology)
         self._change(facts, self.engine.assert_rows)

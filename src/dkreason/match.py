@@ -4,19 +4,24 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .datalog import Value
+from .errors import MissingIdError, Span
 from .kb import KnowledgeBase
 from .model import GroundFeature
+from .names import local_name
 
 
 @dataclass(frozen=True, slots=True)
 class Match:
-    """relevant_topic(Q, Platform, Topic, K, C1, C2, C3) with the padding removed."""
+    """relevant_topic(Q, Platform, Topic, K, C1…C3, V1…V3) with the padding removed: the
+    platform's objects and the id each is selected by ('' where the topic has no id field)."""
 
     query: int
     platform: str
     topic: str
     feature_index: int
     objects: tuple[str, ...]
+    ids: tuple[Value, ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,18 +47,19 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
     wanted = wanted_rows(ground)
     if not wanted:
         return [], []
-    engine = kb.engine
-    engine.assert_rows("wanted", wanted)
-    try:
-        rows = engine.query("match_result", *[None] * 8)
-    finally:
-        engine.retract_rows("wanted", wanted)
+    rows = kb.engine.ask("match_result", {"wanted": wanted}, *[None] * 11)
     matches, rejected = [], []
-    for q, kind, platform, what, k, *objects in rows:
+    for q, answer, platform, what, k, *columns in rows:
         assert isinstance(q, int) and isinstance(k, int)
-        trimmed = tuple(str(o) for o in objects[: len(ground[q].args)])
-        if kind == "topic":
-            matches.append(Match(q, str(platform), str(what), k, trimmed))
+        n = len(ground[q].args)
+        objects = tuple(str(o) for o in columns[:n])
+        if answer == "topic":
+            matches.append(Match(q, str(platform), str(what), k, objects, tuple(columns[3:3 + n])))
+        elif answer == "rejected":
+            rejected.append(Rejected(q, str(platform), str(what), objects))
         else:
-            rejected.append(Rejected(q, str(platform), str(what), trimmed))
+            ontology = kb.platforms[str(platform)].ontology
+            raise MissingIdError(f"object {local_name(str(columns[0]))} on {platform} has no id "
+                                 f"(no id property and no digits ending its name), but topic "
+                                 f"{what} filters on {columns[3]}", Span(ontology.file))
     return matches, rejected

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections import defaultdict
 
-from .errors import MissingIdError, Span
 from .kb import KnowledgeBase
 from .match import Match, Rejected
 from .model import FeatureRequest, GroundFeature, IdValue, StreamRequest, TopicMatch
@@ -29,20 +28,11 @@ def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
 
 
 def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
-    platform = kb.platforms[m.platform]
-    spec = platform.resolved[m.topic]
+    spec = kb.platforms[m.platform].resolved[m.topic]
     feature = spec.features[m.feature_index - 1]
     filter_: dict[str, IdValue] = {}
-    for arg, obj in zip(feature.args, m.objects, strict=True):
-        if not arg.id_field:
-            continue
-        value = platform.object_id(obj)
-        if value is None:
-            raise MissingIdError(f"object {local_name(obj)} on {m.platform} has no id (no id "
-                                 f"property and no digits ending its name), but topic {m.topic} "
-                                 f"filters on {arg.id_field}",
-                                 Span(platform.ontology.file))
-        if filter_.setdefault(arg.id_field, value) != value:
+    for arg, value in zip(feature.args, m.ids, strict=True):
+        if arg.id_field and filter_.setdefault(arg.id_field, value) != value:
             return None  # one field would need two values: this topic cannot carry the tuple
     return TopicMatch(m.platform, m.topic, spec.msgtype, feature.field,
                       tuple(filter_.items()), local_name(feature.iri),

@@ -69,7 +69,9 @@ class PlatformNode:
         sorts: dict[str, list[str]] = {o: [] for o in sorted(p.ontology.individuals)}
         for o, c in p.ontology.types:
             sorts[o].append(c)
-        return wire.encode({o: {"sorts": s, "id": p.object_id(o)} for o, s in sorts.items()})
+        kb = self.km.kb
+        return wire.encode({o: {"sorts": s, "id": kb.object_id(p.name, o)}
+                            for o, s in sorts.items()})
 
     def _changed(self) -> None:
         self.version += 1

@@ -1,7 +1,8 @@
 """The TOML config: which platform is local, each platform's files, mappings, extra rules.
 
     local = "platform1"
-    rules = ["rules/extensions/subsumption.dl"]    # optional extension rule files
+    rules = ["rules/extensions/subsumption.dl"]    # optional rule files, added to the shipped
+    replace_rules = false                          # policy; true: they are the whole policy
     [platforms.platform1]
     ontology = "ontologies/platform1.owl"
     specs = "specs/platform1.sslt"                  # .sslt or .xml; optional
@@ -12,12 +13,15 @@
     target = "platform2"
     file = "mappings/platform1-platform2.cowl.xml"
 
-Paths are relative to the config file (rule files may also be given relative to the
-directory holding dkreason's own `rules/`).
+Paths are relative to the config file; a rule file named `rules/NAME.dl` that is not there is
+one of dkreason's own (`rules/matching.dl`, `rules/extensions/subsumption.dl`), so a replacing
+policy can keep some shipped files.  `Config.rules` is the whole policy, in load order; the
+schema (`rules/schema.dl`: the relations Python asserts and asks) is always loaded first.
 """
 
 from __future__ import annotations
 
+import importlib.resources
 import os
 import re
 import tomllib
@@ -28,7 +32,13 @@ from typing import Any
 from ..errors import DkError, ParseError, Span
 from .files import read_text
 
-RULES_HOME = Path(__file__).resolve().parents[3]
+SHIPPED_RULES = Path(str(importlib.resources.files("dkreason.rules")))
+SCHEMA = SHIPPED_RULES / "schema.dl"
+
+
+def shipped_policy() -> tuple[Path, ...]:
+    """The shipped matching policy: every rule file of `rules/` but the schema."""
+    return tuple(sorted(p for p in SHIPPED_RULES.glob("*.dl") if p != SCHEMA))
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,7 +91,7 @@ def read_config(path: Path) -> Config:
             raise fail(f"{where}: {key!r} holds a control character ({value!r})")
         return value
 
-    _only(data, {"local", "platforms", "mappings", "rules"}, "top level", fail)
+    _only(data, {"local", "platforms", "mappings", "rules", "replace_rules"}, "top level", fail)
     platforms_raw = data.get("platforms")
     if not isinstance(platforms_raw, dict) or not platforms_raw:
         raise fail("no [platforms.NAME] table")
@@ -120,8 +130,15 @@ def read_config(path: Path) -> Config:
     if not isinstance(rules, list) or not all(isinstance(r, str) and r.isprintable()
                                               for r in rules):
         raise fail("rules must be a list of rule file paths")
-    return Config(path, local, tuple(platforms), tuple(mappings),
-                  tuple(_rule_path(base, r, fail) for r in rules))
+    replace = data.get("replace_rules", False)
+    if not isinstance(replace, bool):
+        raise fail("replace_rules must be true or false")
+    if replace and not rules:
+        raise fail("replace_rules = true needs the rule files that replace the shipped policy")
+    own = tuple(dict.fromkeys(_rule_path(base, r, fail) for r in rules))
+    policy = own if replace else (*shipped_policy(), *(p for p in own
+                                                        if p not in shipped_policy()))
+    return Config(path, local, tuple(platforms), tuple(mappings), policy)
 
 
 def _only(table: dict[str, Any], allowed: set[str], where: str, fail: Any) -> None:
@@ -132,7 +149,11 @@ def _only(table: dict[str, Any], allowed: set[str], where: str, fail: Any) -> No
 
 
 def _rule_path(base: Path, written: str, fail: Any) -> Path:
-    for candidate in (base / written, RULES_HOME / written):
-        if candidate.is_file():
-            return candidate
-    raise fail(f"rule file {written!r} not found (relative to {base} or {RULES_HOME})")
+    if (base / written).is_file():
+        return Path(os.path.normpath(base / written))
+    shipped = written.removeprefix("rules/")
+    if shipped != written and (SHIPPED_RULES / shipped).is_file() and \
+            SHIPPED_RULES / shipped != SCHEMA:
+        return SHIPPED_RULES / shipped
+    raise fail(f"rule file {written!r} not found (relative to {base}, or rules/NAME.dl for "
+               f"one of dkreason's own)")

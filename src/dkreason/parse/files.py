@@ -129,6 +129,8 @@ def json_value(data: bytes | str, where: Span, exact: bool = True) -> Any:
         why, column = "JSON nested too deeply", 0
     except ValueError as exc:  # an integer of more than 4300 digits
         why, column = f"not JSON ({str(exc).split(';')[0][:80]})", 0
+    except ArithmeticError:  # decimal.InvalidOperation: an exponent too long for a Decimal
+        why, column = "not JSON (a number out of range)", 0
     raise ParseError(why, Span(where.file, where.line, column if where.line else 0))
 
 

@@ -1,0 +1,1 @@
+"""The shipped matching policy (rule files), package data of dkreason."""

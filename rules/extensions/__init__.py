@@ -1,0 +1,1 @@
+"""Optional rule files a config may add (rules = [...])."""
