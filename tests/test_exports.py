@@ -5,7 +5,8 @@ import dkreason
 
 def test_public_names_are_pinned():
     assert dkreason.__all__ == [
-        "DkError", "FeatureRequest", "GroundFeature", "KnowledgeManager", "ParseError",
-        "SourceError", "Span", "StreamRequest", "TopicArg", "TopicFeature", "TopicMatch",
-        "TopicSpec"]
+        "DkError", "FeatureKey", "FeatureRequest", "FormulaPlan", "GroundFeature",
+        "KnowledgeManager", "Monitor", "ParseError", "Plan", "SourceError", "Span",
+        "StreamPolicy", "StreamRequest", "TopicArg", "TopicFeature", "TopicMatch", "TopicSpec",
+        "Verdict", "Violation"]
     assert all(hasattr(dkreason, name) for name in dkreason.__all__)

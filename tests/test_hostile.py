@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import ParseError
 from dkreason.live import wire
@@ -96,10 +97,22 @@ def test_hundreds_of_conjuncts_under_a_temporal_operator():
     assert verdict.verdict is False
 
 
-def test_a_forall_over_hundreds_of_objects_compiles():
-    progressor = Progressor(objects=lambda sort: [f"car{i}" for i in range(303)])
-    progressor.add("forall c in Car: always (Speed[c] > 0)")
-    (verdict,) = progressor.step(0, {f"Speed[car{i}]": -1 for i in range(303)})
+def test_a_forall_over_hundreds_of_objects_compiles(tmp_path: Path):
+    cars = "".join(f":car{i} a owl:NamedIndividual, :Car .\n" for i in range(303))
+    (tmp_path / "o.ttl").write_text(
+        "@prefix : <http://road.org/o#> .\n@prefix owl: <http://www.w3.org/2002/07/owl#> .\n"
+        "@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .\n"
+        ":Car a owl:Class .\n:UnaryRelation a owl:Class .\n"
+        ":Speed a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( "
+        ":UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Car ] "
+        ") ] .\n" + cars)
+    (tmp_path / "c.toml").write_text('[platforms.road]\nontology = "o.ttl"\n')
+    plan = KnowledgeManager.from_config(tmp_path / "c.toml").plan(
+        "forall c in Car: always (Speed[c] > 0)")
+    progressor = Progressor()
+    for f in plan.formulas:
+        progressor.add(f.text, f.tree)
+    (verdict,) = progressor.step(0, dict.fromkeys(plan.formulas[0].keys, -1))
     assert verdict.verdict is False
 
 

@@ -305,7 +305,8 @@ def federation_km() -> KnowledgeManager:
 
 def _request(kb: KnowledgeBase, formula: str) -> dict[str, set[tuple[str, str]]]:
     request = KnowledgeManager(kb).check_formula(formula)
-    return {f.feature.key: {(t.platform, t.topic) for t in f.topics} for f in request.features}
+    return {str(f.feature.key): {(t.platform, t.topic) for t in f.topics}
+            for f in request.features}
 
 
 def test_a_platform_going_offline_rederives_no_view(federation_km: KnowledgeManager):

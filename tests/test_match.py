@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.errors import DkError
 
-from .conftest import SCENARIOS, formulas, topic_sets
+from .conftest import REPO, SCENARIOS, formulas, topic_sets
 
 CASES = sorted((SCENARIOS / "expected").glob("*.json"))
 _managers: dict[str, KnowledgeManager] = {}
@@ -53,16 +54,10 @@ def test_remote_topics_say_what_they_were_matched_as():
     assert remote["as"] == {"feature": "Alt", "args": ["uas21"]}
 
 
-STRICT = """# A strict policy of a user's own: local topics only, each feature read as itself, objects
-# named by the topic (no sorts, no sameAs), selected by the digits of their names.
-object_id(P, O, V) <= name_digits(P, O, V)
-relevant_topic(Q, P, T, K, O1, '', '', V1, '', '') <= wanted(Q, F, O1, '', '') & local(P) & topic_feature(P, T, K, F, _Field) & topic_arg(P, T, K, 1, 'object', O1, Id) & (Id != '') & object_id(P, O1, V1)
-match_result(Q, 'topic', P, T, K, O1, O2, O3, V1, V2, V3) <= relevant_topic(Q, P, T, K, O1, O2, O3, V1, V2, V3)
-"""
 
 
 def test_a_config_may_replace_the_shipped_matching_policy(scenario):
-    (scenario / "strict.dl").write_text(STRICT)
+    shutil.copy(REPO / "tests" / "data" / "strict.dl", scenario / "strict.dl")
     config = scenario / "strict.toml"
     config.write_text('replace_rules = true\nrules = ["rules/ontology.dl", "rules/signature.dl", '
                       '"rules/expansion.dl", "strict.dl"]\n'

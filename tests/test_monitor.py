@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections import Counter
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -13,6 +15,7 @@ from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.monitor import Monitor
+from dkreason.parse.formula import feature_key as key
 from dkreason.progress import Verdict
 from dkreason.stream.processor import StreamPolicy, Violation
 from dkreason.stream.recording import write_recording
@@ -113,8 +116,7 @@ def messages(tmp_path: Path, rows: list[tuple[str, float, dict, float | None]]) 
 
 def events(single: KnowledgeManager, source: Path, policy: StreamPolicy,
            formula: str = "always (Speed[car1] > 0)") -> tuple[list, Monitor]:
-    monitor = Monitor(single, [formula], policy)
-    monitor.keep_states = True
+    monitor = Monitor(single, [formula], policy, keep_states=True)
     return list(monitor.run(JsonlSource(source))), monitor
 
 
@@ -157,7 +159,7 @@ def test_out_of_order_and_duplicate_samples(single, tmp_path):
                                        delay_before_approximation=Fraction(1)))
     assert kinds(evs) == ["ordered_on_valid_time", "unique_valid_time"]
     # the out-of-order sample counts in valid-time order; on equal times the later arrival wins
-    assert [(t / S, s["Speed[car1]"]) for t, s in monitor.states] == [(0, 50), (1, 51),
+    assert [(t / S, s[key("Speed[car1]")]) for t, s in monitor.states] == [(0, 50), (1, 51),
                                                                       (2, 53)]
 
 
@@ -166,7 +168,7 @@ def test_late_samples_are_reported_and_never_rewrite_states_already_made(single,
     evs, monitor = events(single, messages(tmp_path, rows), StreamPolicy(max_age=None))
     (v,) = [e for e in evs if isinstance(e, Violation)]
     assert v.constraint == "late" and "valid at 0.5 s arrived at 2.5 s" in v.detail
-    assert [s["Speed[car1]"] for _, s in monitor.states] == [50, 51, 52, 53]
+    assert [s[key("Speed[car1]")] for _, s in monitor.states] == [50, 51, 52, 53]
 
 
 def test_missing_samples_make_values_unknown_and_no_violation_is_claimed(single, tmp_path):
@@ -177,9 +179,9 @@ def test_missing_samples_make_values_unknown_and_no_violation_is_claimed(single,
                           "always (Speed[car1] > 60 -> eventually[0, 20] Speed[car1] <= 60)")
     (v,) = [e for e in evs if isinstance(e, Verdict)]
     assert v.verdict is None and v.at_end
-    assert [(u.feature, u.start, u.end) for u in v.unknown] == [
+    assert [(str(u.feature), u.start, u.end) for u in v.unknown] == [
         ("Speed[car1]", 3.000000001, 3.000000001)]
-    assert [(t / S, s["Speed[car1]"]) for t, s in monitor.states] == [
+    assert [(t / S, s[key("Speed[car1]")]) for t, s in monitor.states] == [
         (0, 70), (1, 70), (3.000000001, None), (30, 50)]
 
 
@@ -187,7 +189,7 @@ def test_approximation_none_only_takes_samples_at_the_state_time(single, tmp_pat
     rows = [car1(0, 50), ("topic4", 0.5, {"id": 2, "spd": 40}, None), car1(1, 51)]
     evs, monitor = events(single, messages(tmp_path, rows), StreamPolicy(approximation="none"),
                           "always (Speed[car1] > 0 and Speed[car2] > 0)")
-    assert [(t / S, s["Speed[car1]"], s["Speed[car2]"]) for t, s in monitor.states] == [
+    assert [(t / S, s[key("Speed[car1]")], s[key("Speed[car2]")]) for t, s in monitor.states] == [
         (0, 50, None), (0.5, None, 40), (1, 51, None)]
 
 
@@ -195,7 +197,7 @@ def test_filters_compare_ids_across_int_and_string(single, tmp_path):
     rows = [("topic3", 0, {"id": "1", "spd": 70}, None), ("topic3", 1, {"id": 2, "spd": 10}, None),
             ("topic3", 2, {"id": 1, "spd": 30}, None)]
     _, monitor = events(single, messages(tmp_path, rows), StreamPolicy(max_age=None))
-    assert [s["Speed[car1]"] for _, s in monitor.states] == [70, 30]
+    assert [s[key("Speed[car1]")] for _, s in monitor.states] == [70, 30]
 
 
 def test_merge_prefers_the_most_recent_valid_time_then_the_local_platform(tmp_path):
@@ -205,10 +207,9 @@ def test_merge_prefers_the_most_recent_valid_time_then_the_local_platform(tmp_pa
             ("platform2/carstopic2", 2, {"id": 11, "speed": 61}, 2.05),
             ("topic3", 2.5, {"id": 1, "spd": 55}, None)]
     monitor = Monitor(km, ["always (Speed[car1] > 0)"], StreamPolicy(
-        delay_before_approximation=Fraction(1, 10)))
-    monitor.keep_states = True
+        delay_before_approximation=Fraction(1, 10)), keep_states=True)
     list(monitor.run(JsonlSource(messages(tmp_path, rows))))
-    assert [(t / S, s["Speed[car1]"]) for t, s in monitor.states] == [(1, 50), (2, 61),
+    assert [(t / S, s[key("Speed[car1]")]) for t, s in monitor.states] == [(1, 50), (2, 61),
                                                                       (2.5, 55)]
 
 
@@ -283,3 +284,49 @@ def test_a_recording_without_the_features_leaves_every_verdict_unknown(capsys, t
                       "always (Speed[car1] < 100)")
     assert code == 3
     assert [(v["verdict"], v["time"]) for v in lines if "verdict" in v] == [(None, None)]
+
+
+# ---- one plan per formula, one monitor loop for every caller --------------------------------
+
+def test_each_formula_is_parsed_once_and_expanded_once_from_the_cli_to_its_verdict(
+        capsys, monkeypatch, traffic: Path):
+    from dkreason import expand
+    from dkreason.parse import formula
+
+    counts: Counter[str] = Counter()
+    parser, members = formula._parser(), expand.members
+
+    def parse(text: str, *args: Any, **kwargs: Any) -> Any:
+        counts["parse"] += 1
+        return type(parser).parse(parser, text, *args, **kwargs)
+
+    def expanded(kb: Any, sorts: set[str]) -> dict[str, list[str]]:
+        counts["expand"] += 1  # expand() asks for the members of its sorts once
+        return members(kb, sorts)
+
+    monkeypatch.setattr(parser, "parse", parse)
+    monkeypatch.setattr(expand, "members", expanded)
+    code, lines = run(capsys, REPO / "examples" / "federation.toml", traffic, TRAFFIC,
+                      "always (Position[car2] >= 0)", extra=["--delay", "0.1"])
+    assert code == 1 and [v["verdict"] for v in lines if "verdict" in v] == [False, True]
+    assert counts == {"parse": 2, "expand": 2}
+
+
+def test_the_public_api_monitors_a_recording(traffic: Path):
+    from dkreason import KnowledgeManager, StreamPolicy, Verdict, Violation
+
+    km = KnowledgeManager.from_config(REPO / "examples" / "federation.toml")
+    events = list(km.monitor(TRAFFIC, traffic,
+                             StreamPolicy(delay_before_approximation=Fraction(1, 10))))
+    verdicts = [e for e in events if isinstance(e, Verdict)]
+    assert [(v.verdict, v.time) for v in verdicts] == [(False, 300.02)]
+    assert "Speed[car2]" in str(verdicts[0].witness)
+    assert all(isinstance(e, Verdict | Violation) for e in events)
+
+
+def test_a_stream_policy_is_keyword_only_and_immutable():
+    with pytest.raises(TypeError):
+        StreamPolicy(Fraction(1))  # type: ignore[misc]
+    policy = StreamPolicy(max_age=Fraction(2))
+    with pytest.raises(AttributeError):
+        policy.max_age = Fraction(3)  # type: ignore[misc]

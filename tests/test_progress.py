@@ -173,7 +173,7 @@ def test_unknown_values_are_reported_with_their_spans_and_never_as_a_violation()
         assert p.step(t, {"Speed[car2]": 70 if t < 200 else None}) == []
     (v,) = p.finish()
     assert v.verdict is None and v.at_end
-    assert [(u.feature, u.start, u.end) for u in v.unknown] == [("Speed[car2]", 200, 500)]
+    assert [(str(u.feature), u.start, u.end) for u in v.unknown] == [("Speed[car2]", 200, 500)]
 
 
 def test_feature_keys_ignore_whitespace():

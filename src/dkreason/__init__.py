@@ -1,13 +1,22 @@
 """dkreason: semantically grounded stream reasoning for robots.
 
-    from dkreason import KnowledgeManager
+    from dkreason import KnowledgeManager, StreamPolicy
     km = KnowledgeManager.from_config("examples/federation.toml")
     request = km.check_formula("forall x in UAV: always (Altitude[x] > 10)")
+    for event in km.monitor("forall c in Car: always (Speed[c] < 90)", "traffic.mcap",
+                            StreamPolicy(delay_before_approximation=Fraction(1, 10))):
+        print(event)            # a Verdict or a Violation, as it happens
+
+The monitoring names (`Monitor`, `StreamPolicy`, `Verdict`, `Violation`, `Plan`) load on
+first use, so importing dkreason stays cheap.
 """
+
+from typing import TYPE_CHECKING, Any
 
 from .errors import DkError, ParseError, SourceError, Span
 from .manager import KnowledgeManager
 from .model import (
+    FeatureKey,
     FeatureRequest,
     GroundFeature,
     StreamRequest,
@@ -17,17 +26,42 @@ from .model import (
     TopicSpec,
 )
 
+if TYPE_CHECKING:
+    from .monitor import Monitor
+    from .plan import FormulaPlan, Plan
+    from .progress import Verdict
+    from .stream.processor import StreamPolicy, Violation
+
+_LAZY = {"Monitor": "monitor", "Plan": "plan", "FormulaPlan": "plan", "Verdict": "progress",
+         "StreamPolicy": "stream.processor", "Violation": "stream.processor"}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module 'dkreason' has no attribute {name!r}")
+
+
 __all__ = [
     "DkError",
+    "FeatureKey",
     "FeatureRequest",
+    "FormulaPlan",
     "GroundFeature",
     "KnowledgeManager",
+    "Monitor",
     "ParseError",
+    "Plan",
     "SourceError",
     "Span",
+    "StreamPolicy",
     "StreamRequest",
     "TopicArg",
     "TopicFeature",
     "TopicMatch",
     "TopicSpec",
+    "Verdict",
+    "Violation",
 ]

@@ -186,9 +186,13 @@ def _progress(args: argparse.Namespace) -> int:
     from .progress import Progressor
     from .progress.states import read_states
 
-    progressor = Progressor.with_knowledge(_km(args)) if args.config else Progressor()
-    for formula in args.formulas:
-        progressor.add(formula)
+    progressor = Progressor()
+    if args.config:
+        for f in _km(args).plan(args.formulas).formulas:
+            progressor.add(f.text, f.tree)
+    else:
+        for formula in args.formulas:
+            progressor.add(formula)
     verdicts = []
 
     def emit(batch: list[Any]) -> None:
@@ -305,17 +309,19 @@ def _monitor(args: argparse.Namespace) -> int:
     from .stream.processor import StreamPolicy
     from .stream.sources import open_source
 
-    policy = StreamPolicy(args.period, args.deviation, args.approximation, args.max_age,
-                          args.delay, args.start, args.end, args.max_delay, args.ordered,
-                          args.unique)
+    policy = StreamPolicy(
+        sample_period=args.period, sample_period_deviation=args.deviation,
+        approximation=args.approximation, max_age=args.max_age,
+        delay_before_approximation=args.delay, start_time=args.start, end_time=args.end,
+        max_delay=args.max_delay, ordered_on_valid_time=args.ordered,
+        unique_valid_time=args.unique)
     if args.plot is not None and not args.plot.parent.is_dir():
         raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
     if args.live:
         return _monitor_live(args, policy)
     if args.source is None:
         raise DkError("monitor needs --source RECORDING, or --live")
-    monitor = Monitor(_km(args), args.formulas, policy)
-    monitor.keep_states = args.plot is not None
+    monitor = Monitor(_km(args), args.formulas, policy, keep_states=args.plot is not None)
     source = open_source(args.source, args.msg)
     note = getattr(source, "note", None)
     if note:

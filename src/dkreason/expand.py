@@ -1,42 +1,92 @@
-"""Expand quantified arguments over the local platform's objects of the sort (thesis 4.2):
-subsorts, equivalent sorts and sorts inherited through sameAs included.  Objects that are
-sameAs each other expand once, named by the smallest local name among them."""
+"""Expand a checked formula's quantifiers over the local platform's objects of the sort
+(thesis 4.2): subsorts, equivalent sorts and sorts inherited through sameAs included.  Objects
+that are sameAs each other expand once, named by the smallest local name among them.
+
+One walk gives both halves of a plan: the quantifier-free tree the progressor runs, and the
+ground features the matcher finds topics for, so the two can never disagree."""
 
 from __future__ import annotations
 
-import itertools
-import math
+import dataclasses
 from collections import defaultdict
+from dataclasses import dataclass
+from typing import Any
 
 from .check import CheckedFeature
 from .errors import DkError
 from .kb import KnowledgeBase
-from .model import GroundFeature
+from .model import Arg, FeatureRef, GroundFeature
 from .names import local_name
-from .parse.formula import MAX_EXPANSION
+from .parse.formula import (
+    MAX_EXPANSION,
+    Atom,
+    BoolConst,
+    Connective,
+    Formula,
+    Not,
+    Quant,
+    Ref,
+    Temporal,
+    Until,
+    chain,
+    quantifiers,
+)
 
 
-def expand(kb: KnowledgeBase, checked: list[CheckedFeature]) -> list[GroundFeature]:
-    members_of = members(kb, {iri for c in checked
-                            for a, iri in zip(c.ref.args, c.arg_iris, strict=True)
-                            if a.is_variable})
-    out: dict[tuple[str, tuple[str, ...]], GroundFeature] = {}
-    for c in checked:
-        variables = list(dict.fromkeys(a.name for a in c.ref.args if a.is_variable))
-        sort_of = {a.name: iri for a, iri in zip(c.ref.args, c.arg_iris, strict=True)
-                   if a.is_variable}
-        count = math.prod(len(members_of[sort_of[v]]) for v in variables)
-        if count > MAX_EXPANSION:
-            raise DkError(f"{c.ref.span}: {c.ref.name} expands to {count} ground features, "
-                          f"more than the {MAX_EXPANSION} one formula takes")
-        for values in itertools.product(*(members_of[sort_of[v]] for v in variables)):
-            env = dict(zip(variables, values, strict=True))
-            iris = tuple(env[a.name] if a.is_variable else iri
-                         for a, iri in zip(c.ref.args, c.arg_iris, strict=True))
-            names = tuple(local_name(env[a.name]) if a.is_variable else a.name
-                          for a in c.ref.args)
-            out.setdefault((c.iri, iris), GroundFeature(c.ref.name, names, c.iri, iris, c.ref.span))
-    return list(out.values())
+@dataclass(frozen=True, slots=True)
+class Expansion:
+    """A formula without quantifiers, and the ground features it reads (each once, in order)."""
+
+    tree: Formula
+    ground: tuple[GroundFeature, ...]
+
+
+def expand(kb: KnowledgeBase, formula: Formula, checked: list[CheckedFeature]) -> Expansion:
+    local = kb.platform(kb.local)
+    by_ref = {c.ref: c for c in checked}
+    sorts = {q.sort: local.names.resolve(q.sort, ("sort",), q.span)
+             for q in quantifiers(formula)}
+    members_of = members(kb, set(sorts.values()))
+    size = _size(formula, lambda sort: len(members_of[sorts[sort]]))
+    if size > MAX_EXPANSION:
+        raise DkError(f"{next(quantifiers(formula)).span}: the quantifiers expand to {size} "
+                      f"subformulas, more than the {MAX_EXPANSION} one formula takes")
+    ground: dict[tuple[str, tuple[str, ...]], GroundFeature] = {}
+
+    def walk(node: Any, env: dict[str, tuple[str, str]]) -> Any:  # var → (sort, object IRI)
+        if isinstance(node, Quant):
+            parts = [walk(node.body, {**env, node.var: (node.sort, o)})
+                     for o in members_of[sorts[node.sort]]]
+            op = "and" if node.op == "forall" else "or"
+            return chain(op, parts) if parts else BoolConst(op == "and")
+        if isinstance(node, Atom | Ref):
+            f = node.feature
+            c = by_ref[FeatureRef(f.name, tuple(Arg(a.name, env[a.name][0] if a.name in env
+                                                    else None, a.span) for a in f.args), f.span)]
+            iris = tuple(env[a.name][1] if a.name in env else iri
+                         for a, iri in zip(f.args, c.arg_iris, strict=True))
+            names = tuple(local_name(env[a.name][1]) if a.name in env else a.name
+                          for a in f.args)
+            ground.setdefault((c.iri, iris), GroundFeature(f.name, names, c.iri, iris, f.span))
+            return type(node)(FeatureRef(f.name, tuple(
+                Arg(n, None, a.span) for n, a in zip(names, f.args, strict=True)), f.span))
+        changes = {attr: walk(getattr(node, attr), env)
+                   for attr in ("arg", "left", "right") if hasattr(node, attr)}
+        return dataclasses.replace(node, **changes) if changes else node
+
+    tree = walk(formula, {})
+    return Expansion(tree, tuple(ground.values()))
+
+
+def _size(f: Any, count: Any) -> int:
+    """Atoms and comparisons of `f` once expanded, counted without expanding."""
+    if isinstance(f, Quant):
+        return int(count(f.sort)) * _size(f.body, count)
+    if isinstance(f, Connective | Until):
+        return _size(f.left, count) + _size(f.right, count)
+    if isinstance(f, Not | Temporal):
+        return _size(f.arg, count)
+    return 1
 
 
 def members(kb: KnowledgeBase, sorts: set[str]) -> dict[str, list[str]]:

@@ -387,14 +387,15 @@ def explain(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
             topic: str | None = None) -> Explanation:
     from .errors import DkError
     from .match import wanted_rows
+    from .parse.formula import feature_key
 
     selected = list(range(len(ground)))
     if feature is not None:
-        wanted_key = "".join(feature.split())
-        selected = [q for q, g in enumerate(ground) if "".join(g.key.split()) == wanted_key]
+        wanted_key = feature_key(feature)
+        selected = [q for q, g in enumerate(ground) if g.key == wanted_key]
         if not selected:
             raise DkError(f"{feature} is not a feature of the formula (its features: "
-                          f"{', '.join(g.key for g in ground)})")
+                          f"{', '.join(str(g.key) for g in ground)})")
     if topic is not None and not any(topic in p.specs for p in kb.platforms.values()):
         raise DkError(f"no topic {topic!r} on any platform")
     reader = Reader(kb, ground)
@@ -409,7 +410,7 @@ def explain(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
                 platforms = [p for p, plat in kb.platforms.items() if topic in plat.specs] \
                     if topic else [str(r[1]) for r in replay.rows(("context", kb.local, None))]
                 why_not = tuple(w for p in platforms for w in _why_not(kb, replay, q, p, topic))
-            features.append(FeatureExplanation(ground[q].key, why, why_not))
+            features.append(FeatureExplanation(str(ground[q].key), why, why_not))
     return Explanation(formula, tuple(features))
 
 

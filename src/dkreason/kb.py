@@ -44,6 +44,27 @@ class Platform:
         return self.ontology.platform
 
 
+def load_platforms(config: Config) -> dict[str, Platform]:
+    """The platforms whose files the config names (a live federation fetches the others)."""
+    from .parse.owl import read_ontology
+    from .parse.sslt import read_specs
+
+    out: dict[str, Platform] = {}
+    for files in config.platforms:
+        if files.ontology is not None:
+            specs = read_specs(files.specs).specs if files.specs is not None else ()
+            out[files.name] = make_platform(read_ontology(files.ontology, files.name), specs,
+                                            files.specs)
+    return out
+
+
+def load_mappings(config: Config) -> tuple[Mapping_, ...]:
+    from .parse.cowl import read_bridge_rules
+
+    return tuple(Mapping_(m.source, m.target, str(m.file), read_bridge_rules(m.file))
+                 for m in config.mappings)
+
+
 class KnowledgeBase:
     def __init__(self, local: str, platforms: dict[str, Platform],
                  mappings: tuple[Mapping_, ...], policy: tuple[Path, ...] | None = None,
@@ -110,23 +131,14 @@ class KnowledgeBase:
 
     @classmethod
     def _load(cls, path: Path) -> KnowledgeBase:
-        from .parse.cowl import read_bridge_rules
-        from .parse.owl import read_ontology
-        from .parse.sslt import read_specs
-
         config = read_config(path)
-        platforms: dict[str, Platform] = {}
+        at_hand = load_platforms(config)
         for files in config.platforms:
-            if files.ontology is None:
+            if files.name not in at_hand:
                 raise ParseError(f"[platforms.{files.name}] has no ontology file: its knowledge "
                                  f"comes from the network (dkreason monitor --live)",
                                  Span(str(path)))
-            specs = read_specs(files.specs).specs if files.specs is not None else ()
-            platforms[files.name] = make_platform(read_ontology(files.ontology, files.name),
-                                                  specs, files.specs)
-        mappings = tuple(Mapping_(m.source, m.target, str(m.file), read_bridge_rules(m.file))
-                         for m in config.mappings)
-        return cls(config.local, platforms, mappings, config.rules, config)
+        return cls(config.local, at_hand, load_mappings(config), config.rules, config)
 
     # ---- specs -------------------------------------------------------------------------
 

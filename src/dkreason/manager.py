@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -11,6 +12,10 @@ from .model import StreamRequest, TopicSpec
 
 if TYPE_CHECKING:
     from .explain import Explanation
+    from .monitor import Event
+    from .plan import Parsed, Plan
+    from .stream.processor import StreamPolicy
+    from .stream.sources import Source
 
 
 class KnowledgeManager:
@@ -25,31 +30,45 @@ class KnowledgeManager:
     def local(self) -> str:
         return self.kb.local
 
+    def plan(self, formulas: str | Sequence[str | Parsed]) -> Plan:
+        """Formulas parsed, checked against the local ontology and expanded, once each."""
+        from .plan import plan
+
+        return plan(self.kb, [formulas] if isinstance(formulas, str) else formulas)
+
+    def request(self, plan: Plan) -> StreamRequest:
+        """The stream request of a plan: every ground feature and the topics to merge (matched
+        again whenever it is asked, so it follows the knowledge base as it changes)."""
+        from .request import request
+
+        return request(self.kb, plan)
+
     def check_formula(self, formula: str) -> StreamRequest:
         """The stream request for `formula`: every ground feature and the topics to merge."""
-        from .check import check_formula
-        from .expand import expand
-        from .match import match
-        from .parse.formula import parse_formula
-        from .request import build_request
-
-        ground = expand(self.kb, check_formula(self.kb, parse_formula(formula)))
-        matches, rejected = match(self.kb, ground)
-        return build_request(self.kb, formula, ground, matches, rejected)
+        return self.request(self.plan(formula))
 
     def explain(self, formula: str, feature: str | None = None,
                 topic: str | None = None) -> Explanation:
         """Why each topic of the request matched; for a feature without topics, or a named
         topic that was not chosen, the closest candidates and the first condition that failed."""
-        from .check import check_formula
-        from .expand import expand
         from .explain import explain
         from .match import match
-        from .parse.formula import parse_formula
 
-        ground = expand(self.kb, check_formula(self.kb, parse_formula(formula)))
+        ground = list(self.plan(formula).ground)
         matches, _ = match(self.kb, ground)
         return explain(self.kb, formula, ground, matches, feature, topic)
+
+    def monitor(self, formulas: str | Sequence[str | Parsed], source: Source | str | Path,
+                policy: StreamPolicy | None = None) -> Iterator[Event]:
+        """Verdicts and stream-constraint violations as they happen, over a recording (MCAP,
+        ROS 1 bag, rosbag2 folder, JSON lines) or any other `Source`."""
+        from .monitor import Monitor
+        from .stream.processor import StreamPolicy
+        from .stream.sources import open_source
+
+        opened = source if not isinstance(source, str | Path) else open_source(Path(source))
+        return Monitor(self, [formulas] if isinstance(formulas, str) else formulas,
+                       policy or StreamPolicy()).run(opened)
 
     # ---- topic specifications ----------------------------------------------------------
 

@@ -118,6 +118,25 @@ class Mapping_:
 
 # ---- formulas: the features they need -------------------------------------------------------
 
+@dataclass(frozen=True, slots=True, order=True)
+class FeatureKey:
+    """A ground feature as the state stream names it (`Close[uav1, uav2]`): made from typed
+    parts, never parsed from text, and hashed once (states are dicts keyed by it)."""
+
+    name: str
+    args: tuple[str, ...] = ()
+    _hash: int = dataclasses.field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_hash", hash((self.name, self.args)))
+
+    def __hash__(self) -> int:
+        return self._hash
+
+    def __str__(self) -> str:
+        return f"{self.name}[{', '.join(self.args)}]" if self.args else self.name
+
+
 @dataclass(frozen=True, slots=True)
 class Arg:
     """A feature argument in a formula: a constant object, or a variable bound to a sort."""
@@ -153,10 +172,10 @@ class GroundFeature:
     iri: str
     arg_iris: tuple[str, ...]
     span: Span = dataclasses.field(default=Span("<formula>"), compare=False)
+    key: FeatureKey = dataclasses.field(init=False, repr=False, compare=False)
 
-    @property
-    def key(self) -> str:
-        return f"{self.name}[{', '.join(self.args)}]" if self.args else self.name
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "key", FeatureKey(self.name, self.args))
 
 
 # ---- the stream request (thesis 5.6: state stream → features → topics → arguments) ---------

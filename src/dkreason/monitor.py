@@ -1,83 +1,111 @@
-"""Close the loop (thesis 2.3.2, 4.4): formulas → stream request → Stream Processor → Formula
-Progressor → verdicts, from a recording or any other source.
+"""Close the loop (thesis 2.3.2, 4.4): plan → stream request → Stream Processor → Formula
+Progressor → verdicts.  One `Monitor` serves every caller: a recording (`run`), the live
+federation (which feeds it samples and re-matches it as platforms come and go), the CLI and
+`KnowledgeManager.monitor`.
 
-    monitor = Monitor(km, ["forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] "
-                           "Speed[c] <= 60)"], StreamPolicy())
-    for event in monitor.run(open_source(Path("traffic.mcap"))): ...   # Verdict | Violation
+    for event in km.monitor(["forall c in Car: always (Speed[c] > 60 -> "
+                             "eventually[0, 300] Speed[c] <= 60)"], "traffic.mcap"): ...
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .errors import DkError
-from .manager import KnowledgeManager
-from .model import FeatureRequest, StreamRequest
+from .model import FeatureKey, StreamRequest
 from .progress import Progressor, Verdict
 from .stream.processor import StreamPolicy, StreamProcessor, Violation, seconds
 from .stream.sources import NS, Source
+
+if TYPE_CHECKING:
+    from .manager import KnowledgeManager
+    from .plan import Parsed
 
 Event = Verdict | Violation
 
 
 class Monitor:
-    def __init__(self, km: KnowledgeManager, formulas: list[str], policy: StreamPolicy) -> None:
-        self.km, self.formulas, self.policy = km, formulas, policy
-        self.request = combined_request(km, formulas)
-        self.states: list[tuple[int, dict[str, Any]]] = []
-        self.keep_states = False
+    """Formulas planned once (parsed, checked, expanded), then states in, verdicts out."""
+
+    def __init__(self, km: KnowledgeManager, formulas: Sequence[str | Parsed],
+                 policy: StreamPolicy, *, keep_states: bool = False) -> None:
+        self.km, self.policy, self.keep_states = km, policy, keep_states
+        self.plan = km.plan(formulas)
+        self.request = km.request(self.plan)
+        self.progressor = Progressor(unit=Fraction(1, NS))
+        for f in self.plan.formulas:
+            self.progressor.add(f.text, f.tree)
+        self.states: list[tuple[int, dict[FeatureKey, Any]]] = []
+        self.pending: list[Event] = []
+        self.decided = 0
+        self.processor: StreamProcessor | None = None
+
+    def start(self, source: Source) -> StreamProcessor:
+        """The stream processor over `source`, states going to the progressor."""
+        self.processor = StreamProcessor(self.request, self.policy, source, self._on_state,
+                                         self.pending.append)
+        return self.processor
+
+    def _on_state(self, time: int, values: dict[FeatureKey, Any]) -> None:
+        if self.keep_states:
+            self.states.append((time, dict(values)))
+        for v in self.progressor.step(time, values):
+            self.decided += 1
+            self.pending.append(in_seconds(v))
+
+    @property
+    def done(self) -> bool:
+        return self.decided == len(self.plan.formulas)
+
+    def events(self) -> list[Event]:
+        """What was decided or violated since the last call."""
+        out, self.pending[:] = list(self.pending), []
+        return out
+
+    def rematch(self, source: Source) -> StreamRequest:
+        """The plan's features matched again (the knowledge changed); the streams follow."""
+        assert self.processor is not None
+        self.request = self.km.request(self.plan)
+        self.processor.reroute(self.request, source)
+        return self.request
+
+    def finish(self) -> list[Event]:
+        """End of stream: every formula settled."""
+        assert self.processor is not None
+        self.processor.finish()
+        self.pending.extend(in_seconds(v) for v in self.progressor.finish())
+        return self.events()
 
     def run(self, source: Source, progress: Callable[[int], None] | None = None
             ) -> Iterator[Event]:
         """Events as they happen: violations as seen, verdicts as decided, the rest at the end.
         An error in the source comes after every event decided before it."""
-        progressor = Progressor.with_knowledge(self.km, unit=Fraction(1, NS))
-        for f in self.formulas:
-            progressor.add(f)
-        out: list[Event] = []
-
-        def on_state(time: int, values: dict[str, Any]) -> None:
-            if self.keep_states:
-                self.states.append((time, dict(values)))
-            out.extend(in_seconds(v) for v in progressor.step(time, values))
-
         try:
-            processor = StreamProcessor(self.request, self.policy, source, on_state, out.append)
+            processor = self.start(source)
         except BaseException:
             source.close()
             raise
+        pending = self.pending
         try:
             feed = processor.feed
             for n, (topic, available, valid, values) in enumerate(
                     source.messages(processor.wanted), 1):
                 feed(topic, available, valid, values)
-                if out:
-                    yield from out
-                    out.clear()
+                if pending:
+                    yield from self.events()
                 if progress is not None and not n & 4095:
                     progress(n)
         except DkError:  # damage or bad data: first what the messages before it decided
             processor.finish()
-            yield from out
+            yield from self.events()
             raise
         finally:
             source.close()
-        processor.finish()
-        out.extend(in_seconds(v) for v in progressor.finish())
-        yield from out
-
-
-def combined_request(km: KnowledgeManager, formulas: list[str]) -> StreamRequest:
-    """One request for several formulas: each ground feature once."""
-    features: dict[str, FeatureRequest] = {}
-    for f in formulas:
-        for fr in km.check_formula(f).features:
-            features.setdefault(fr.feature.key, fr)
-    return StreamRequest("; ".join(formulas), km.local, tuple(features.values()))
+        yield from self.finish()
 
 
 def in_seconds(v: Verdict) -> Verdict:
@@ -96,7 +124,7 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    keys = ["".join(f.feature.key.split()) for f in monitor.request.features]
+    keys = [f.feature.key for f in monitor.request.features]
     fig, axes = plt.subplots(max(len(keys), 1), 1, sharex=True, squeeze=False,
                              figsize=(10, 1.5 * max(len(keys), 1) + 1.6))
     times = [float(seconds(t)) for t, _ in monitor.states]
@@ -118,7 +146,7 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
         if ticks:
             ax.plot(ticks, [ax.get_ylim()[0]] * len(ticks), "|", color="tab:orange", ms=10,
                     label="constraint violated")
-        ax.set_ylabel(key, rotation=0, ha="right", va="center", fontsize=9)
+        ax.set_ylabel(str(key), rotation=0, ha="right", va="center", fontsize=9)
         handles, labels = ax.get_legend_handles_labels()
         if handles:
             unique = dict(zip(labels, handles, strict=True))

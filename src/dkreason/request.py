@@ -6,9 +6,17 @@ from __future__ import annotations
 from collections import defaultdict
 
 from .kb import KnowledgeBase
-from .match import Match, Rejected
+from .match import Match, Rejected, match
 from .model import FeatureRequest, GroundFeature, IdValue, StreamRequest, TopicMatch
 from .names import local_name
+from .plan import Plan
+
+
+def request(kb: KnowledgeBase, plan: Plan) -> StreamRequest:
+    """The topics of every ground feature of the plan, matched in one query."""
+    ground = list(plan.ground)
+    matches, rejected = match(kb, ground)
+    return build_request(kb, plan.text, ground, matches, rejected)
 
 
 def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],

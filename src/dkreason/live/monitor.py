@@ -26,19 +26,27 @@ import queue
 import threading
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 from ..errors import DkError
-from ..kb import KnowledgeBase, Platform, make_platform, with_object
+from ..kb import (
+    KnowledgeBase,
+    Platform,
+    load_mappings,
+    load_platforms,
+    make_platform,
+    with_object,
+)
 from ..manager import KnowledgeManager
-from ..model import Mapping_, StreamRequest
-from ..monitor import combined_request, in_seconds
+from ..model import FeatureKey, StreamRequest
+from ..monitor import Monitor
 from ..parse.config import read_config
-from ..progress import Progressor, Verdict
-from ..stream.processor import StreamPolicy, StreamProcessor, Violation, seconds
+from ..plan import parse
+from ..progress import Verdict
+from ..stream.processor import StreamPolicy, Violation, seconds
 from ..stream.sources import NS, Message, Wanted, dict_reader
 from . import wire
 
@@ -109,27 +117,15 @@ class LiveMonitor:
                  trust: dict[str, Any] | None = None) -> None:
         """`trust`: platform → Ed25519 public key (wire.trusted_keys); the samples of those
         platforms must be signed by it."""
-        from ..parse.cowl import read_bridge_rules
-        from ..parse.formula import parse_formula
-        from ..parse.owl import read_ontology
-        from ..parse.sslt import read_specs
-
-        for formula in formulas:  # a typo is reported at once, not after the network wait
-            parse_formula(formula)
+        self.formulas = parse(formulas)  # a typo is reported at once, not after the wait
         self.config = read_config(config)
-        self.formulas, self.policy, self.session = formulas, policy, session
+        self.policy, self.session = policy, session
         self.wait, self.ask_timeout = wait, ask_timeout
         self.trust = trust or {}
         self.names = {p.name for p in self.config.platforms}
-        self.known: dict[str, Platform] = {}  # knowledge at hand, before the KB exists
+        self.known = load_platforms(self.config)  # knowledge at hand, before the KB exists
         self.digests: dict[str, str] = {}  # of the ontology each platform served
-        for files in self.config.platforms:
-            if files.ontology is not None:
-                specs = read_specs(files.specs).specs if files.specs is not None else ()
-                self.known[files.name] = make_platform(
-                    read_ontology(files.ontology, files.name), specs, files.specs)
-        self.mappings = tuple(Mapping_(m.source, m.target, str(m.file),
-                                       read_bridge_rules(m.file)) for m in self.config.mappings)
+        self.mappings = load_mappings(self.config)
         self.events: queue.Queue[tuple[Any, ...]] = queue.Queue()
         self.present: set[str] = set()
         self.clocks: dict[tuple[str, str], int] = {}  # (platform, topic) → sent up to
@@ -139,8 +135,7 @@ class LiveMonitor:
         self.rejected: dict[tuple[str, str, str], int] = {}
         self.kb: KnowledgeBase | None = None
         self.subs: dict[tuple[str, str], Any] = {}  # (platform, topic) → subscriber
-        self.topics: dict[str, set[tuple[str, str]]] = {}  # feature → its (platform, topic)s
-        self.decided = 0
+        self.topics: dict[FeatureKey, set[tuple[str, str]]] = {}  # → its (platform, topic)s
         self.end: int | None = None  # ns: samples after it are not taken
         self.received = 0  # samples taken
         self.stop = threading.Event()
@@ -233,30 +228,17 @@ class LiveMonitor:
         `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts."""
         yield from self._gather()
         assert self.kb is not None
-        km = self.km = KnowledgeManager(self.kb)
-        self.request = combined_request(km, self.formulas)
-        self.keys = [f.feature.key for f in self.request.features]
-        progressor = Progressor.with_knowledge(km, unit=Fraction(1, NS))
-        for f in self.formulas:
-            progressor.add(f)
-        out: list[Event] = []
-
-        def on_state(t: int, values: dict[str, Any]) -> None:
-            for v in progressor.step(t, values):
-                self.decided += 1
-                out.append(in_seconds(v))
-
+        self.km = KnowledgeManager(self.kb)
+        monitor = self.monitor = Monitor(self.km, self.formulas, self.policy)
         self.source = _Live()
-        self.processor = StreamProcessor(self.request, self.policy, self.source, on_state,
-                                         out.append)
+        self.processor = monitor.start(self.source)
         self.read = dict_reader(self.source.name, self.processor.wanted)
-        out += self._subscribe(self.request, None, "")
-        yield from out
-        out.clear()
+        yield from self._subscribe(monitor.request, None, "")
+        yield from monitor.events()
         end = self.end = None if until is None else int(until * NS)
         stop_at = None if duration is None else time.monotonic() + duration
         try:
-            while not self.stop.is_set() and self.decided < len(self.formulas):
+            while not self.stop.is_set() and not monitor.done:
                 if stop_at is not None and time.monotonic() >= stop_at:
                     break
                 mark = self.watermark()
@@ -266,17 +248,14 @@ class LiveMonitor:
                     event = self.events.get(timeout=0.1)
                 except queue.Empty:
                     continue
-                out += self._handle(event)
+                yield from self._handle(event)
                 mark = self.watermark()
                 if mark is not None:
                     self.processor.advance(mark if end is None else min(mark, end))
-                yield from out
-                out.clear()
+                yield from monitor.events()
         finally:
             self.close()
-        self.processor.finish()
-        out.extend(in_seconds(v) for v in progressor.finish())
-        yield from out
+        yield from monitor.finish()
 
     def watermark(self) -> int | None:
         """Up to when every subscribed topic has been sent (None: not known yet)."""
@@ -429,19 +408,10 @@ class LiveMonitor:
     # ---- subscriptions -----------------------------------------------------------------
 
     def _rematch(self, p: str, why: str) -> list[Event]:
-        request = combined_request(self.km, self.formulas)
-        by_key = {f.feature.key: f for f in request.features}
-        if set(by_key) != set(self.keys):
-            extra = sorted(set(by_key) - set(self.keys))
-            if extra:
-                log.warning("not monitored until restart (the formulas were expanded at "
-                            "start): %s", ", ".join(extra))
-            request = replace(request, features=tuple(by_key[k] for k in self.keys
-                                                      if k in by_key))
-        changes = self._subscribe(request, p, why)
-        self.processor.reroute(request, self.source)
+        """The formulas' features (expanded at start) matched again; subscriptions follow."""
+        request = self.monitor.rematch(self.source)
         self.read = dict_reader(self.source.name, self.processor.wanted)
-        return changes
+        return self._subscribe(request, p, why)
 
     def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
         now = self.watermark()
@@ -457,14 +427,14 @@ class LiveMonitor:
                     wire.key(q, "topic", t), lambda s, q=q, t=t: self.events.put(
                         ("sample", q, t, s.payload.to_bytes(),
                          None if s.attachment is None else s.attachment.to_bytes())))
-                changes.append(Change("subscribed", now, q, feature=key, topic=t))
+                changes.append(Change("subscribed", now, q, feature=str(key), topic=t))
         for (q, t) in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()
             self.clocks.pop((q, t), None)
             changes.append(Change("unsubscribed", now, q, why, topic=t))
         for key, pts in before.items():
             if pts and not self.topics.get(key):
-                changes.append(Change("source_lost", now, p or "", why, feature=key))
+                changes.append(Change("source_lost", now, p or "", why, feature=str(key)))
         return changes
 
     def close(self) -> None:

@@ -6,17 +6,18 @@ One grammar serves the matcher (which only needs the features) and the progressi
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from fractions import Fraction
-from functools import cache
+from functools import cache, lru_cache
 from typing import Any
 
 from lark import Lark, Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..errors import ParseError, Span
-from ..model import Arg, FeatureRef
+from ..model import Arg, FeatureKey, FeatureRef
 
 FILE = "<formula>"
 MAX_NUMBER = 100  # characters of a number literal
@@ -359,3 +360,18 @@ def quantifiers(formula: Formula) -> Iterator[Quant]:
         yield formula
     for child in children(formula):
         yield from quantifiers(child)
+
+
+# ---- feature keys written as text (state files, --feature): read once per spelling ------
+
+_KEY = re.compile(r"\s*([^\s\[\],]+)\s*(?:\[([^\[\]]*)\])?\s*")
+
+
+@lru_cache(maxsize=1 << 14)
+def feature_key(text: str) -> FeatureKey | None:
+    """The key a state file writes as text (`Close[uav1, uav2]`), read once per spelling."""
+    found = _KEY.fullmatch(text)
+    if found is None:
+        return None
+    args = tuple(a.strip() for a in found.group(2).split(",")) if found.group(2) else ()
+    return FeatureKey(found.group(1), args) if all(args) else None

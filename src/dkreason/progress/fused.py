@@ -22,10 +22,11 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
+from ..model import FeatureKey
 from ..parse.formula import ANY, BoolConst, Connective, Formula, Not, Temporal
 from .compile import exact
 from .nodes import Time, Why, fmt
-from .state import _boolean_keys, _py, evaluate, features, is_state, render
+from .state import _boolean_keys, _py, evaluate, features, is_state, reads, render
 
 TRUE = BoolConst(True)
 INF = float("inf")
@@ -87,7 +88,7 @@ class Member:
         self.done = True
         self.on_false(why)
 
-    def fail_now(self, t: Time, values: dict[str, Any]) -> None:
+    def fail_now(self, t: Time, values: dict[FeatureKey, Any]) -> None:
         shown = ", ".join(f"{k} = {values[k]}" for k in features(self.shape.a))
         self.fail(Why(render(self.shape.a), t, f"was false at {self.fmt(t)}" +
                       (f" ({shown})" if shown else "")))
@@ -227,7 +228,7 @@ class Group:
 class FusedSet:
     """Every fused formula of a progressor, run by one generated step function."""
 
-    def __init__(self, on_unknown: Callable[[list[str]], None]) -> None:
+    def __init__(self, on_unknown: Callable[[list[FeatureKey]], None]) -> None:
         self.members: list[Member] = []
         self.on_unknown = on_unknown
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
@@ -258,7 +259,7 @@ class FusedSet:
         for g in self.groups.values():
             g.finish()
 
-    def note_unknown(self, values: Any, keys: list[str]) -> None:
+    def note_unknown(self, values: Any, keys: list[FeatureKey]) -> None:
         self.on_unknown([k for k in keys if values[k] is None])
 
 
@@ -271,22 +272,22 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
                 if f is not None and f != TRUE:
                     formulas.setdefault(f, f"e{len(formulas)}")
     keys = list(dict.fromkeys(k for f in formulas for k in features(f)))
-    names = {k: f"x{i}" for i, k in enumerate(keys)}
     consts: list[Any] = []
+    scope: dict[str, Any] = {"fs": fs, "slow": evaluate, "C": consts}
+    names, reading = reads(keys, "v", scope)
 
     def const(value: Any) -> str:
         consts.append(value)
         return f"C[{len(consts) - 1}]"
 
-    lines = ["def step(t, v):"]
-    lines += [f"    {names[k]} = v[{k!r}]" for k in keys]
+    lines = ["def step(t, v):", *(f"    {line}" for line in reading)]
     for f, var in formulas.items():
         mine, bools = features(f), _boolean_keys(f)
         known = " and ".join(f"type({names[k]}) is bool" if k in bools else
                              f"{names[k]} is not None" for k in mine) or "True"
         lines += [f"    if {known}:", f"        {var} = {_py(f, names)}", "    else:",
                   f"        {var} = slow({const(f)}, v, t)",
-                  f"        fs.note_unknown(v, {mine!r})"]
+                  f"        fs.note_unknown(v, {const(mine)})"]
     lines.append("    decided = False")
 
     def value(f: Formula) -> str:
@@ -305,7 +306,6 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
         lines += [f"    if {const(group.step)}(t, {value(a)}, {value(b)}):",
                   "        decided = True"]
     lines.append("    return decided")
-    scope: dict[str, Any] = {"fs": fs, "slow": evaluate, "C": consts}
     exec(compile("\n".join(lines) + "\n", "<fused monitors>", "exec"), scope)  # noqa: S102
     step: Callable[[Time, Any], bool] = scope["step"]
     return step

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from fractions import Fraction
 from typing import Any, Protocol
 
+from ..model import FeatureKey
 from .state import StateFn, kleene
 
 Time = int | Fraction
@@ -60,11 +61,11 @@ class Ctx:
     def __init__(self) -> None:
         self.pos = -1
         self.now: Time = 0
-        self.values: dict[str, Any] = {}
+        self.values: dict[FeatureKey, Any] = {}
         self.start = 0
         self.unit: Fraction | int = 1  # seconds per time unit
         self.ticking: set[Node] = set()
-        self.on_unknown: Callable[[str], None] = lambda key: None
+        self.on_unknown: Callable[[FeatureKey], None] = lambda key: None
 
 
 def fmt(t: Time | None, unit: Fraction | int = 1) -> str:
@@ -116,7 +117,7 @@ class Node:
 class StateNode(Node):
     """A temporal-free subformula: decided at once from the current state."""
 
-    def __init__(self, ctx: Ctx, fn: StateFn, keys: list[str], text: str) -> None:
+    def __init__(self, ctx: Ctx, fn: StateFn, keys: list[FeatureKey], text: str) -> None:
         super().__init__(ctx)
         self.fn, self.keys, self.text = fn, keys, text
         self.pos = -1

@@ -3,9 +3,12 @@ stream allows, never retracted.
 
     p = Progressor()
     p.add("always (Speed[car1] > 60 -> eventually[0, 300] Speed[car1] <= 60)")
-    for time, values in states:
+    for time, values in states:          # values: FeatureKey → value
         for verdict in p.step(time, values): ...
     for verdict in p.finish(): ...
+
+Formulas with quantifiers come from a plan (`KnowledgeManager.plan`), already expanded:
+`p.add(f.text, f.tree)`.  The progressor knows nothing of knowledge bases.
 """
 
 from __future__ import annotations
@@ -17,21 +20,23 @@ from fractions import Fraction
 from typing import Any
 
 from ..errors import DkError
+from ..model import FeatureKey
 from ..numbers import exact
-from ..parse.formula import parse_formula
-from .compile import Expander, Graph, expand, formula_features, scaled
+from ..parse.formula import Formula, feature_key, parse_formula, quantifiers
+from .compile import Graph, scaled
 from .fused import FusedSet, Member, shapes
 from .nodes import PENDING, Time, Why, fmt, why_of
+from .state import features
 
 
 @dataclass(frozen=True, slots=True)
 class UnknownSpan:
-    feature: str
+    feature: FeatureKey
     start: Any
     end: Any
 
     def to_json(self) -> dict[str, Any]:
-        return {"feature": self.feature, "from": _json_time(self.start),
+        return {"feature": str(self.feature), "from": _json_time(self.start),
                 "to": _json_time(self.end)}
 
 
@@ -75,7 +80,7 @@ def exact_time(t: Any) -> Time:
 class _Monitor:
     """One formula: a fused step function, or the root of a shared node graph."""
 
-    def __init__(self, text: str, keys: list[str]) -> None:
+    def __init__(self, text: str, keys: list[FeatureKey]) -> None:
         self.text, self.keys = text, keys
         self.value: Any = PENDING
         self.why: Why | None = None
@@ -102,40 +107,41 @@ class _Monitor:
             self.deliver(None, False, why)
 
 
+def _typed(values: Mapping[Any, Any], keys: set[FeatureKey], time: Any
+           ) -> dict[FeatureKey, Any]:
+    out = {k if isinstance(k, FeatureKey) else feature_key(k): v for k, v in values.items()}
+    missing = sorted(keys - out.keys())
+    if missing:
+        raise DkError(f"the state at time {time} has no value for {missing[0]}")
+    return out  # type: ignore[return-value]  # None keys (not features) are never read
+
+
 class Progressor:
     """`unit` is the seconds per unit of the times given to `step` (1; 1/10**9 for ns)."""
 
-    def __init__(self, objects: Expander | None = None, unit: Fraction | int = 1) -> None:
-        self.objects, self.unit = objects, unit
+    def __init__(self, unit: Fraction | int = 1) -> None:
+        self.unit = unit
         self.monitors: list[_Monitor] = []
         self.fused = FusedSet(self._note_unknowns)
         self.unstarted: list[_Monitor] = []
         self.decided: list[_Monitor] = []
         self.graphs: list[Graph] = []
-        self.keys: set[str] = set()
+        self.keys: set[FeatureKey] = set()
         self.pos = -1
         self.last: Time | float = float("-inf")
         self.last_input: Any = None
-        self.unknown: dict[str, list[list[Any]]] = {}
+        self.unknown: dict[FeatureKey, list[list[Any]]] = {}
 
-    @classmethod
-    def with_knowledge(cls, manager: Any, unit: Fraction | int = 1) -> Progressor:
-        """Quantifiers range over the local platform's objects, as the matcher expands them."""
-        from ..errors import Span
-        from ..expand import members
-        from ..names import local_name
-
-        local = manager.kb.platform(manager.kb.local)
-
-        def objects(sort: str) -> list[str]:
-            iri = local.names.resolve(sort, ("sort",), Span("<formula>"))
-            return [local_name(o) for o in members(manager.kb, {iri})[iri]]
-        return cls(objects, unit)
-
-    def add(self, formula: str) -> None:
-        """Compile `formula` once; it is judged from the next state on."""
-        parsed = scaled(expand(parse_formula(formula), self.objects), Fraction(1) / self.unit)
-        monitor = _Monitor(formula, formula_features(parsed))
+    def add(self, formula: str, tree: Formula | None = None) -> None:
+        """Compile a formula once (its quantifier-free `tree`, or the text parsed); it is
+        judged from the next state on."""
+        if tree is None:
+            tree = parse_formula(formula)
+            for q in quantifiers(tree):
+                raise DkError(f"{q.span}: quantifier over {q.sort} needs a knowledge base "
+                              f"(give --config)")
+        parsed = scaled(tree, Fraction(1) / self.unit)
+        monitor = _Monitor(formula, features(parsed))
         monitor.decided = self.decided
         parts = shapes(parsed)
         if parts is not None:
@@ -152,25 +158,24 @@ class Progressor:
         self.unstarted.append(monitor)
         self.keys.update(monitor.keys)
 
-    def step(self, time: Any, values: Mapping[str, Any]) -> list[Verdict]:
-        """Feed one state; return the verdicts it decides."""
+    def step(self, time: Any, values: Mapping[FeatureKey, Any] | Mapping[str, Any]
+             ) -> list[Verdict]:
+        """Feed one state; return the verdicts it decides.  Values are keyed by `FeatureKey`
+        (as the stream processor makes them); keys written as text (`"Close[uav1, uav2]"`) are
+        read at this boundary, once per spelling."""
         t = time if type(time) is int else exact_time(time)
         if not t > self.last:
             raise DkError(f"time {time} is not after the previous state's time "
                           f"{self.last_input} (times must increase strictly)")
-        if self.graphs and not self.keys <= values.keys():
-            values = self._rekeyed(values, time)
+        if not self.keys <= values.keys():
+            values = _typed(values, self.keys, time)
         self.pos += 1
         self.last, self.last_input = t, time
         if self.unstarted:
             for m in self.unstarted:
                 m.started, m.first = True, t
         if self.fused.members:
-            try:  # the fused step reads all its features before it changes anything
-                self.fused.step(t, values)
-            except KeyError:
-                values = self._rekeyed(values, time)
-                self.fused.step(t, values)
+            self.fused.step(t, values)
         for graph in self.graphs:
             ctx = graph.ctx
             if ctx.pos < 0:
@@ -186,14 +191,6 @@ class Progressor:
         if not self.decided:
             return []
         return self._decided(at_end=False)
-
-    def _rekeyed(self, values: Mapping[str, Any], time: Any) -> dict[str, Any]:
-        """Keys compared with whitespace removed (`Close[uav1, uav2]` is `Close[uav1,uav2]`)."""
-        out = {"".join(k.split()): v for k, v in values.items()}
-        missing = sorted(self.keys - out.keys())
-        if missing:
-            raise DkError(f"the state at time {time} has no value for {missing[0]}")
-        return out
 
     def finish(self) -> list[Verdict]:
         """End of stream: settle every undecided formula by the finite-trace semantics."""
@@ -242,11 +239,11 @@ class Progressor:
             out.append(Verdict(m.text, m.value, self.last_input, at_end, witness, unknown))
         return out
 
-    def _note_unknowns(self, keys: list[str]) -> None:
+    def _note_unknowns(self, keys: list[FeatureKey]) -> None:
         for k in keys:
             self._note_unknown(k)
 
-    def _note_unknown(self, key: str) -> None:
+    def _note_unknown(self, key: FeatureKey) -> None:
         spans = self.unknown.setdefault(key, [])
         if spans and spans[-1][2] >= self.pos - 1:
             spans[-1][1], spans[-1][2] = self.last_input, self.pos

@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from ..errors import DkError
+from ..model import FeatureKey
 from ..parse.formula import (
     Arith,
     Atom,
@@ -29,17 +30,16 @@ from ..parse.formula import (
 )
 
 Value = bool | None
-StateFn = Callable[[Mapping[str, Any], Any], Value]  # (values, time)
+StateFn = Callable[[Mapping[FeatureKey, Any], Any], Value]  # (values, time)
 
 _CMP = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
         "==": operator.eq, "!=": operator.ne}
 _ARITH = {"+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv}
 
 
-def key(feature: Any) -> str:
-    """The state key of a feature reference: `Close[uav1,uav2]`, whitespace removed."""
-    args = ",".join(a.name for a in feature.args)
-    return f"{feature.name}[{args}]" if feature.args else feature.name
+def key(feature: Any) -> FeatureKey:
+    """The state key of a (ground) feature reference."""
+    return FeatureKey(feature.name, tuple(a.name for a in feature.args))
 
 
 def is_state(f: Formula) -> bool:
@@ -52,9 +52,9 @@ def is_state(f: Formula) -> bool:
     return False
 
 
-def features(node: Any) -> list[str]:
+def features(node: Any) -> list[FeatureKey]:
     """Feature keys a state formula or expression reads, in order of appearance."""
-    out: dict[str, None] = {}
+    out: dict[FeatureKey, None] = {}
 
     def walk(n: Any) -> None:
         if isinstance(n, Atom | Ref):
@@ -71,7 +71,7 @@ def render(f: Any) -> str:
     if isinstance(f, BoolConst):
         return "true" if f.value else "false"
     if isinstance(f, Atom | Ref):
-        return key(f.feature)
+        return str(key(f.feature))
     if isinstance(f, Num):
         return repr(f.value)
     if isinstance(f, Compare | Arith):
@@ -87,7 +87,7 @@ def render(f: Any) -> str:
 
 # ---- three-valued interpreter (the slow path, and the reference for the fast one) ----------
 
-def evaluate(f: Formula, values: Mapping[str, Any], time: object = None) -> Value:
+def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) -> Value:
     if isinstance(f, BoolConst):
         return f.value
     if isinstance(f, Atom):
@@ -120,7 +120,7 @@ def kleene(op: str, a: Value, b: Value) -> Value:
     raise ValueError(op)
 
 
-def _number(e: Expr, values: Mapping[str, Any], time: object) -> Any:
+def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
     if isinstance(e, Num):
         return e.value
     if isinstance(e, Ref):
@@ -144,33 +144,42 @@ def _number(e: Expr, values: Mapping[str, Any], time: object) -> Any:
 
 # ---- generated two-valued fast path ------------------------------------------------------------
 
-def compile_state(f: Formula) -> tuple[StateFn, list[str]]:
+def reads(keys: list[FeatureKey], values: str, scope: dict[str, Any]
+          ) -> tuple[dict[FeatureKey, str], list[str]]:
+    """Generated code's local names for `keys` and the lines reading them from `values`; the
+    keys themselves are bound in `scope` (K0, K1, …): objects, not source text."""
+    names = {k: f"v{i}" for i, k in enumerate(keys)}
+    scope.update({f"K{i}": k for i, k in enumerate(keys)})
+    return names, [f"{names[k]} = {values}[K{i}]" for i, k in enumerate(keys)]
+
+
+def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
     """A fast function for `f` and the feature keys it reads."""
     keys = features(f)
-    names = {k: f"v{i}" for i, k in enumerate(keys)}
+    scope: dict[str, Any] = {"slow": evaluate, "formula": f}
+    names, lines = reads(keys, "values", scope)
     bools = _boolean_keys(f)
     body = _py(f, names)
     known = " and ".join(
         (f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None")
         for k in keys) or "True"
-    reads = "".join(f"    {names[k]} = values[{k!r}]\n" for k in keys)
-    source = (f"def state(values, time=None):\n{reads}"
+    reads_ = "".join(f"    {line}\n" for line in lines)
+    source = (f"def state(values, time=None):\n{reads_}"
               f"    if {known}:\n"
               f"        try:\n            return {body}\n"
               f"        except (ZeroDivisionError, TypeError):\n            pass\n"
               f"    return slow(formula, values, time)\n")
-    scope: dict[str, Any] = {"slow": evaluate, "formula": f}
     exec(compile(source, f"<state {render(f)}>", "exec"), scope)  # noqa: S102 - our own code
     return scope["state"], keys
 
 
-def _boolean_keys(f: Any) -> set[str]:
+def _boolean_keys(f: Any) -> set[FeatureKey]:
     if isinstance(f, Atom):
         return {key(f.feature)}
     return set().union(*(_boolean_keys(child) for child in children(f)))
 
 
-def _py(n: Any, names: dict[str, str]) -> str:
+def _py(n: Any, names: dict[FeatureKey, str]) -> str:
     if isinstance(n, BoolConst):
         return "True" if n.value else "False"
     if isinstance(n, Atom | Ref):

@@ -10,12 +10,14 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DkError, ParseError, Span
+from ..model import FeatureKey
 from ..numbers import datum
 from ..parse import files
+from ..parse.formula import feature_key
 from .progressor import exact_time
 
 
-def read_states(path: Path) -> Iterator[tuple[Any, dict[str, Any]]]:
+def read_states(path: Path) -> Iterator[tuple[Any, dict[FeatureKey, Any]]]:
     """(time, values) per line; a value is a boolean, a number or null (unknown); NaN and
     infinities are unknown too."""
     for n, line in files.lines(path, str(path)):
@@ -31,11 +33,14 @@ def read_states(path: Path) -> Iterator[tuple[Any, dict[str, Any]]]:
         except DkError as exc:
             raise ParseError(str(exc), where) from None
         values = {}
-        for key, value in row["values"].items():
+        for text, value in row["values"].items():
+            key = feature_key(text)
+            if key is None:
+                raise ParseError(f"{text!r} is not a feature (Name or Name[arg, …])", where)
             if isinstance(value, Decimal):
                 value = float(value)
             elif value is not None and not isinstance(value, bool | int | float):
-                raise ParseError(f"value of {key} must be a boolean, a number or null, not "
+                raise ParseError(f"value of {text} must be a boolean, a number or null, not "
                                  f"{type(value).__name__}", where)
             values[key] = datum(value)
         yield row["time"], values

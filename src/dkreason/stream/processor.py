@@ -36,7 +36,7 @@ from operator import itemgetter
 from typing import Any, Literal
 
 from ..errors import DkError
-from ..model import StreamRequest
+from ..model import FeatureKey, StreamRequest
 from ..numbers import datum
 from .sources import NS, Source
 
@@ -45,9 +45,11 @@ def seconds(ns: int) -> float | int:
     return ns // NS if ns % NS == 0 else ns / NS
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class StreamPolicy:
-    """Thesis listing 5.2's stream constraints plus the approximation; times in seconds."""
+    """Thesis listing 5.2's stream constraints plus the approximation; times in seconds.
+    Keyword-only and immutable: `StreamPolicy(max_age=Fraction(2), delay_before_approximation=
+    Fraction(1, 10))`; `dataclasses.replace` makes a variant."""
 
     sample_period: Fraction | None = None  # None: a state on every change
     sample_period_deviation: Fraction = Fraction(0)
@@ -65,13 +67,13 @@ class StreamPolicy:
 class Violation:
     constraint: str
     time: int  # ns, when it was seen (available time)
-    feature: str
+    feature: FeatureKey
     topic: str
     detail: str
 
     def to_json(self) -> dict[str, Any]:
         return {"violation": self.constraint, "time": seconds(self.time),
-                "feature": self.feature, "topic": self.topic, "detail": self.detail}
+                "feature": str(self.feature), "topic": self.topic, "detail": self.detail}
 
 
 def _ns(value: Fraction | None) -> int | None:
@@ -122,7 +124,7 @@ class _Group:
 
 class StreamProcessor:
     def __init__(self, request: StreamRequest, policy: StreamPolicy, source: Source,
-                 on_state: Callable[[int, dict[str, Any]], None],
+                 on_state: Callable[[int, dict[FeatureKey, Any]], None],
                  on_violation: Callable[[Violation], None]) -> None:
         self.policy = policy
         self.on_state, self.on_violation = on_state, on_violation
@@ -134,7 +136,7 @@ class StreamProcessor:
         self.max_delay = _ns(policy.max_delay)
         if self.period is not None and self.period <= 0:
             raise DkError("the sample period must be positive")
-        self.keys: list[str] = []  # feature keys, as the progressor compares them
+        self.keys: list[FeatureKey] = []  # the states' keys
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
         self.groups: dict[str, list[_Group]] = {}
         # on every change: state times to make, in order (samples in valid-time order), as a
@@ -155,7 +157,7 @@ class StreamProcessor:
         self.last_seen: int | None = None
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
         for f in request.features:
-            self.keys.append("".join(f.feature.key.split()))
+            self.keys.append(f.feature.key)
             self.hist.append([])
             self.due.append(-1)
             self.queued.append(False)
@@ -164,7 +166,7 @@ class StreamProcessor:
     def reroute(self, request: StreamRequest, source: Source) -> None:
         """New topics for the same features (a live federation changed): what each feature
         has seen so far stays."""
-        if ["".join(f.feature.key.split()) for f in request.features] != self.keys:
+        if [f.feature.key for f in request.features] != self.keys:
             raise DkError("a new route must keep the features of the stream request")
         self.groups, self.wanted = {}, {}
         self._route(request, source)
@@ -387,7 +389,7 @@ class StreamProcessor:
         return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
 
     def _state(self, s: int) -> None:
-        values: dict[str, Any] = {}
+        values: dict[FeatureKey, Any] = {}
         recent = self.policy.approximation == "recent"
         max_age, deviation = self.max_age, self.deviation
         for q, hist in enumerate(self.hist):
