@@ -110,6 +110,7 @@ def publisher(folder: str, n: int, endpoint: str, start: float, seconds: float, 
 def run(seconds: float, hz: float) -> dict[str, Any]:
     from dkreason.live.monitor import LiveMonitor
     from dkreason.live.wire import open_session
+    from dkreason.model import FeatureKey
     from dkreason.progress import Verdict
     from dkreason.stream.processor import StreamPolicy
 
@@ -140,7 +141,7 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
                 if not latencies and hasattr(monitor, "processor"):
                     step = monitor.processor.on_state
 
-                    def timed(t: int, values: dict[str, Any], step: Any = step) -> None:
+                    def timed(t: int, values: dict[FeatureKey, Any], step: Any = step) -> None:
                         step(t, values)
                         latencies.append(time.time_ns() - t)
                     monitor.processor.on_state = timed

@@ -16,7 +16,9 @@ import argparse
 import gc
 import json
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 from dkreason import KnowledgeManager
 from dkreason.monitor import Monitor
@@ -47,7 +49,7 @@ def recording(messages: int) -> Path:
 
     per_car = messages // 3
 
-    def rows():  # type: ignore[no-untyped-def]
+    def rows() -> Iterator[tuple[str, str, int, dict[str, Any]]]:
         """All three cars at 100 Hz; car2 speeds for 10 s in every 20 s, and ends slow."""
         for i in range(per_car * 3):
             car, k = i % 3 + 1, i // 3
@@ -58,8 +60,8 @@ def recording(messages: int) -> Path:
     return path
 
 
-def best(run) -> float:  # type: ignore[no-untyped-def]
-    rates = []
+def best(run: Callable[[], int]) -> float:
+    rates: list[float] = []
     for _ in range(ROUNDS):
         gc.collect()
         start = time.process_time()

@@ -10,12 +10,16 @@ from __future__ import annotations
 from fractions import Fraction
 from typing import Any
 
+from dkreason.model import FeatureRef
 from dkreason.parse.formula import (
     Arith,
     Atom,
     BoolConst,
     Compare,
     Connective,
+    Expr,
+    Formula,
+    Interval,
     Neg,
     Not,
     Num,
@@ -27,25 +31,25 @@ from dkreason.parse.formula import (
 Trace = list[tuple[Fraction, dict[str, Any]]]
 
 
-def k_not(a):
+def k_not(a: bool | None) -> bool | None:
     return None if a is None else not a
 
 
-def k_and(a, b):
+def k_and(a: bool | None, b: bool | None) -> bool | None:
     if a is False or b is False:
         return False
     return None if a is None or b is None else True
 
 
-def k_or(a, b):
+def k_or(a: bool | None, b: bool | None) -> bool | None:
     return k_not(k_and(k_not(a), k_not(b)))
 
 
-def key(ref) -> str:
+def key(ref: FeatureRef) -> str:
     return ref.name + (f"[{','.join(a.name for a in ref.args)}]" if ref.args else "")
 
 
-def num(e, values):
+def num(e: Expr, values: dict[str, Any]) -> Any:
     if isinstance(e, Num):
         return e.value
     if isinstance(e, Ref):
@@ -61,28 +65,32 @@ def num(e, values):
     raise TypeError(e)
 
 
-def inside(d, interval) -> bool:
+def inside(d: Fraction, interval: Interval) -> bool:
     return interval.lo <= d and (interval.hi is None or d <= interval.hi)
 
 
-def holds(f, tr: Trace, i: int, prefix: bool = False):
+def holds(f: Formula, tr: Trace, i: int, prefix: bool = False) -> bool | None:
     t = tr[i][0]
     if isinstance(f, BoolConst):
         return f.value
     if isinstance(f, Atom):
-        return tr[i][1][key(f.feature)]
+        value: bool | None = tr[i][1][key(f.feature)]
+        return value
     if isinstance(f, Compare):
         a, b = num(f.left, tr[i][1]), num(f.right, tr[i][1])
         if a is None or b is None:
             return None
-        return {"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b,
-                "!=": a != b}[f.op]
+        return bool({"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b,
+                     "!=": a != b}[f.op])
     if isinstance(f, Not):
         return k_not(holds(f.arg, tr, i, prefix))
     if isinstance(f, Connective):
         a, b = holds(f.left, tr, i, prefix), holds(f.right, tr, i, prefix)
         return {"and": k_and(a, b), "or": k_or(a, b), "->": k_or(k_not(a), b),
                 "<->": None if a is None or b is None else a == b}[f.op]
+    assert isinstance(f, Temporal | Until), f
+    out: bool | None
+    phi: bool | None
     future_open = prefix and (f.interval.hi is None or tr[-1][0] < t + f.interval.hi)
     if isinstance(f, Temporal) and f.op in ("eventually", "always"):
         out = f.op == "always"
@@ -108,7 +116,8 @@ def holds(f, tr: Trace, i: int, prefix: bool = False):
             return False
         return holds(f.arg, tr, i - 1, prefix)
     if isinstance(f, Until) and f.op == "until":
-        out, phi = False, True
+        out = False
+        phi = True
         for j in range(i, len(tr)):
             if inside(tr[j][0] - t, f.interval):
                 out = k_or(out, k_and(holds(f.right, tr, j, prefix), phi))

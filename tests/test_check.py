@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from dkreason import KnowledgeManager
-from dkreason.errors import NameError_, SortError
+from dkreason.errors import NameError_, SortError, SourceError
 
 from .conftest import SCENARIOS
 
@@ -26,13 +28,15 @@ def single() -> KnowledgeManager:
      "variable x ranges over Vehicle, which is not subsumed by UAV"),
     ("Altitude[UAV] > 3", NameError_, 10, "'UAV' is a sort on platform1, not an object"),
 ])
-def test_bad_formulas_are_errors_pointing_into_the_formula(single, formula, error, column, says):
+def test_bad_formulas_are_errors_pointing_into_the_formula(
+        single: KnowledgeManager, formula: str, error: type[SourceError], column: int,
+        says: str) -> None:
     with pytest.raises(error) as err:
         single.check_formula(formula)
     assert err.value.span.column == column and says in str(err.value)
 
 
-def test_a_variable_of_a_subsort_is_accepted(single):
+def test_a_variable_of_a_subsort_is_accepted(single: KnowledgeManager) -> None:
     request = single.check_formula("forall x in UAV: Altitude[x] > 3")  # UAV ⊑ AerialVehicle
     assert [f.feature.args for f in request.features] == [("uav1",), ("uav2",)]
 
@@ -57,7 +61,8 @@ ESCORT = """
     ("Escorts[ship1, boat1] and Escorts[boat1, boat1]", 35,
      "argument 1 of Escorts: boat1 is a Boat, Escorts needs Ship"),
 ])
-def test_every_argument_must_fit_not_just_one(tmp_path, formula, column, says):
+def test_every_argument_must_fit_not_just_one(
+        tmp_path: Path, formula: str, column: int, says: str) -> None:
     (tmp_path / "sea.ttl").write_text(ESCORT)
     (tmp_path / "sea.toml").write_text('[platforms.sea]\nontology = "sea.ttl"\n')
     km = KnowledgeManager.from_config(tmp_path / "sea.toml")

@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -21,14 +22,15 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str]:
 
 
 @pytest.mark.parametrize("n", [1, 2, 3])
-def test_match_json_reproduces_the_federation_listings(capsys, n):
+def test_match_json_reproduces_the_federation_listings(
+        capsys: pytest.CaptureFixture[str], n: int) -> None:
     want = json.loads((SCENARIOS / "expected" / f"federation-F{n}.json").read_text())
     code, out = run(capsys, "match", "--config", str(SCENARIOS / "federation.toml"), "--json",
                     want["formula"])
     assert code == 0 and topic_sets(json.loads(out)) == topic_sets(want)
 
 
-def test_match_text_follows_the_thesis_listings(capsys):
+def test_match_text_follows_the_thesis_listings(capsys: pytest.CaptureFixture[str]) -> None:
     code, out = run(capsys, "match", "--config", str(SCENARIOS / "federation.toml"),
                     "Altitude[uav2] > 1")
     assert code == 0
@@ -39,7 +41,8 @@ def test_match_text_follows_the_thesis_listings(capsys):
         "Id: msg.id = 21, Field: msg.alt"]
 
 
-def test_specs_add_show_list_remove_and_sort(capsys, scenario: Path):
+def test_specs_add_show_list_remove_and_sort(
+        capsys: pytest.CaptureFixture[str], scenario: Path) -> None:
     config = str(scenario / "federation.toml")
     new = "topic topic10:UavMsg contains Altitude(uav2) = msg.alt for uav2 = msg.id"
     assert run(capsys, "specs", "add", "--config", config, new) == (
@@ -78,7 +81,7 @@ def _variant(scenario: Path, *, specs: str | None = None, specs_name: str = "s.s
     return str(config)
 
 
-ERRORS = {
+ERRORS: dict[str, tuple[dict[str, Any], str, str]] = {
     "unknown feature": ({}, "always (Altitud[uav1] > 3)", "unknown feature 'Altitud'"),
     "unknown object": ({}, "Altitude[uav9] > 3", "unknown object 'uav9'"),
     "wrong arity": ({}, "Close[uav1]", "Close takes 2 arguments, not 1"),
@@ -109,7 +112,8 @@ ERRORS = {
 
 
 @pytest.mark.parametrize("case", list(ERRORS))
-def test_bad_input_prints_exactly_one_line_and_exits_2(capsys, scenario: Path, case):
+def test_bad_input_prints_exactly_one_line_and_exits_2(
+        capsys: pytest.CaptureFixture[str], scenario: Path, case: str) -> None:
     variant, formula, says = ERRORS[case]
     config = _variant(scenario, **variant)
     code, out = run(capsys, "match", "--config", config, formula)
@@ -117,7 +121,7 @@ def test_bad_input_prints_exactly_one_line_and_exits_2(capsys, scenario: Path, c
     assert out.count("\n") == 1 and out.startswith("error: ") and says in out, out
 
 
-def test_usage_errors_are_one_line_too():
+def test_usage_errors_are_one_line_too() -> None:
     proc = subprocess.run([sys.executable, "-m", "dkreason.cli", "match"], capture_output=True,
                           text=True, check=False)
     assert proc.returncode == 2
@@ -138,8 +142,9 @@ def test_usage_errors_are_one_line_too():
      "columns (Platform, LocalFeature, Feature, declared at", 2),
     ("zzz(X) <= local(X)", "undeclared relation zzz/1 (declare it with `.decl`)", 2),
 ])
-def test_a_bad_rule_file_is_one_line_naming_file_and_line(capsys, scenario: Path, rule, says,
-                                                          line):
+def test_a_bad_rule_file_is_one_line_naming_file_and_line(
+        capsys: pytest.CaptureFixture[str], scenario: Path, rule: str, says: str,
+        line: int) -> None:
     (scenario / "mine.dl").write_text(f"# my policy\n{rule}\n")
     config = scenario / "single.toml"
     config.write_text('rules = ["mine.dl"]\n' + config.read_text())

@@ -7,15 +7,18 @@ from __future__ import annotations
 import importlib.util
 import json
 import shutil
+from collections.abc import Iterable
 from fractions import Fraction
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
-from dkreason.monitor import Monitor
+from dkreason.monitor import Event, Monitor
 from dkreason.stream.processor import StreamPolicy
 from dkreason.stream.recording import write_recording
 from dkreason.stream.sources import JsonlSource, open_source
@@ -27,7 +30,7 @@ FORMATS = {"mcap": "rec", "bare-mcap": "rec.mcap", "sqlite3": "rec", "ros1": "re
 CUTS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.75, 0.93, 0.97)  # of the data file's bytes
 
 
-def _simulate():  # examples/traffic/simulate.py, the traffic example's own recorder
+def _simulate() -> ModuleType:  # examples/traffic/simulate.py, the traffic example's own recorder
     spec = importlib.util.spec_from_file_location("simulate",
                                                   REPO / "examples/traffic/simulate.py")
     assert spec is not None and spec.loader is not None
@@ -36,7 +39,7 @@ def _simulate():  # examples/traffic/simulate.py, the traffic example's own reco
     return module
 
 
-def _jsonl(path: Path, rows) -> None:
+def _jsonl(path: Path, rows: Iterable[tuple[str, str, int, dict[str, Any]]]) -> None:
     with path.open("w") as out:
         for topic, _, t_ns, msg in rows:
             name = topic.removeprefix("/platform1/").lstrip("/")
@@ -49,7 +52,7 @@ def _jsonl(path: Path, rows) -> None:
 
 
 @pytest.fixture(scope="module")
-def recordings(tmp_path_factory) -> dict[str, Path]:
+def recordings(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     sim = _simulate()
     base = tmp_path_factory.mktemp("formats")
     out = {}
@@ -75,8 +78,9 @@ def data_file(path: Path) -> Path:
         if path.is_dir() else path
 
 
-def monitor(km: KnowledgeManager, path: Path) -> tuple[list, DkError | None]:
-    events, error = [], None
+def monitor(km: KnowledgeManager, path: Path) -> tuple[list[Event], DkError | None]:
+    events: list[Event] = []
+    error = None
     try:
         policy = StreamPolicy(delay_before_approximation=Fraction(1, 10))
         events.extend(Monitor(km, [TRAFFIC], policy).run(open_source(path)))
@@ -98,13 +102,13 @@ def last_time(path: Path) -> int:
     return last
 
 
-def violated(events: list) -> bool:
+def violated(events: list[Event]) -> bool:
     return any(getattr(e, "verdict", None) is False and e.time == 300.02 for e in events)
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_a_cut_recording_reports_what_the_data_before_the_cut_decides(
-        tmp_path, km, recordings, fmt):
+        tmp_path: Path, km: KnowledgeManager, recordings: dict[str, Path], fmt: str) -> None:
     intact, _ = monitor(km, recordings[fmt])
     assert violated(intact)
     sides = set()
@@ -132,7 +136,8 @@ def test_a_cut_recording_reports_what_the_data_before_the_cut_decides(
 
 
 @pytest.mark.parametrize("fmt", ["mcap", "sqlite3"])
-def test_a_bag_folder_without_metadata_is_read(tmp_path, km, recordings, fmt):
+def test_a_bag_folder_without_metadata_is_read(
+        tmp_path: Path, km: KnowledgeManager, recordings: dict[str, Path], fmt: str) -> None:
     copy = tmp_path / "rec"
     shutil.copytree(recordings[fmt], copy)
     (copy / "metadata.yaml").unlink()
@@ -143,7 +148,8 @@ def test_a_bag_folder_without_metadata_is_read(tmp_path, km, recordings, fmt):
     assert error is None and violated(events)
 
 
-def test_the_cli_prints_the_verdict_then_one_error_line(capsys, tmp_path, recordings):
+def test_the_cli_prints_the_verdict_then_one_error_line(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, recordings: dict[str, Path]) -> None:
     cut = tmp_path / "cut.bag"
     data = recordings["ros1"].read_bytes()
     cut.write_bytes(data[: int(len(data) * 0.95)])

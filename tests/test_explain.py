@@ -5,7 +5,9 @@ from __future__ import annotations
 import ast
 import json
 import re
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -29,7 +31,8 @@ def federation() -> KnowledgeManager:
     return KnowledgeManager.from_config(SCENARIOS / "federation.toml")
 
 
-def test_uastopic5_is_explained_by_the_bridge_the_remote_axiom_and_same_as(capsys):
+def test_uastopic5_is_explained_by_the_bridge_the_remote_axiom_and_same_as(
+        capsys: pytest.CaptureFixture[str]) -> None:
     assert SCENARIOS is not None
     code = main(["explain", "--config", str(SCENARIOS / "federation.toml"),
                  "always (Altitude[uav2] > 10)", "--feature", "Altitude[uav2]"])
@@ -44,7 +47,7 @@ def test_uastopic5_is_explained_by_the_bridge_the_remote_axiom_and_same_as(capsy
     assert "platform1-platform3.cowl.xml:29)" in summary
 
 
-def test_why_not_a_topic_whose_argument_names_another_object(federation):
+def test_why_not_a_topic_whose_argument_names_another_object(federation: KnowledgeManager) -> None:
     e = federation.explain(FORMULAS["F3"], feature="Close[uav1, uav1]", topic="uastopic7")
     (why_not,) = e.features[0].why_not
     check_failure(federation, why_not.trace)
@@ -53,7 +56,8 @@ def test_why_not_a_topic_whose_argument_names_another_object(federation):
     assert "Close[uav1, uav1] maps to Near[uas20, uas20]" in why_not.reason
 
 
-def test_why_not_a_platform_where_the_object_has_no_counterpart(federation):
+def test_why_not_a_platform_where_the_object_has_no_counterpart(
+        federation: KnowledgeManager) -> None:
     e = federation.explain("always (Speed[car3] > 60)", topic="carstopic1")
     (why_not,) = e.features[0].why_not
     check_failure(federation, why_not.trace)
@@ -61,13 +65,13 @@ def test_why_not_a_platform_where_the_object_has_no_counterpart(federation):
     assert "car3 has no counterpart on platform2" in why_not.reason
 
 
-def test_why_not_a_local_equivalent_with_another_signature(federation):
+def test_why_not_a_local_equivalent_with_another_signature(federation: KnowledgeManager) -> None:
     e = federation.explain("always (Speed[car1] > 60)", topic="topic9")
     reasons = [w.reason for w in e.features[0].why_not]
     assert "GroundSpeed[car1] rejected: car1 is a Car, GroundSpeed needs UAV" in reasons
 
 
-def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path):
+def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path) -> None:
     map_car3_to_a_truck(scenario)
     km = KnowledgeManager.from_config(scenario / "federation.toml")
     e = km.explain("always (Speed[car3] > 60)", topic="carstopic1")
@@ -76,7 +80,7 @@ def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path):
                               "Speed needs Automobile")
 
 
-def test_a_rule_from_an_extension_file_is_cited_with_its_file_and_line(scenario: Path):
+def test_a_rule_from_an_extension_file_is_cited_with_its_file_and_line(scenario: Path) -> None:
     extension = scenario / "alias.dl"
     extension.write_text("# my policy: Altitude also reads Size topics\n"
                          ".decl alias(Feature, Other)\n"
@@ -94,7 +98,7 @@ def test_a_rule_from_an_extension_file_is_cited_with_its_file_and_line(scenario:
     assert any(c.endswith(f"{extension.name}:3") for c in cited), cited
 
 
-def _nodes(p: Proof):
+def _nodes(p: Proof) -> Iterator[Proof]:
     yield p
     for c in p.children:
         yield from _nodes(c)
@@ -116,7 +120,7 @@ def _flatten(node: ast.expr) -> list[ast.expr]:
     return [node]
 
 
-def _match(terms: list[ast.expr], values: tuple, env: dict) -> bool:
+def _match(terms: list[ast.expr], values: tuple[Any, ...], env: dict[str, Any]) -> bool:
     if len(terms) != len(values):
         return False
     for term, value in zip(terms, values, strict=True):
@@ -136,27 +140,29 @@ def check_proof(km: KnowledgeManager, p: Proof, derived: set[str]) -> int:
         if kind == "compare":
             return 1
         if kind == "not":
-            assert not engine.query(*p.fact[1:]), p.text
+            assert not engine.query(str(p.fact[1]), *p.fact[2:]), p.text
             return 1
         assert kind not in derived, f"leaf {p.fact} is a derived relation"
-        assert engine.query(*p.fact), f"leaf {p.fact} is not in the knowledge base"
+        assert engine.query(str(kind), *p.fact[1:]), f"leaf {p.fact} is not in the knowledge base"
         return 1
     clause = _rule_at(p.rule.span.file, p.rule.span.line)
     head = clause.left
     assert isinstance(head, ast.Call) and isinstance(head.func, ast.Name)
-    env: dict = {}
+    env: dict[str, Any] = {}
     assert head.func.id == p.fact[0] and _match(head.args, p.fact[1:], env), p.text
     body = _flatten(clause.comparators[0])
     assert len(body) == len(p.children), p.text
     for item, child in zip(body, p.children, strict=True):
         if isinstance(item, ast.UnaryOp):  # negation
             call = item.operand
-            assert isinstance(call, ast.Call) and child.fact[:2] == ("not", call.func.id)
+            assert isinstance(call, ast.Call) and isinstance(call.func, ast.Name)
+            assert child.fact[:2] == ("not", call.func.id)
             assert _match(call.args, child.fact[2:], env)
         elif isinstance(item, ast.Compare):
             assert child.fact[0] == "compare"
         else:
-            assert isinstance(item, ast.Call) and child.fact[0] == item.func.id, child.text
+            assert isinstance(item, ast.Call) and isinstance(item.func, ast.Name)
+            assert child.fact[0] == item.func.id, child.text
             assert _match(item.args, child.fact[1:], env), f"{child.text} ≠ {ast.unparse(item)}"
     return 1 + sum(check_proof(km, c, derived) for c in p.children)
 
@@ -165,14 +171,15 @@ def check_failure(km: KnowledgeManager, f: Failure) -> None:
     """Every goal on a why-not trace really fails (goals mentioning the formula's own
     `wanted` facts are checked by the callers' expectations instead)."""
     if "wanted" not in str(f.rule.text if f.rule else ""):
-        assert not km.kb.engine.query(*f.goal), f.text
+        assert not km.kb.engine.query(str(f.goal[0]), *f.goal[1:]), f.text
     if isinstance(f.because, Failure):
         check_failure(km, f.because)
 
 
 @pytest.mark.parametrize("config", ["single.toml", "federation.toml"])
 @pytest.mark.parametrize("name", list(FORMULAS))
-def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(config, name):
+def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(config: str,
+                                                                          name: str) -> None:
     assert SCENARIOS is not None
     km = KnowledgeManager.from_config(SCENARIOS / config)
     request = km.check_formula(FORMULAS[name])
@@ -180,8 +187,9 @@ def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(config,
     derived = {r.head.predicate for r in km.kb.engine.rules}
     proofs = [w for f in e.features for w in f.why]
     assert len(proofs) == sum(len(f.topics) for f in request.features)
-    wanted = [(q, g.feature.iri, *g.feature.arg_iris, *[""] * (3 - len(g.feature.arg_iris)))
-              for q, g in enumerate(request.features)]
+    wanted: list[tuple[str | int, ...]] = [
+        (q, g.feature.iri, *g.feature.arg_iris, *[""] * (3 - len(g.feature.arg_iris)))
+        for q, g in enumerate(request.features)]
     km.kb.engine.assert_rows("wanted", wanted)  # the formula's facts, as during explanation
     try:
         steps = sum(check_proof(km, w.proof, derived) for w in proofs)
@@ -190,7 +198,7 @@ def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(config,
     assert steps > 20 * len(proofs)
 
 
-def test_json_and_dot_forms(federation):
+def test_json_and_dot_forms(federation: KnowledgeManager) -> None:
     e = federation.explain("always (Altitude[uav2] > 10)")
     data = json.loads(json.dumps(to_json(e)))
     why = data["features"][0]["why"]
@@ -200,7 +208,7 @@ def test_json_and_dot_forms(federation):
     assert dot.startswith("digraph explanation {") and dot.rstrip().endswith("}")
 
 
-def test_unknown_feature_or_topic_is_a_one_line_error(capsys):
+def test_unknown_feature_or_topic_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
     assert SCENARIOS is not None
     for extra in (["--feature", "Altitude[uav9]"], ["--topic", "nope"]):
         code = main(["explain", "--config", str(SCENARIOS / "federation.toml"),

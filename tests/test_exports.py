@@ -3,7 +3,7 @@
 import dkreason
 
 
-def test_public_names_are_pinned():
+def test_public_names_are_pinned() -> None:
     assert dkreason.__all__ == [
         "DkError", "FeatureKey", "FeatureRequest", "FormulaPlan", "GroundFeature",
         "KnowledgeManager", "Monitor", "ParseError", "Plan", "SourceError", "Span",

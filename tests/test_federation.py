@@ -59,7 +59,7 @@ def map_car3_to_a_truck(scenario: Path) -> None:
               rule("same", ONT + "car3", P2 + "truck1"))
 
 
-def test_a_mapping_into_the_wrong_sort_gives_no_topic_and_a_warning(scenario: Path):
+def test_a_mapping_into_the_wrong_sort_gives_no_topic_and_a_warning(scenario: Path) -> None:
     map_car3_to_a_truck(scenario)
     request = KnowledgeManager.from_config(scenario / "federation.toml").check_formula(
         "always (Speed[car3] > 60)")
@@ -69,7 +69,7 @@ def test_a_mapping_into_the_wrong_sort_gives_no_topic_and_a_warning(scenario: Pa
     assert "truck1 is a GroundVehicle, Speed needs Automobile" in warning
 
 
-def test_incompat_excludes_the_far_end_of_an_equivalence_chain_only(scenario: Path):
+def test_incompat_excludes_the_far_end_of_an_equivalence_chain_only(scenario: Path) -> None:
     add_rules(scenario / "mappings" / "platform1-platform3.cowl.xml",
               rule("incompat", P1 + "Altitude", P3 + "Alt"))
     got = topics(KnowledgeManager.from_config(scenario / "federation.toml"),
@@ -78,7 +78,7 @@ def test_incompat_excludes_the_far_end_of_an_equivalence_chain_only(scenario: Pa
     assert ("platform3", "uastopic5") not in got["Altitude[uav2]"]  # Alt ≡ Height, excluded
 
 
-def test_a_mapping_file_written_from_the_remote_side_works_the_same(scenario: Path):
+def test_a_mapping_file_written_from_the_remote_side_works_the_same(scenario: Path) -> None:
     forward = scenario / "mappings" / "platform1-platform3.cowl.xml"
     text = forward.read_text()
     swapped = re.sub(r"sourceConcept(.*?)\n(\s*)<cowl:targetConcept", r"TMP\1\n\2<cowl:SRC", text)
@@ -97,7 +97,7 @@ def test_a_mapping_file_written_from_the_remote_side_works_the_same(scenario: Pa
     assert topic_sets(got) == topic_sets(want)
 
 
-def test_subsumption_extension_adds_topics_of_more_specific_features(scenario: Path):
+def test_subsumption_extension_adds_topics_of_more_specific_features(scenario: Path) -> None:
     # Replace the bridge Altitude ≡ Height by Height ⊑ Altitude, written from platform 3's side,
     # and add a local feature AirSpeed ⊑ Speed with a topic of its own.
     drop_rule(scenario / "mappings" / "platform1-platform3.cowl.xml", P1 + "Altitude")
@@ -129,7 +129,7 @@ def test_subsumption_extension_adds_topics_of_more_specific_features(scenario: P
     assert extended["Speed[uav1]"] - default["Speed[uav1]"] == {("platform1", "topic10")}
 
 
-def test_expected_files_still_hold_with_the_extension_enabled(scenario: Path):
+def test_expected_files_still_hold_with_the_extension_enabled(scenario: Path) -> None:
     config = scenario / "federation.toml"
     config.write_text('rules = ["rules/extensions/subsumption.dl"]\n' + config.read_text())
     km = KnowledgeManager.from_config(config)
@@ -138,7 +138,7 @@ def test_expected_files_still_hold_with_the_extension_enabled(scenario: Path):
         assert topic_sets(km.check_formula(want["formula"]).to_json()) == topic_sets(want)
 
 
-def test_a_platform_without_mappings_contributes_nothing_and_says_so(scenario: Path):
+def test_a_platform_without_mappings_contributes_nothing_and_says_so(scenario: Path) -> None:
     config = scenario / "federation.toml"
     text = config.read_text()
     config.write_text(text[: text.index("[[mappings]]")])
@@ -154,7 +154,8 @@ def test_a_platform_without_mappings_contributes_nothing_and_says_so(scenario: P
     (rule("sameish", ONT + "car3", P2 + "car11"), "br-type 'sameish' is not one of"),
     ('<cowl:bridgeRule cowl:br-type="equiv">\n', "malformed XML: mismatched tag"),
 ])
-def test_bad_bridge_rules_name_the_file_and_the_rule(scenario: Path, bad_rule, says):
+def test_bad_bridge_rules_name_the_file_and_the_rule(scenario: Path, bad_rule: str,
+                                                     says: str) -> None:
     mapping = scenario / "mappings" / "platform1-platform2.cowl.xml"
     add_rules(mapping, bad_rule)
     with pytest.raises(ParseError) as err:

@@ -7,8 +7,11 @@ strategies mix valid fragments with hostile ones so both paths are exercised."""
 from __future__ import annotations
 
 import string
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -39,7 +42,7 @@ JSON_PIECES = ['{"topic": "topic3", "time": 1, "msg": {"id": 1, "spd": 2}}', "{"
                "true", "9" * 5000, ",", '{"a":', "\xff", "\x00", '"values": {"P[a]": 1}']
 
 
-def _total(call, *args):
+def _total(call: Callable[..., Any], *args: Any) -> Any:
     """`call(*args)` returns or raises DkError — nothing else."""
     try:
         return call(*args)
@@ -50,7 +53,7 @@ def _total(call, *args):
 
 @FAST
 @given(st.lists(st.sampled_from(FORMULA_TOKENS), max_size=40).map(" ".join))
-def test_formulas(text):
+def test_formulas(text: str) -> None:
     formula = _total(parse_formula, text)
     if formula is not None:
         progressor = Progressor()  # quantifiers need a knowledge base: one line each
@@ -63,7 +66,7 @@ def test_formulas(text):
 
 @FAST
 @given(st.lists(st.sampled_from(SSLT_TOKENS), max_size=40).map(" ".join))
-def test_sslt(text):
+def test_sslt(text: str) -> None:
     _total(parse_text, text, "f.sslt")
 
 
@@ -76,7 +79,7 @@ XML_PIECES = ['<?xml version="1.0"?>', "<Topic_specs>", "</Topic_specs>", "<Topi
 
 @FAST
 @given(st.lists(st.sampled_from(XML_PIECES), max_size=20).map("".join))
-def test_specs_xml(text):
+def test_specs_xml(text: str) -> None:
     _total(parse_xml, text.encode(), "f.xml")
 
 
@@ -88,7 +91,7 @@ CONFIG_PIECES = ['local = "p"\n', "[platforms.p]\n", 'ontology = "o.owl"\n',
 
 @FAST
 @given(st.lists(st.sampled_from(CONFIG_PIECES), max_size=12).map("".join))
-def test_configs(tmp_path_factory, text):
+def test_configs(tmp_path_factory: pytest.TempPathFactory, text: str) -> None:
     path = tmp_path_factory.mktemp("c") / "c.toml"
     path.write_text(text)
     _total(read_config, path)
@@ -98,7 +101,7 @@ def test_configs(tmp_path_factory, text):
 @given(st.lists(st.one_of(st.sampled_from(JSON_PIECES), st.text(string.printable, max_size=5)),
                 max_size=12).map("".join))
 @example("1e" + "9" * 5000)
-def test_json_lines(tmp_path_factory, line):
+def test_json_lines(tmp_path_factory: pytest.TempPathFactory, line: str) -> None:
     folder = tmp_path_factory.mktemp("j")
     path = folder / "r.jsonl"
     path.write_bytes(line.encode("utf-8", "surrogateescape") + b"\n")
@@ -112,12 +115,12 @@ def test_json_lines(tmp_path_factory, line):
 @given(st.one_of(st.binary(max_size=200),
                  st.lists(st.sampled_from(JSON_PIECES), max_size=12).map(
                      lambda xs: "".join(xs).encode("utf-8", "surrogateescape"))))
-def test_live_payloads(payload):
+def test_live_payloads(payload: bytes) -> None:
     _total(wire.topic_message, payload, "p/t")
     _total(wire.decode, payload, wire.MAX_SAMPLE, "p/t")
 
 
-def test_the_strategies_reach_valid_input():
+def test_the_strategies_reach_valid_input() -> None:
     """The fuzzers are not only testing error paths."""
     assert parse_formula("always (X[a] > 1)")
     assert parse_text("topic t1:Msg contains Speed(car1) = msg.spd for car1 = msg.id")

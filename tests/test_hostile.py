@@ -8,7 +8,9 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -35,7 +37,7 @@ def one_line_error(capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     return err
 
 
-def rows(path: Path, lines: list[str | bytes]) -> Path:
+def rows(path: Path, lines: Sequence[str | bytes]) -> Path:
     path.write_bytes(b"".join((x if isinstance(x, bytes) else x.encode()) + b"\n"
                               for x in lines))
     return path
@@ -47,14 +49,15 @@ def rows(path: Path, lines: list[str | bytes]) -> Path:
                                      b"9" * 5000 + b"}}", bytes([0x80, 0x81]),
                                      b'{"valid": 1, "msg": ' + b'{"a":' * 5000 + b"1" +
                                      b"}" * 5001])
-def test_a_bad_payload_is_a_wire_error(payload):
+def test_a_bad_payload_is_a_wire_error(payload: bytes) -> None:
     with pytest.raises(wire.WireError):
         wire.topic_message(payload, "platform2/topic3")
     with pytest.raises(wire.WireError):
         wire.decode(payload, wire.MAX_KNOWLEDGE, "platform2's objects")
 
 
-def test_a_string_sample_value_is_an_error_and_nan_is_unknown(tmp_path, capsys):
+def test_a_string_sample_value_is_an_error_and_nan_is_unknown(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     source = rows(tmp_path / "r.jsonl", [
         json.dumps({"topic": "topic3", "time": t, "msg": {"id": 1, "spd": 50}})
         for t in range(3)] + ['{"topic": "topic3", "time": 3, "msg": {"id": 1, "spd": NaN}}',
@@ -66,7 +69,8 @@ def test_a_string_sample_value_is_an_error_and_nan_is_unknown(tmp_path, capsys):
     assert out.err.count("\n") == 1 and '"verdict": false' not in out.out
 
 
-def test_nan_in_a_sample_is_unknown_not_a_violation(tmp_path, capsys):
+def test_nan_in_a_sample_is_unknown_not_a_violation(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     source = rows(tmp_path / "r.jsonl", [
         json.dumps({"topic": "topic3", "time": t, "msg": {"id": 1, "spd": 50}})
         for t in range(3)] + ['{"topic": "topic3", "time": 3, "msg": {"id": 1, "spd": NaN}}',
@@ -78,7 +82,8 @@ def test_nan_in_a_sample_is_unknown_not_a_violation(tmp_path, capsys):
     assert code == 3 and verdicts[-1]["verdict"] is None
 
 
-def test_an_unhashable_id_matches_no_object(tmp_path, capsys):
+def test_an_unhashable_id_matches_no_object(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     source = rows(tmp_path / "r.jsonl", [
         '{"topic": "topic3", "time": 0, "msg": {"id": [1], "spd": 50}}',
         '{"topic": "topic3", "time": 1, "msg": {"id": 1, "spd": 50}}'])
@@ -88,7 +93,7 @@ def test_an_unhashable_id_matches_no_object(tmp_path, capsys):
 
 # ---- 6. the compiled progressor takes formulas of any size ---------------------------------
 
-def test_hundreds_of_conjuncts_under_a_temporal_operator():
+def test_hundreds_of_conjuncts_under_a_temporal_operator() -> None:
     formula = "always (" + " and ".join(f"X[a{i}] > {i}" for i in range(400)) + ")"
     progressor = Progressor()
     progressor.add(formula)
@@ -97,7 +102,7 @@ def test_hundreds_of_conjuncts_under_a_temporal_operator():
     assert verdict.verdict is False
 
 
-def test_a_forall_over_hundreds_of_objects_compiles(tmp_path: Path):
+def test_a_forall_over_hundreds_of_objects_compiles(tmp_path: Path) -> None:
     cars = "".join(f":car{i} a owl:NamedIndividual, :Car .\n" for i in range(303))
     (tmp_path / "o.ttl").write_text(
         "@prefix : <http://road.org/o#> .\n@prefix owl: <http://www.w3.org/2002/07/owl#> .\n"
@@ -116,7 +121,7 @@ def test_a_forall_over_hundreds_of_objects_compiles(tmp_path: Path):
     assert verdict.verdict is False
 
 
-def test_an_infinite_literal_compiles():
+def test_an_infinite_literal_compiles() -> None:
     progressor = Progressor()
     progressor.add("always (X[a] < 1e309)")
     assert progressor.step(0, {"X[a]": 5.0}) == []
@@ -130,17 +135,17 @@ def test_an_infinite_literal_compiles():
     "not " * 1000 + "P[a]", "(not " * 1000 + "P[a]" + ")" * 1000,
     "always " * 600 + "P[a]", "X[a] > " + "9" * 4400, "always[٣,٤] P[a]",
     "always[0, " + "1" * 5000 + "] P[a]", "P[a] -> " * 1000 + "P[a]"])
-def test_formulas_past_the_limits_are_parse_errors(formula):
+def test_formulas_past_the_limits_are_parse_errors(formula: str) -> None:
     with pytest.raises(ParseError):
         parse_formula(formula)
 
 
-def test_a_long_flat_conjunction_and_redundant_parentheses_are_not_too_deep():
+def test_a_long_flat_conjunction_and_redundant_parentheses_are_not_too_deep() -> None:
     parse_formula(" and ".join(f"P[a{i}]" for i in range(5000)))
     parse_formula("(" * 1000 + "X[a] > 1" + ")" * 1000)
 
 
-def test_deep_formula_on_the_cli_is_one_line(capsys):
+def test_deep_formula_on_the_cli_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     one_line_error(capsys, "match", "--config", str(SINGLE), "not " * 1000 + "P[a]")
     one_line_error(capsys, "progress", "--states", str(REPO / "tests/data/thesis-states.jsonl"),
                    "not " * 1000 + "P[a]")
@@ -161,7 +166,8 @@ BAD_LINES = {
 
 
 @pytest.mark.parametrize("bad", BAD_LINES.values(), ids=BAD_LINES.keys())
-def test_a_bad_recording_line_keeps_the_lines_before_it(tmp_path, capsys, bad):
+def test_a_bad_recording_line_keeps_the_lines_before_it(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], bad: str | bytes) -> None:
     good = [json.dumps({"topic": "topic3", "time": t, "msg": {"id": 1, "spd": 70 if t < 3
                                                                else 10}}) for t in range(6)]
     source = rows(tmp_path / "r.jsonl", [*good, bad, good[0]])
@@ -184,13 +190,14 @@ STATE_LINES = {
 
 
 @pytest.mark.parametrize("bad", STATE_LINES.values(), ids=STATE_LINES.keys())
-def test_a_bad_state_line_is_one_line(tmp_path, capsys, bad):
+def test_a_bad_state_line_is_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], bad: str | bytes) -> None:
     states = rows(tmp_path / "s.jsonl", ['{"time": 0, "values": {"P[a]": true}}', bad])
     err = one_line_error(capsys, "progress", "--states", str(states), "always P[a]")
     assert "s.jsonl:2" in err
 
 
-def test_nan_in_a_state_is_unknown(tmp_path, capsys):
+def test_nan_in_a_state_is_unknown(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     states = rows(tmp_path / "s.jsonl", ['{"time": 0, "values": {"X[a]": 1}}',
                                          '{"time": 1, "values": {"X[a]": NaN}}'])
     assert main(["progress", "--states", str(states), "always (X[a] > 0)"]) == 3
@@ -211,7 +218,8 @@ def config_with(tmp_path: Path, body: str) -> Path:
     'mappings = 5\n[platforms.p]\nontology = "p1.owl"\n',
     'local = "p"\n[platforms.p]\nontology = "p1\\n.owl"\n',
 ])
-def test_bad_configs_are_one_line(tmp_path, capsys, body):
+def test_bad_configs_are_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], body: str) -> None:
     one_line_error(capsys, "match", "--config", str(config_with(tmp_path, body)), "P[a]")
 
 
@@ -225,7 +233,7 @@ TTL = """@prefix : <http://ex.org/o#> . @prefix owl: <http://www.w3.org/2002/07/
     ":car" + "1" * 5000 + " a :Car .",
     ':car1 a :Car ; :id "abc"^^xsd:integer .',
 ])
-def test_odd_individuals(tmp_path, capsys, extra):
+def test_odd_individuals(tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: str) -> None:
     (tmp_path / "o.ttl").write_text(TTL.replace("{extra}", extra))
     (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.ttl"\n')
     code = main(["match", "--config", str(tmp_path / "c.toml"), "forall c in Car: true"])
@@ -244,21 +252,24 @@ def test_odd_individuals(tmp_path, capsys, extra):
     ["monitor", "--config", str(SINGLE), "--source", "x.jsonl", "--max-age", "1e999999999",
      "P[a]"],
 ])
-def test_bad_numbers_on_the_command_line(capsys, argv):
+def test_bad_numbers_on_the_command_line(capsys: pytest.CaptureFixture[str],
+                                         argv: list[str]) -> None:
     with pytest.raises(SystemExit) as stop:
         main(argv)
     err = capsys.readouterr().err
     assert stop.value.code == 2 and err.count("\n") == 1
 
 
-def test_plot_into_a_missing_directory_is_refused_before_the_run(tmp_path, capsys):
+def test_plot_into_a_missing_directory_is_refused_before_the_run(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     source = rows(tmp_path / "r.jsonl", ['{"topic": "topic3", "time": 0, "msg": '
                                          '{"id": 1, "spd": 1}}'])
     one_line_error(capsys, "monitor", "--config", str(SINGLE), "--source", str(source),
                    "--plot", str(tmp_path / "no" / "x.png"), "Speed[car1] > 0")
 
 
-def test_a_malformed_zenoh_config_is_one_line(tmp_path, capsys):
+def test_a_malformed_zenoh_config_is_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "z.json5").write_text('{ mode: "peer", bad bad\n')
     err = one_line_error(capsys, "monitor", "--live", "--config", str(SINGLE),
                          "--zenoh-config", str(tmp_path / "z.json5"), "P[a]")
@@ -268,7 +279,8 @@ def test_a_malformed_zenoh_config_is_one_line(tmp_path, capsys):
 # ---- 10. devices, FIFOs, huge files --------------------------------------------------------
 
 @pytest.mark.parametrize("what", ["ontology", "specs", "mapping", "config", "states", "zenoh"])
-def test_a_device_is_refused_at_once(tmp_path, capsys, what):
+def test_a_device_is_refused_at_once(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], what: str) -> None:
     zero = "/dev/zero"
     cfg = config_with(tmp_path, "")
     mapping = tmp_path / "m.toml"
@@ -294,14 +306,16 @@ def test_a_device_is_refused_at_once(tmp_path, capsys, what):
     assert "not a regular file" in err
 
 
-def test_a_fifo_is_refused_not_waited_on(tmp_path, capsys):
+def test_a_fifo_is_refused_not_waited_on(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     os.mkfifo(tmp_path / "o.owl")
     (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.owl"\n')
     assert "not a regular file" in one_line_error(capsys, "match", "--config",
                                                   str(tmp_path / "c.toml"), "P[a]")
 
 
-def test_a_huge_line_is_refused_in_bounded_memory(tmp_path, capsys):
+def test_a_huge_line_is_refused_in_bounded_memory(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = tmp_path / "sparse.jsonl"
     with path.open("wb") as out:
         out.truncate(64 * 1024 * 1024)  # sparse: 64 MiB of NUL bytes, no newline
@@ -309,7 +323,9 @@ def test_a_huge_line_is_refused_in_bounded_memory(tmp_path, capsys):
         capsys, "monitor", "--config", str(SINGLE), "--source", str(path), "Speed[car1] > 0")
 
 
-def test_a_file_over_the_input_limit_is_refused(tmp_path, capsys, monkeypatch):
+def test_a_file_over_the_input_limit_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("DKREASON_MAX_INPUT", "1K")
     assert "larger than 1024 bytes" in one_line_error(capsys, "match", "--config", str(SINGLE),
                                                       "Speed[car1] > 0")
@@ -319,20 +335,20 @@ def test_a_file_over_the_input_limit_is_refused(tmp_path, capsys, monkeypatch):
 
 @pytest.mark.parametrize("context", ["http://127.0.0.1:9/ctx.jsonld", "file:///etc/passwd",
                                      ["x.jsonld", {"@vocab": "http://ex.org/"}]])
-def test_json_ld_names_no_context_to_fetch(context):
+def test_json_ld_names_no_context_to_fetch(context: list[Any] | str) -> None:
     doc = json.dumps({"@context": context, "@id": "http://ex.org/a", "@type": "Car"})
     with pytest.raises(ParseError, match="refused"):
         parse_ontology(doc.encode(), "o.jsonld", "p")
 
 
-def test_json_ld_with_an_inline_context_is_read():
+def test_json_ld_with_an_inline_context_is_read() -> None:
     doc = {"@context": {"@vocab": "http://ex.org/o#"}, "@id": "http://ex.org/o#car1",
            "@type": "Car"}
     ontology = parse_ontology(json.dumps(doc).encode(), "o.jsonld", "p")
     assert "http://ex.org/o#car1" in ontology.individuals
 
 
-def test_trix_goes_through_the_xml_hardening():
+def test_trix_goes_through_the_xml_hardening() -> None:
     with pytest.raises(ParseError, match="refused|malformed"):
         parse_ontology(entity_bomb("TriX").encode(), "o.trix", "p")
     external = ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
@@ -341,7 +357,7 @@ def test_trix_goes_through_the_xml_hardening():
         parse_ontology(external.encode(), "o.trix", "p")
 
 
-def test_a_peer_cannot_choose_the_parser():
+def test_a_peer_cannot_choose_the_parser() -> None:
     """The wire fixes Turtle: an RDF/XML reply named .owl is not read as XML."""
     xml = (REPO / "ontologies" / "platform1.owl").read_bytes()
     with pytest.raises(ParseError):
@@ -350,7 +366,7 @@ def test_a_peer_cannot_choose_the_parser():
 
 # ---- 13. bounded expansion -----------------------------------------------------------------
 
-def test_nested_quantifiers_past_the_bound_are_one_line(capsys):
+def test_nested_quantifiers_past_the_bound_are_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     formula = "".join(f"forall x{i} in UAV: " for i in range(20)) + \
         " and ".join(f"Altitude[x{i}] > 0" for i in range(20))
     states = str(REPO / "tests/data/thesis-states.jsonl")
@@ -359,7 +375,7 @@ def test_nested_quantifiers_past_the_bound_are_one_line(capsys):
     assert "more than the 100000" in err
 
 
-def test_no_traceback_from_the_installed_command(tmp_path):
+def test_no_traceback_from_the_installed_command(tmp_path: Path) -> None:
     """The console script itself: one line on stderr, exit 2."""
     done = subprocess.run([sys.executable, "-m", "dkreason.cli", "match", "--config",
                            "/dev/zero", "P[a]"], capture_output=True, text=True, timeout=120)
@@ -368,7 +384,8 @@ def test_no_traceback_from_the_installed_command(tmp_path):
 
 # ---- 14. thousands of platform names outside the config ------------------------------------
 
-def test_unknown_platforms_are_named_a_few_times_then_counted(caplog):
+def test_unknown_platforms_are_named_a_few_times_then_counted(
+        caplog: pytest.LogCaptureFixture) -> None:
     from types import SimpleNamespace
 
     from dkreason.live.monitor import LiveMonitor

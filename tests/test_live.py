@@ -105,11 +105,11 @@ def wait_for(events: queue.Queue[dict[str, Any] | None], seen: list[dict[str, An
         if fields.items() <= event.items():
             return event
     while True:
-        event = events.get(timeout=max(0.01, deadline - time.monotonic()))
-        assert event is not None, f"the monitor ended before {fields}"
-        seen.append(event)
-        if fields.items() <= event.items():
-            return event
+        got = events.get(timeout=max(0.01, deadline - time.monotonic()))
+        assert got is not None, f"the monitor ended before {fields}"
+        seen.append(got)
+        if fields.items() <= got.items():
+            return got
 
 
 def heard(publisher: Any, timeout: float = 30.0) -> Any:
@@ -142,7 +142,7 @@ def serve(procs: Processes, site: Path, n: int, port: int, recording: Path, orig
 
 
 def test_live_federation_adapts_and_gives_the_recorded_verdict(
-        procs: Processes, site: Path, traffic: Path, capsys: pytest.CaptureFixture[str]):
+        procs: Processes, site: Path, traffic: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["monitor", "--config", str(REPO / "examples" / "federation.toml"), "--source",
                  str(traffic), "--delay", "0.1", "--json", SPEEDING]) == 1
     recorded = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
@@ -153,7 +153,7 @@ def test_live_federation_adapts_and_gives_the_recorded_verdict(
         monitor = procs.start("monitor", "--live", "--config", str(site / "monitor.toml"),
                               "--listen", f"tcp/127.0.0.1:{port}", "--delay", "0.1", "--until",
                               "330", "--wait", "20", "--json", SPEEDING, POSITION, ALTITUDE)
-        events, seen = lines_of(monitor), []
+        events, seen = lines_of(monitor), list[dict[str, Any]]()
         origin = time.time() + margin
         nodes = {n: serve(procs, site, n, port, traffic, origin, speed) for n in (1, 2, 3)}
         for n in (1, 2, 3):
@@ -203,7 +203,7 @@ def test_live_federation_adapts_and_gives_the_recorded_verdict(
 
 
 def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
-        procs: Processes, tmp_path: Path, traffic: Path):
+        procs: Processes, tmp_path: Path, traffic: Path) -> None:
     import zenoh
 
     from dkreason.live.wire import open_session
@@ -217,7 +217,7 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
     monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
                           "--listen", f"tcp/127.0.0.1:{port}", "--until", "200", "--wait", "20",
                           "--json", "always (Speed[car1] < 100)")
-    events, seen = lines_of(monitor), []
+    events, seen = lines_of(monitor), list[dict[str, Any]]()
     rogue = open_session([f"tcp/127.0.0.1:{port}"], [])
     try:
         token = rogue.liveliness().declare_token("dkreason/intruder/alive")
@@ -261,7 +261,7 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
 
 
 def test_monitor_without_its_local_platform_says_so(tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]):
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
     (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
     code = main(["monitor", "--live", "--config", str(tmp_path / "monitor.toml"), "--listen",
                  f"tcp/127.0.0.1:{free_port()}", "--wait", "0.5", "always (Speed[car1] < 1)"])
@@ -287,7 +287,7 @@ def test_monitor_without_its_local_platform_says_so(tmp_path: Path,
 ])
 def test_bad_live_invocations_give_one_line(args: list[str], message: str,
                                              capsys: pytest.CaptureFixture[str],
-                                             monkeypatch: pytest.MonkeyPatch):
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.chdir(REPO)
     assert main(args) == 2
     out = capsys.readouterr()
@@ -309,7 +309,7 @@ def _request(kb: KnowledgeBase, formula: str) -> dict[str, set[tuple[str, str]]]
             for f in request.features}
 
 
-def test_a_platform_going_offline_rederives_no_view(federation_km: KnowledgeManager):
+def test_a_platform_going_offline_rederives_no_view(federation_km: KnowledgeManager) -> None:
     kb = federation_km.kb
     before = _request(kb, SPEEDING)
     kb.set_online("platform2", False)
@@ -319,7 +319,7 @@ def test_a_platform_going_offline_rederives_no_view(federation_km: KnowledgeMana
     assert _request(kb, SPEEDING) == before
 
 
-def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeManager):
+def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeManager) -> None:
     from dkreason.parse.sslt import parse_text
 
     kb = federation_km.kb
@@ -332,7 +332,7 @@ def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeMa
     assert ("platform3", "uastopic9") in _request(kb, ALTITUDE)["Altitude[uav2]"]
 
 
-def test_a_platform_appearing_brings_its_mappings(tmp_path: Path):
+def test_a_platform_appearing_brings_its_mappings(tmp_path: Path) -> None:
     from dkreason.kb import make_platform
     from dkreason.parse.owl import read_ontology
     from dkreason.parse.sslt import read_specs
@@ -348,7 +348,7 @@ def test_a_platform_appearing_brings_its_mappings(tmp_path: Path):
                                                      ("platform2", "carstopic1")}
 
 
-def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path):
+def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path) -> None:
     """truck1 (a GroundVehicle) was no place to read car3's Speed; once platform 2 says it is
     an Automobile, carstopic1 serves it, and the warning goes."""
     map_car3_to_a_truck(scenario)
@@ -365,13 +365,14 @@ def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path):
     assert request.warnings == ()
 
 
-def test_a_node_publishes_json_lines_from_its_standard_input(procs: Processes, tmp_path: Path):
+def test_a_node_publishes_json_lines_from_its_standard_input(
+        procs: Processes, tmp_path: Path) -> None:
     (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
     port = free_port()
     monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
                           "--listen", f"tcp/127.0.0.1:{port}", "--until", "3", "--json",
                           "always (Speed[car1] < 100)")
-    events, seen = lines_of(monitor), []
+    events, seen = lines_of(monitor), list[dict[str, Any]]()
     node = procs.start("serve", "--config", str(REPO / "examples" / "live" / "platform1.toml"),
                        "--connect", f"tcp/127.0.0.1:{port}", "--source", "-",
                        stdin=subprocess.PIPE)
@@ -421,7 +422,8 @@ class InProcess:
         self.sessions.append(open_session([self.endpoint], []))
         return PlatformNode(KnowledgeManager.from_config(config), self.sessions[-1])
 
-    def run(self, steps: list[tuple[set[tuple[str, ...]], Any]]) -> list[tuple[str, ...]]:
+    def run(self, steps: list[tuple[set[tuple[str, str, str, str]], Any]]
+            ) -> list[tuple[str, ...]]:
         """The monitor's changes, taking each step once the changes it waits for are seen."""
         from dkreason.live.monitor import Change
 
@@ -444,7 +446,7 @@ STARTED = {("joined", "platform2", "", ""), ("subscribed", "platform1", "topic5"
 CARSTOPIC1 = ("subscribed", "platform2", "carstopic1", "Speed[car3]")
 
 
-def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Path):
+def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Path) -> None:
     """Through the Python API: platform 2 says truck1 is an Automobile, then drops a topic;
     the running monitor subscribes and unsubscribes accordingly."""
     fed = InProcess(scenario)
@@ -456,7 +458,7 @@ def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Pa
     assert not any(c[0] == "source_lost" for c in changes)  # topic5 still serves Speed[car3]
 
 
-def test_a_platform_back_with_another_ontology_replaces_its_knowledge(scenario: Path):
+def test_a_platform_back_with_another_ontology_replaces_its_knowledge(scenario: Path) -> None:
     """Platform 2 restarts with a new sort, Truck ⊑ Automobile, and truck1 a Truck: no change
     of specs or objects could say that, so the monitor replaces what it knew of platform 2,
     and reads Speed[car3] from carstopic1."""
@@ -480,7 +482,8 @@ def test_a_platform_back_with_another_ontology_replaces_its_knowledge(scenario: 
     assert CARSTOPIC1 in changes
 
 
-def test_a_platform_removed_and_added_again_matches_as_before(federation_km: KnowledgeManager):
+def test_a_platform_removed_and_added_again_matches_as_before(
+        federation_km: KnowledgeManager) -> None:
     kb = federation_km.kb
     before = _request(kb, SPEEDING)
     platform2 = kb.remove_platform("platform2")
@@ -492,7 +495,7 @@ def test_a_platform_removed_and_added_again_matches_as_before(federation_km: Kno
         kb.remove_platform("platform1")
 
 
-def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path):
+def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path) -> None:
     """A node signs with --sign; a monitor given its key with --trust rejects and counts what
     anyone else puts on the node's keys, and keeps the signed verdict."""
     import zenoh
@@ -513,7 +516,7 @@ def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path):
     monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
                           "--listen", f"tcp/127.0.0.1:{port}", "--until", "3", "--json",
                           "--trust", str(tmp_path / "keys.toml"), "always (Speed[car1] < 100)")
-    events, seen = lines_of(monitor), []
+    events, seen = lines_of(monitor), list[dict[str, Any]]()
     node = procs.start("serve", "--config", str(REPO / "examples" / "live" / "platform1.toml"),
                        "--connect", f"tcp/127.0.0.1:{port}", "--source", "-",
                        "--sign", str(tmp_path / "p1.pem"), stdin=subprocess.PIPE)

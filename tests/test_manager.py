@@ -13,7 +13,8 @@ NEW = "topic topic10:UavMsg contains Altitude(uav2) = msg.alt for uav2 = msg.id"
 
 
 @pytest.mark.parametrize("form", ["sslt", "xml"])
-def test_added_topic_is_matched_and_saved_and_removing_restores_the_file(scenario: Path, form):
+def test_added_topic_is_matched_and_saved_and_removing_restores_the_file(
+        scenario: Path, form: str) -> None:
     config = scenario / ("single.toml" if form == "sslt" else "single-xml.toml")
     specs = scenario / "specs" / f"platform1.{form}"
     before = specs.read_text()
@@ -27,7 +28,7 @@ def test_added_topic_is_matched_and_saved_and_removing_restores_the_file(scenari
     assert specs.read_text() == before
 
 
-def test_removing_a_topic_edits_only_its_own_lines(scenario: Path):
+def test_removing_a_topic_edits_only_its_own_lines(scenario: Path) -> None:
     specs = scenario / "specs" / "platform1.sslt"
     specs.write_text("# platform 1 topics\n" + specs.read_text())
     km = KnowledgeManager.from_config(scenario / "single.toml")
@@ -37,7 +38,7 @@ def test_removing_a_topic_edits_only_its_own_lines(scenario: Path):
     assert "topic4" in text and "topic6" in text
 
 
-def test_a_bad_spec_is_rejected_and_nothing_is_lost(scenario: Path):
+def test_a_bad_spec_is_rejected_and_nothing_is_lost(scenario: Path) -> None:
     specs = scenario / "specs" / "platform1.sslt"
     before = specs.read_text()
     km = KnowledgeManager.from_config(scenario / "single.toml")
@@ -50,7 +51,7 @@ def test_a_bad_spec_is_rejected_and_nothing_is_lost(scenario: Path):
     assert "topic10" not in km.list_topics()
 
 
-def test_listing_and_lookup(scenario: Path):
+def test_listing_and_lookup(scenario: Path) -> None:
     km = KnowledgeManager.from_config(scenario / "federation.toml")
     assert km.list_topics("platform2") == ["carstopic1", "carstopic2", "carstopic3"]
     assert all(isinstance(s, TopicSpec) for s in km.list_topic_specifications("platform3"))
@@ -60,7 +61,7 @@ def test_listing_and_lookup(scenario: Path):
         km.get_topic_specification("nope")
 
 
-def test_a_removed_topic_is_no_longer_matched_by_the_same_manager(scenario: Path):
+def test_a_removed_topic_is_no_longer_matched_by_the_same_manager(scenario: Path) -> None:
     km = KnowledgeManager.from_config(scenario / "single.toml")
     km.add_topic(NEW)
     km.remove_topic("topic10")

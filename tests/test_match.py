@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -31,7 +32,7 @@ def twin(formula: str) -> str:
 @pytest.mark.parametrize("case", CASES, ids=lambda p: p.stem)
 @pytest.mark.parametrize("spelling", ["thesis", "ascii"])
 @pytest.mark.parametrize("form", ["sslt", "xml"])
-def test_thesis_case_matches_listing(case, spelling, form):
+def test_thesis_case_matches_listing(case: Path, spelling: str, form: str) -> None:
     want = json.loads(case.read_text(encoding="utf-8"))
     config = want["config"] if form == "sslt" else want["config"].replace(".toml", "-xml.toml")
     formula = want["formula"] if spelling == "thesis" else twin(want["formula"])
@@ -40,7 +41,7 @@ def test_thesis_case_matches_listing(case, spelling, form):
     assert len(got["features"]) == len(want["features"])
 
 
-def test_json_shape_is_exactly_the_documented_one():
+def test_json_shape_is_exactly_the_documented_one() -> None:
     got = manager("single.toml").check_formula("always (Speed[uav1] > 50)").to_json()
     assert got == {"formula": "always (Speed[uav1] > 50)", "features": [
         {"feature": "Speed", "args": ["uav1"], "topics": [
@@ -48,7 +49,7 @@ def test_json_shape_is_exactly_the_documented_one():
              "field": "msg.spd", "filter": {"msg.id": 1}}]}]}
 
 
-def test_remote_topics_say_what_they_were_matched_as():
+def test_remote_topics_say_what_they_were_matched_as() -> None:
     got = manager("federation.toml").check_formula("Altitude[uav2] > 3").to_json()
     (remote,) = [t for t in got["features"][0]["topics"] if t["platform"] != "platform1"]
     assert remote["as"] == {"feature": "Alt", "args": ["uas21"]}
@@ -56,7 +57,7 @@ def test_remote_topics_say_what_they_were_matched_as():
 
 
 
-def test_a_config_may_replace_the_shipped_matching_policy(scenario):
+def test_a_config_may_replace_the_shipped_matching_policy(scenario: Path) -> None:
     shutil.copy(REPO / "tests" / "data" / "strict.dl", scenario / "strict.dl")
     config = scenario / "strict.toml"
     config.write_text('replace_rules = true\nrules = ["rules/ontology.dl", "rules/signature.dl", '
@@ -70,7 +71,7 @@ def test_a_config_may_replace_the_shipped_matching_policy(scenario):
         ("topic1", (("msg.id", 1),))]
 
 
-def test_a_replacing_policy_must_derive_what_dkreason_asks(scenario):
+def test_a_replacing_policy_must_derive_what_dkreason_asks(scenario: Path) -> None:
     (scenario / "half.dl").write_text("object_id(P, O, V) <= name_digits(P, O, V)\n")
     config = scenario / "half.toml"
     config.write_text('replace_rules = true\nrules = ["half.dl"]\n'

@@ -5,21 +5,21 @@ from __future__ import annotations
 import json
 import shutil
 from collections import Counter
+from collections.abc import Iterable, Iterator, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from dkreason import KnowledgeManager
+from dkreason import FeatureKey, KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
-from dkreason.monitor import Monitor
-from dkreason.parse.formula import feature_key as key
+from dkreason.monitor import Event, Monitor
 from dkreason.progress import Verdict
 from dkreason.stream.processor import StreamPolicy, Violation
 from dkreason.stream.recording import write_recording
-from dkreason.stream.sources import JsonlSource, PushSource
+from dkreason.stream.sources import JsonlSource, PushSource, Source
 
 REPO = Path(__file__).resolve().parents[1]
 CAR = "dkreason_msgs/msg/CarMsg"
@@ -29,9 +29,10 @@ TYPES = {CAR: "int32 id\nfloat64 spd\n",
 S = 10**9
 SPEEDING = "always (Speed[car1] > 60 -> eventually[0, 3] Speed[car1] <= 60)"
 SLOW = "always (Speed[car2] < 60)"
+CAR1, CAR2 = FeatureKey("Speed", ("car1",)), FeatureKey("Speed", ("car2",))
 
 
-def car_rows(seconds: int = 8):
+def car_rows(seconds: int = 8) -> Iterator[tuple[str, str, int, dict[str, Any]]]:
     """car2 keeps to 50; car1 speeds at 70 from 0.1 s to 5.1 s (a violation when the window
     [0.1, 3.1] closes)."""
     for t in range(seconds):
@@ -40,7 +41,7 @@ def car_rows(seconds: int = 8):
                                                             else 50.0})
 
 
-def jsonl(path: Path, rows) -> Path:
+def jsonl(path: Path, rows: Iterable[tuple[str, str, int, dict[str, Any]]]) -> Path:
     with path.open("w") as out:
         for topic, _, t_ns, msg in rows:
             out.write(json.dumps({"topic": topic.split("/")[-1], "time": t_ns / S,
@@ -53,7 +54,8 @@ def single() -> KnowledgeManager:
     return KnowledgeManager.from_config(REPO / "examples" / "single.toml")
 
 
-def run(capsys, config: Path, source: Path, *formulas: str, extra=()) -> tuple[int, list]:
+def run(capsys: pytest.CaptureFixture[str], config: Path, source: Path, *formulas: str,
+        extra: Sequence[str] = ()) -> tuple[int, list[dict[str, Any]]]:
     code = main(["monitor", "--config", str(config), "--source", str(source), "--json",
                  *extra, *formulas])
     out = capsys.readouterr()
@@ -62,7 +64,8 @@ def run(capsys, config: Path, source: Path, *formulas: str, extra=()) -> tuple[i
 
 
 @pytest.mark.parametrize("fmt", ["ros1", "sqlite3", "mcap", "bare-mcap", "jsonl"])
-def test_every_recording_format_gives_the_same_verdicts(capsys, tmp_path: Path, fmt):
+def test_every_recording_format_gives_the_same_verdicts(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, fmt: str) -> None:
     if fmt == "jsonl":
         source = jsonl(tmp_path / "run.jsonl", car_rows())
     else:
@@ -79,7 +82,7 @@ TRAFFIC = "forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] Speed[c]
 
 
 def test_traffic_example_federation_finds_car2s_violation_from_platform_2(
-        capsys, traffic: Path, tmp_path: Path):
+        capsys: pytest.CaptureFixture[str], traffic: Path, tmp_path: Path) -> None:
     plot = tmp_path / "traffic.png"
     code, lines = run(capsys, REPO / "examples" / "federation.toml", traffic, TRAFFIC,
                       extra=["--delay", "0.1", "--plot", str(plot)])
@@ -91,7 +94,7 @@ def test_traffic_example_federation_finds_car2s_violation_from_platform_2(
 
 
 def test_traffic_example_single_platform_does_not_claim_what_it_did_not_see(
-        capsys, traffic: Path):
+        capsys: pytest.CaptureFixture[str], traffic: Path) -> None:
     code, lines = run(capsys, REPO / "examples" / "single.toml", traffic, TRAFFIC,
                       extra=["--delay", "0.1"])
     (verdict,) = [line for line in lines if "verdict" in line]
@@ -100,9 +103,12 @@ def test_traffic_example_single_platform_does_not_claim_what_it_did_not_see(
     assert {"feature": "Speed[car2]", "from": 204.010000001, "to": 359.02} in spans
 
 
+Row = tuple[str, float, dict[str, Any], float | None]  # topic, valid time, msg, available
+
+
 # ---- stream constraints and bad samples ---------------------------------------------------
 
-def messages(tmp_path: Path, rows: list[tuple[str, float, dict, float | None]]) -> Path:
+def messages(tmp_path: Path, rows: Sequence[Row]) -> Path:
     """JSON lines from (topic, valid time, msg, available time or None)."""
     path = tmp_path / "m.jsonl"
     with path.open("w") as out:
@@ -115,27 +121,28 @@ def messages(tmp_path: Path, rows: list[tuple[str, float, dict, float | None]]) 
 
 
 def events(single: KnowledgeManager, source: Path, policy: StreamPolicy,
-           formula: str = "always (Speed[car1] > 0)") -> tuple[list, Monitor]:
+           formula: str = "always (Speed[car1] > 0)") -> tuple[list[Event], Monitor]:
     monitor = Monitor(single, [formula], policy, keep_states=True)
     return list(monitor.run(JsonlSource(source))), monitor
 
 
-def kinds(evs: list) -> list[str]:
+def kinds(evs: list[Event]) -> list[str]:
     return [e.constraint for e in evs if isinstance(e, Violation)]
 
 
-def car1(t: float, spd: float = 50.0, available: float | None = None):
+def car1(t: float, spd: float = 50.0, available: float | None = None) -> Row:
     return ("topic3", t, {"id": 1, "spd": spd}, available)
 
 
-def test_start_and_end_time_drop_samples_outside_and_say_so(single, tmp_path):
+def test_start_and_end_time_drop_samples_outside_and_say_so(
+        single: KnowledgeManager, tmp_path: Path) -> None:
     evs, monitor = events(single, messages(tmp_path, [car1(0), car1(1), car1(2), car1(3)]),
                           StreamPolicy(start_time=Fraction(1), end_time=Fraction(2)))
     assert kinds(evs) == ["start_end_time", "start_end_time"]
     assert [t / S for t, _ in monitor.states] == [1, 2]
 
 
-def test_sample_period_and_deviation(single, tmp_path):
+def test_sample_period_and_deviation(single: KnowledgeManager, tmp_path: Path) -> None:
     rows = [car1(0), car1(1), car1(2.05), car1(4)]
     evs, monitor = events(single, messages(tmp_path, rows),
                           StreamPolicy(sample_period=Fraction(1),
@@ -145,33 +152,35 @@ def test_sample_period_and_deviation(single, tmp_path):
     assert [t / S for t, _ in monitor.states] == [0, 1, 2, 3, 4]
 
 
-def test_max_delay(single, tmp_path):
+def test_max_delay(single: KnowledgeManager, tmp_path: Path) -> None:
     evs, _ = events(single, messages(tmp_path, [car1(0, available=0.1), car1(1, available=1.7)]),
                     StreamPolicy(max_delay=Fraction(1, 2), delay_before_approximation=Fraction(1)))
     (v,) = [e for e in evs if isinstance(e, Violation)]
     assert v.constraint == "max_delay" and "delay 0.7 s exceeds 0.5 s" in v.detail
 
 
-def test_out_of_order_and_duplicate_samples(single, tmp_path):
+def test_out_of_order_and_duplicate_samples(single: KnowledgeManager, tmp_path: Path) -> None:
     rows = [car1(0, 50, 0), car1(2, 52, 2), car1(1, 51, 2.1), car1(2, 53, 2.2)]
     evs, monitor = events(single, messages(tmp_path, rows),
                           StreamPolicy(ordered_on_valid_time=True, unique_valid_time=True,
                                        delay_before_approximation=Fraction(1)))
     assert kinds(evs) == ["ordered_on_valid_time", "unique_valid_time"]
     # the out-of-order sample counts in valid-time order; on equal times the later arrival wins
-    assert [(t / S, s[key("Speed[car1]")]) for t, s in monitor.states] == [(0, 50), (1, 51),
+    assert [(t / S, s[CAR1]) for t, s in monitor.states] == [(0, 50), (1, 51),
                                                                       (2, 53)]
 
 
-def test_late_samples_are_reported_and_never_rewrite_states_already_made(single, tmp_path):
+def test_late_samples_are_reported_and_never_rewrite_states_already_made(
+        single: KnowledgeManager, tmp_path: Path) -> None:
     rows = [car1(0, 50, 0), car1(1, 51, 1), car1(2, 52, 2), car1(0.5, 99, 2.5), car1(3, 53, 3)]
     evs, monitor = events(single, messages(tmp_path, rows), StreamPolicy(max_age=None))
     (v,) = [e for e in evs if isinstance(e, Violation)]
     assert v.constraint == "late" and "valid at 0.5 s arrived at 2.5 s" in v.detail
-    assert [s[key("Speed[car1]")] for _, s in monitor.states] == [50, 51, 52, 53]
+    assert [s[CAR1] for _, s in monitor.states] == [50, 51, 52, 53]
 
 
-def test_missing_samples_make_values_unknown_and_no_violation_is_claimed(single, tmp_path):
+def test_missing_samples_make_values_unknown_and_no_violation_is_claimed(
+        single: KnowledgeManager, tmp_path: Path) -> None:
     # car1 is seen speeding at 0 s and 1 s, then not for 29 s: the data cannot show whether
     # it slowed down within 20 s, so there is no violation, only an unknown span
     rows = [car1(0, 70), car1(1, 70), car1(30, 50)]
@@ -181,26 +190,29 @@ def test_missing_samples_make_values_unknown_and_no_violation_is_claimed(single,
     assert v.verdict is None and v.at_end
     assert [(str(u.feature), u.start, u.end) for u in v.unknown] == [
         ("Speed[car1]", 3.000000001, 3.000000001)]
-    assert [(t / S, s[key("Speed[car1]")]) for t, s in monitor.states] == [
+    assert [(t / S, s[CAR1]) for t, s in monitor.states] == [
         (0, 70), (1, 70), (3.000000001, None), (30, 50)]
 
 
-def test_approximation_none_only_takes_samples_at_the_state_time(single, tmp_path):
+def test_approximation_none_only_takes_samples_at_the_state_time(
+        single: KnowledgeManager, tmp_path: Path) -> None:
     rows = [car1(0, 50), ("topic4", 0.5, {"id": 2, "spd": 40}, None), car1(1, 51)]
     evs, monitor = events(single, messages(tmp_path, rows), StreamPolicy(approximation="none"),
                           "always (Speed[car1] > 0 and Speed[car2] > 0)")
-    assert [(t / S, s[key("Speed[car1]")], s[key("Speed[car2]")]) for t, s in monitor.states] == [
+    assert [(t / S, s[CAR1], s[CAR2]) for t, s in monitor.states] == [
         (0, 50, None), (0.5, None, 40), (1, 51, None)]
 
 
-def test_filters_compare_ids_across_int_and_string(single, tmp_path):
-    rows = [("topic3", 0, {"id": "1", "spd": 70}, None), ("topic3", 1, {"id": 2, "spd": 10}, None),
+def test_filters_compare_ids_across_int_and_string(
+        single: KnowledgeManager, tmp_path: Path) -> None:
+    rows: list[Row] = [("topic3", 0, {"id": "1", "spd": 70}, None),
+                       ("topic3", 1, {"id": 2, "spd": 10}, None),
             ("topic3", 2, {"id": 1, "spd": 30}, None)]
     _, monitor = events(single, messages(tmp_path, rows), StreamPolicy(max_age=None))
-    assert [s[key("Speed[car1]")] for _, s in monitor.states] == [70, 30]
+    assert [s[CAR1] for _, s in monitor.states] == [70, 30]
 
 
-def test_merge_prefers_the_most_recent_valid_time_then_the_local_platform(tmp_path):
+def test_merge_prefers_the_most_recent_valid_time_then_the_local_platform(tmp_path: Path) -> None:
     km = KnowledgeManager.from_config(REPO / "examples" / "federation.toml")
     rows = [("topic3", 1, {"id": 1, "spd": 50}, None),
             ("platform2/carstopic2", 1, {"id": 11, "speed": 99}, 1.05),
@@ -209,11 +221,11 @@ def test_merge_prefers_the_most_recent_valid_time_then_the_local_platform(tmp_pa
     monitor = Monitor(km, ["always (Speed[car1] > 0)"], StreamPolicy(
         delay_before_approximation=Fraction(1, 10)), keep_states=True)
     list(monitor.run(JsonlSource(messages(tmp_path, rows))))
-    assert [(t / S, s[key("Speed[car1]")]) for t, s in monitor.states] == [(1, 50), (2, 61),
+    assert [(t / S, s[CAR1]) for t, s in monitor.states] == [(1, 50), (2, 61),
                                                                       (2.5, 55)]
 
 
-def test_the_push_api_feeds_any_live_source(single):
+def test_the_push_api_feeds_any_live_source(single: KnowledgeManager) -> None:
     source = PushSource()
     for t in range(5):
         source.push("topic3", t, {"id": 1, "spd": 70 if t < 4 else 50})
@@ -226,7 +238,8 @@ def test_the_push_api_feeds_any_live_source(single):
 
 # ---- errors ---------------------------------------------------------------------------------
 
-def test_a_field_missing_from_the_message_type_is_found_before_replay(single, tmp_path):
+def test_a_field_missing_from_the_message_type_is_found_before_replay(
+        single: KnowledgeManager, tmp_path: Path) -> None:
     bag = tmp_path / "run.mcap"
     write_recording(bag, "bare-mcap", {CAR: "int32 id\nfloat64 speed\n"},
                     [("/platform1/topic3", CAR, 0, {"id": 1, "speed": 3.0})])
@@ -235,12 +248,13 @@ def test_a_field_missing_from_the_message_type_is_found_before_replay(single, tm
         list(Monitor(single, [SPEEDING], StreamPolicy()).run(_open(bag)))
 
 
-def _open(path: Path):
+def _open(path: Path) -> Source:
     from dkreason.stream.sources import open_source
     return open_source(path)
 
 
-def test_a_truncated_recording_still_gives_what_was_decided_before_the_damage(capsys, tmp_path):
+def test_a_truncated_recording_still_gives_what_was_decided_before_the_damage(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     bag = tmp_path / "cut.mcap"
     rows = [("/platform1/topic3", CAR, t * S // 100, {"id": 1, "spd": 70.0 if t < 500 else 50.0})
             for t in range(60_000)]
@@ -256,7 +270,8 @@ def test_a_truncated_recording_still_gives_what_was_decided_before_the_damage(ca
 
 
 @pytest.mark.parametrize("content", [b"not a bag at all", b""])
-def test_an_unreadable_recording_is_a_one_line_error(capsys, tmp_path, content):
+def test_an_unreadable_recording_is_a_one_line_error(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, content: bytes) -> None:
     bag = tmp_path / "x.bag"
     bag.write_bytes(content)
     code = main(["monitor", "--config", str(REPO / "examples" / "single.toml"), "--source",
@@ -265,7 +280,7 @@ def test_an_unreadable_recording_is_a_one_line_error(capsys, tmp_path, content):
     assert code == 2 and err.count("\n") == 1 and f"{bag}: not a readable ROS recording" in err
 
 
-def test_custom_message_definitions_are_read_from_msg_files(tmp_path):
+def test_custom_message_definitions_are_read_from_msg_files(tmp_path: Path) -> None:
     msg = tmp_path / "dkreason_msgs" / "msg"
     msg.mkdir(parents=True)
     shutil.copy(REPO / "examples" / "traffic" / "msg" / "dkreason_msgs" / "msg" / "CarMsg.msg",
@@ -277,7 +292,8 @@ def test_custom_message_definitions_are_read_from_msg_files(tmp_path):
         _typestore([tmp_path / "CarMsg.txt"], ros1=False)
 
 
-def test_a_recording_without_the_features_leaves_every_verdict_unknown(capsys, tmp_path: Path):
+def test_a_recording_without_the_features_leaves_every_verdict_unknown(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     source = tmp_path / "other.jsonl"
     source.write_text('{"topic": "elsewhere", "time": 1, "msg": {}}\n')
     code, lines = run(capsys, REPO / "examples" / "single.toml", source,
@@ -289,7 +305,7 @@ def test_a_recording_without_the_features_leaves_every_verdict_unknown(capsys, t
 # ---- one plan per formula, one monitor loop for every caller --------------------------------
 
 def test_each_formula_is_parsed_once_and_expanded_once_from_the_cli_to_its_verdict(
-        capsys, monkeypatch, traffic: Path):
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, traffic: Path) -> None:
     from dkreason import expand
     from dkreason.parse import formula
 
@@ -312,7 +328,7 @@ def test_each_formula_is_parsed_once_and_expanded_once_from_the_cli_to_its_verdi
     assert counts == {"parse": 2, "expand": 2}
 
 
-def test_the_public_api_monitors_a_recording(traffic: Path):
+def test_the_public_api_monitors_a_recording(traffic: Path) -> None:
     from dkreason import KnowledgeManager, StreamPolicy, Verdict, Violation
 
     km = KnowledgeManager.from_config(REPO / "examples" / "federation.toml")
@@ -324,9 +340,9 @@ def test_the_public_api_monitors_a_recording(traffic: Path):
     assert all(isinstance(e, Verdict | Violation) for e in events)
 
 
-def test_a_stream_policy_is_keyword_only_and_immutable():
+def test_a_stream_policy_is_keyword_only_and_immutable() -> None:
     with pytest.raises(TypeError):
-        StreamPolicy(Fraction(1))  # type: ignore[misc]
+        StreamPolicy(Fraction(1))  # type: ignore[call-arg]
     policy = StreamPolicy(max_age=Fraction(2))
     with pytest.raises(AttributeError):
         policy.max_age = Fraction(3)  # type: ignore[misc]

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from dkreason.errors import ParseError
+from dkreason.model import Ontology
 from dkreason.names import local_name
 from dkreason.parse.owl import read_ontology
 
@@ -20,24 +21,24 @@ HEAD = """<?xml version="1.0"?>
 """
 
 
-def signature(ont, name: str) -> list[list[str]]:
+def signature(ont: Ontology, name: str) -> list[list[str]]:
     (sig,) = [s for iri, s in ont.features.items() if local_name(iri) == name]
     return [sorted(local_name(x) for x in arg) for arg in sig.arg_sorts]
 
 
-def test_signatures_come_from_told_axioms_so_equivalent_features_keep_their_own():
+def test_signatures_come_from_told_axioms_so_equivalent_features_keep_their_own() -> None:
     ont = read_ontology(SCENARIOS / "ontologies" / "platform1.owl", "p1")
     assert signature(ont, "GroundSpeed") == [["UAV"]]
     assert signature(ont, "Speed") == [["MovingObject"]]
     assert signature(ont, "Between") == [["Object"]] * 3
 
 
-def test_union_of_sorts_per_argument():
+def test_union_of_sorts_per_argument() -> None:
     ont = read_ontology(SCENARIOS / "ontologies" / "chapter4.owl", "ch4")
     assert signature(ont, "Behind") == [["Car", "UAV"], ["Car", "UAV"]]
 
 
-def test_any_rdf_syntax_rdflib_reads(tmp_path: Path):
+def test_any_rdf_syntax_rdflib_reads(tmp_path: Path) -> None:
     from rdflib import Graph
 
     turtle = tmp_path / "platform1.ttl"
@@ -48,7 +49,7 @@ def test_any_rdf_syntax_rdflib_reads(tmp_path: Path):
         xml.features, xml.individuals, set(xml.types))
 
 
-def test_id_data_property_numeric_or_string_in_any_namespace(tmp_path: Path):
+def test_id_data_property_numeric_or_string_in_any_namespace(tmp_path: Path) -> None:
     path = tmp_path / "o.owl"
     path.write_text(HEAD + """
       <owl:Class rdf:about="http://x.org/o#Ship"/>
@@ -64,7 +65,7 @@ def test_id_data_property_numeric_or_string_in_any_namespace(tmp_path: Path):
     assert ids == {"http://x.org/o#alpha": 7, "http://x.org/o#beta": "B-2"}
 
 
-def test_several_id_values_are_an_error_naming_the_object(tmp_path: Path):
+def test_several_id_values_are_an_error_naming_the_object(tmp_path: Path) -> None:
     path = tmp_path / "o.owl"
     path.write_text(HEAD + """<owl:NamedIndividual rdf:about="http://x.org/o#alpha">
         <id>1</id><id>2</id></owl:NamedIndividual></rdf:RDF>""")
@@ -76,7 +77,8 @@ def test_several_id_values_are_an_error_naming_the_object(tmp_path: Path):
     ("bad.ttl", "@prefix : <http://x#> .\n:a :b :c ;;; ]\n", "bad.ttl:2: malformed RDF"),
     ("bad.owl", HEAD + "<rdf:Description rdf:about='http://x#a'>", "bad.owl:7:1: malformed XML"),
 ])
-def test_malformed_rdf_names_file_and_line(tmp_path: Path, name, text, says):
+def test_malformed_rdf_names_file_and_line(tmp_path: Path, name: str, text: str,
+                                           says: str) -> None:
     path = tmp_path / name
     path.write_text(text)
     with pytest.raises(ParseError) as err:

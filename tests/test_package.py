@@ -38,7 +38,7 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return wheel, site
 
 
-def test_the_wheel_holds_every_module_grammar_and_rule_file(installed: tuple[Path, Path]):
+def test_the_wheel_holds_every_module_grammar_and_rule_file(installed: tuple[Path, Path]) -> None:
     names = set(zipfile.ZipFile(installed[0]).namelist())
     src = REPO / "src"
     wanted = {p.relative_to(src).as_posix() for p in src.rglob("*")
@@ -58,7 +58,7 @@ def run_installed(site: Path, cwd: Path, *args: str) -> subprocess.CompletedProc
 
 
 def test_the_installed_package_matches_and_monitors_from_another_directory(
-        installed: tuple[Path, Path], traffic: Path, tmp_path: Path):
+        installed: tuple[Path, Path], traffic: Path, tmp_path: Path) -> None:
     site = installed[1]
     config = str(REPO / "examples" / "federation.toml")
     matched = run_installed(site, tmp_path, "match", "--config", config, FORMULA)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from dkreason.errors import ParseError
@@ -14,26 +16,26 @@ SPEC_FILES = sorted((SCENARIOS / "specs").glob("*.sslt")) if SCENARIOS else []
 
 
 @pytest.mark.parametrize("path", SPEC_FILES, ids=lambda p: p.stem)
-def test_text_and_xml_forms_of_every_thesis_spec_agree(path):
+def test_text_and_xml_forms_of_every_thesis_spec_agree(path: Path) -> None:
     assert read_specs(path).specs == read_specs(path.with_suffix(".xml")).specs
 
 
 @pytest.mark.parametrize("path", SPEC_FILES, ids=lambda p: p.stem)
-def test_text_to_xml_to_text_round_trip_loses_nothing(path):
+def test_text_to_xml_to_text_round_trip_loses_nothing(path: Path) -> None:
     specs = read_specs(path).specs
     via_xml = parse_xml(format_xml(specs).encode()).specs
     assert via_xml == specs
     assert parse_text("\n".join(format_spec(s) for s in via_xml)).specs == specs
 
 
-def test_for_entries_bind_by_name_not_position():
+def test_for_entries_bind_by_name_not_position() -> None:
     (spec,) = parse_text("topic topic7:UavMsg contains Close(uav2, uav1) = msg.close "
                          "for uav1 = msg.id2, uav2 = msg.id1").specs
     assert [(a.name, a.id_field) for a in spec.features[0].args] == [("uav2", "msg.id1"),
                                                                       ("uav1", "msg.id2")]
 
 
-def test_aliases_tell_repeated_arguments_apart_and_survive_writing():
+def test_aliases_tell_repeated_arguments_apart_and_survive_writing() -> None:
     text = ("topic t:M contains Close(UAV as a, UAV as b) = msg.c "
             "for every a = msg.id1, some b = msg.id2")
     (spec,) = parse_text(text).specs
@@ -42,13 +44,13 @@ def test_aliases_tell_repeated_arguments_apart_and_survive_writing():
     assert parse_text(format_spec(spec)).specs == (spec,)
 
 
-def test_repeated_names_without_aliases_bind_in_order():
+def test_repeated_names_without_aliases_bind_in_order() -> None:
     (spec,) = parse_text("topic t:M contains Behind(uav1, uav1) = msg.b "
                          "for uav1 = msg.id1, uav1 = msg.id2").specs
     assert [a.id_field for a in spec.features[0].args] == ["msg.id1", "msg.id2"]
 
 
-def test_several_features_per_topic_and_implicit_objects():
+def test_several_features_per_topic_and_implicit_objects() -> None:
     (spec,) = parse_text("topic t:M contains Altitude(uav1) = msg.alt, "
                          "Speed(uav1) = msg.spd for uav1 = msg.id").specs
     assert [f.name for f in spec.features] == ["Altitude", "Speed"]
@@ -56,7 +58,7 @@ def test_several_features_per_topic_and_implicit_objects():
     assert spec.features[1].args[0].id_field == "msg.id"
 
 
-def test_sort_and_object_topics_with_optional_sort_keyword():
+def test_sort_and_object_topics_with_optional_sort_keyword() -> None:
     specs = parse_text("topic a:M contains sort some UAV = msg.id\n"
                        "topic b:M contains every UAV = msg.id\n"
                        "topic c:M contains uav1 = msg.id").specs
@@ -64,7 +66,7 @@ def test_sort_and_object_topics_with_optional_sort_keyword():
         ("sort", "some"), ("sort", "every"), ("object", "object")]
 
 
-def test_prefixed_names_iris_nested_fields_and_comments():
+def test_prefixed_names_iris_nested_fields_and_comments() -> None:
     (spec,) = parse_text("# heading\ntopic t:M contains hr:Heading(<http://x.org/o#uav1>) "
                          "= msg.pose.orientation.z for <http://x.org/o#uav1> = msg.ids[0]").specs
     arg = spec.features[0].args[0]
@@ -80,7 +82,8 @@ def test_prefixed_names_iris_nested_fields_and_comments():
     ("topic t:M contains Speed(uav1) = msg.s\ntopic t:M contains Speed(uav1) = msg.s",
      "x.sslt:2:1", "specified twice"),
 ])
-def test_syntax_errors_name_file_line_column_and_what_was_expected(text, where, says):
+def test_syntax_errors_name_file_line_column_and_what_was_expected(
+        text: str, where: str, says: str) -> None:
     with pytest.raises(ParseError) as err:
         parse_text(text, "x.sslt")
     assert str(err.value).startswith(where) and says in str(err.value)
@@ -95,7 +98,7 @@ def test_syntax_errors_name_file_line_column_and_what_was_expected(text, where, 
     (b"<Topic_specs><Topic name='a' msgtype='M'><sort name='S' value='f' all_objects='yes'/>"
      b"</Topic></Topic_specs>", "all_objects must be true or false"),
 ])
-def test_malformed_xml_specs_are_rejected_with_their_line(xml, says):
+def test_malformed_xml_specs_are_rejected_with_their_line(xml: bytes, says: str) -> None:
     with pytest.raises(ParseError) as err:
         parse_xml(xml, "s.xml")
     assert str(err.value).startswith("s.xml:1") and says in str(err.value)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from fractions import Fraction
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -17,7 +18,7 @@ from dkreason.errors import DkError
 from dkreason.parse.formula import parse_formula
 from dkreason.progress import Progressor
 
-from .oracle import holds
+from .oracle import Trace, holds
 
 # DKREASON_EXAMPLES=20000 for a long run; the default keeps the suite quick
 SETTINGS = settings(max_examples=int(os.environ.get("DKREASON_EXAMPLES", "400")), deadline=None,
@@ -35,7 +36,7 @@ BINARY = ["and", "or", "->", "<->", "until", "since"]
 
 
 @st.composite
-def formulas(draw, depth: int = 3):
+def formulas(draw: st.DrawFn, depth: int = 3) -> str:
     if depth == 0 or draw(st.integers(0, 3)) == 0:
         return draw(atoms)
     if draw(st.booleans()):
@@ -49,10 +50,10 @@ def formulas(draw, depth: int = 3):
 
 
 @st.composite
-def traces(draw):
+def traces(draw: st.DrawFn) -> Trace:
     n = draw(st.integers(1, 7))
     t = Fraction(draw(st.sampled_from([0, 1, 5])))
-    out = []
+    out: Trace = []
     for _ in range(n):
         values = {
             "P": draw(st.sampled_from([True, False, True, False, None])),
@@ -65,7 +66,7 @@ def traces(draw):
     return out
 
 
-def run(formula: str, trace):
+def run(formula: str, trace: Trace) -> tuple[bool | None, int | None]:
     """(verdict, index of the deciding state or None if settled by finish)."""
     p = Progressor()
     p.add(formula)
@@ -80,14 +81,15 @@ def run(formula: str, trace):
 
 @SETTINGS
 @given(formulas(), traces())
-def test_verdicts_equal_the_offline_semantics(formula, trace):
+def test_verdicts_equal_the_offline_semantics(formula: str, trace: Trace) -> None:
     verdict, _ = run(formula, trace)
     assert verdict == holds(parse_formula(formula), trace, 0)
 
 
 @SETTINGS
 @given(formulas(), traces())
-def test_an_early_verdict_is_final_and_holds_on_the_stream_cut_right_after_it(formula, trace):
+def test_an_early_verdict_is_final_and_holds_on_the_stream_cut_right_after_it(
+        formula: str, trace: Trace) -> None:
     verdict, k = run(formula, trace)
     if k is not None:
         f = parse_formula(formula)
@@ -97,7 +99,8 @@ def test_an_early_verdict_is_final_and_holds_on_the_stream_cut_right_after_it(fo
 
 @SETTINGS
 @given(formulas(), traces())
-def test_verdicts_come_no_later_than_a_three_valued_evaluation_of_the_prefix(formula, trace):
+def test_verdicts_come_no_later_than_a_three_valued_evaluation_of_the_prefix(
+        formula: str, trace: Trace) -> None:
     f = parse_formula(formula)
     _, k = run(formula, trace)
     forced = next((n for n in range(len(trace))
@@ -124,7 +127,7 @@ single = st.one_of(
 @SETTINGS
 @given(single, traces())
 def test_single_operators_and_response_formulas_decide_exactly_at_the_forcing_state(
-        formula, trace):
+        formula: str, trace: Trace) -> None:
     f = parse_formula(formula)
     _, k = run(formula, trace)
     forced = next((n for n in range(len(trace))
@@ -132,7 +135,7 @@ def test_single_operators_and_response_formulas_decide_exactly_at_the_forcing_st
     assert k == forced
 
 
-def test_response_formula_decides_at_the_state_that_closes_the_window():
+def test_response_formula_decides_at_the_state_that_closes_the_window() -> None:
     p = Progressor()
     p.add("always (Speed[car1] > 60 -> eventually[0, 300] Speed[car1] <= 60)")
     decided = []
@@ -140,10 +143,10 @@ def test_response_formula_decides_at_the_state_that_closes_the_window():
         decided += [(t, v) for v in p.step(t, {"Speed[car1]": 70 if t >= 100 else 50})]
     ((t, verdict),) = decided
     assert t == 400 and verdict.verdict is False
-    assert "Speed[car1] <= 60 never held within [100, 400]" in verdict.witness
+    assert "Speed[car1] <= 60 never held within [100, 400]" in str(verdict.witness)
 
 
-def test_end_of_stream_semantics():
+def test_end_of_stream_semantics() -> None:
     p = Progressor()
     for f in ("eventually Q", "next P", "always P", "P until Q", "always[0, 100] P"):
         p.add(f)
@@ -154,7 +157,7 @@ def test_end_of_stream_semantics():
                    "always[0, 100] P": (True, True)}
 
 
-def test_times_and_units_are_exact():
+def test_times_and_units_are_exact() -> None:
     p = Progressor()
     p.add("eventually[0.3, 0.3] P")
     p.add("always[0ms, 250ms] Q")
@@ -166,7 +169,7 @@ def test_times_and_units_are_exact():
     assert p.finish() == []
 
 
-def test_unknown_values_are_reported_with_their_spans_and_never_as_a_violation():
+def test_unknown_values_are_reported_with_their_spans_and_never_as_a_violation() -> None:
     p = Progressor()
     p.add("always (Speed[car2] > 60 -> eventually[0, 300] Speed[car2] <= 60)")
     for t in range(0, 600, 100):
@@ -176,7 +179,7 @@ def test_unknown_values_are_reported_with_their_spans_and_never_as_a_violation()
     assert [(str(u.feature), u.start, u.end) for u in v.unknown] == [("Speed[car2]", 200, 500)]
 
 
-def test_feature_keys_ignore_whitespace():
+def test_feature_keys_ignore_whitespace() -> None:
     p = Progressor()
     p.add("always Close[uav1,uav2]")
     assert p.step(0, {"Close[uav1, uav2]": False})[0].verdict is False
@@ -187,7 +190,7 @@ def test_feature_keys_ignore_whitespace():
     ([(0, {"Q": True})], "the state at time 0 has no value for P"),
     ([(0, {"P": 3})], "P is used as a condition but has the value 3 at time 0"),
 ])
-def test_bad_states_are_errors_naming_feature_and_time(steps, says):
+def test_bad_states_are_errors_naming_feature_and_time(steps: list[Any], says: str) -> None:
     p = Progressor()
     p.add("always P")
     with pytest.raises(DkError, match=says):
@@ -203,7 +206,8 @@ families = st.tuples(atoms, atoms, st.integers(0, 2), st.lists(
 
 @SETTINGS
 @given(st.lists(st.one_of(formulas(), single), max_size=4), families, traces())
-def test_formulas_sharing_one_progressor_each_keep_their_own_semantics(others, family, trace):
+def test_formulas_sharing_one_progressor_each_keep_their_own_semantics(
+        others: list[str], family: list[str], trace: Trace) -> None:
     batch = [*others, *family]
     p = Progressor()
     for f in batch:
@@ -218,8 +222,8 @@ def test_formulas_sharing_one_progressor_each_keep_their_own_semantics(others, f
         decided[n] = (v.verdict, None)
     assert sorted(decided) == list(range(len(batch)))
     for n, f in enumerate(batch):
-        verdict, k = decided[n]
+        verdict, at = decided[n]
         parsed = parse_formula(f)
         assert verdict == holds(parsed, trace, 0), f
-        if k is not None:
-            assert verdict == holds(parsed, trace[:k + 1], 0), f
+        if at is not None:
+            assert verdict == holds(parsed, trace[:at + 1], 0), f

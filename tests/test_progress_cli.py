@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -20,14 +21,15 @@ STATES = Path(__file__).parent / "data" / "thesis-states.jsonl"
 HAND_CHECK = {"F1": (False, 3), "F2": (False, 5), "F3": (False, 4)}
 
 
-def run(capsys, *argv: str) -> tuple[int, list[dict]]:
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, list[dict[str, Any]]]:
     code = main(list(argv))
     out = capsys.readouterr()
     return code, [json.loads(line) for line in out.out.splitlines()]
 
 
 @pytest.mark.parametrize("spelling", ["", "-ascii"])
-def test_thesis_formulas_give_the_hand_checked_verdicts(capsys, spelling):
+def test_thesis_formulas_give_the_hand_checked_verdicts(
+        capsys: pytest.CaptureFixture[str], spelling: str) -> None:
     assert SCENARIOS is not None
     table = formulas()
     argv = [table[f"{name}{spelling}"] for name in HAND_CHECK]
@@ -39,7 +41,8 @@ def test_thesis_formulas_give_the_hand_checked_verdicts(capsys, spelling):
     assert all(line["at_end"] is False for line in lines)
 
 
-def test_one_line_per_formula_argument_and_exit_status(capsys, tmp_path: Path):
+def test_one_line_per_formula_argument_and_exit_status(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     states = tmp_path / "s.jsonl"
     states.write_text('{"time": 0, "values": {"P": true, "X": 1}}\n'
                       '{"time": 2.5, "values": {"P": false, "X": null}}\n')
@@ -60,7 +63,8 @@ def test_one_line_per_formula_argument_and_exit_status(capsys, tmp_path: Path):
     ('{"time": 0}\n', 's.jsonl:1: expected {"time": …, "values": {…}}'),
     ('{"time": 0, "values": {"Q": true}}\n', "the state at time 0 has no value for P"),
 ])
-def test_bad_state_files_are_one_line_errors(capsys, tmp_path: Path, content, says):
+def test_bad_state_files_are_one_line_errors(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, content: str, says: str) -> None:
     states = tmp_path / "s.jsonl"
     states.write_text(content)
     code = main(["progress", "--states", str(states), "always P"])
@@ -68,7 +72,8 @@ def test_bad_state_files_are_one_line_errors(capsys, tmp_path: Path, content, sa
     assert code == 2 and out.err.count("\n") == 1 and says in out.err
 
 
-def test_quantifiers_need_a_knowledge_base(capsys, tmp_path: Path):
+def test_quantifiers_need_a_knowledge_base(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     states = tmp_path / "s.jsonl"
     states.write_text('{"time": 0, "values": {}}\n')
     code = main(["progress", "--states", str(states), "forall x in UAV: Speed[x] > 1"])

@@ -44,7 +44,7 @@ def xml_text() -> str:
     return format_xml(parse_text(SSLT).specs)
 
 
-def test_xml_on_one_line_keeps_every_other_topic(tmp_path):
+def test_xml_on_one_line_keeps_every_other_topic(tmp_path: Path) -> None:
     config = platform(tmp_path, xml_text().replace("\n", ""), "specs.xml")
     km = KnowledgeManager.from_config(config)
     km.remove_topic("topic5")
@@ -53,7 +53,7 @@ def test_xml_on_one_line_keeps_every_other_topic(tmp_path):
     assert names(tmp_path / "specs.xml") == [n for n in original() if n != "topic5"] + ["topic10"]
 
 
-def test_xml_closing_tags_on_one_line_do_not_nest_the_new_topic(tmp_path):
+def test_xml_closing_tags_on_one_line_do_not_nest_the_new_topic(tmp_path: Path) -> None:
     text = xml_text().replace("</Topic>\n</Topic_specs>", "</Topic></Topic_specs>")
     config = platform(tmp_path, text, "specs.xml")
     KnowledgeManager.from_config(config).add_topic(NEW)
@@ -62,13 +62,13 @@ def test_xml_closing_tags_on_one_line_do_not_nest_the_new_topic(tmp_path):
     assert spec.specs[-2] == parse_text(SSLT).specs[-1]  # topic9 unchanged
 
 
-def test_empty_xml_root_is_opened_for_a_new_topic(tmp_path):
+def test_empty_xml_root_is_opened_for_a_new_topic(tmp_path: Path) -> None:
     config = platform(tmp_path, '<?xml version="1.0"?>\n<Topic_specs/>\n', "specs.xml")
     KnowledgeManager.from_config(config).add_topic(NEW)
     assert names(tmp_path / "specs.xml") == ["topic10"]
 
 
-def test_two_sslt_topics_on_one_line(tmp_path):
+def test_two_sslt_topics_on_one_line(tmp_path: Path) -> None:
     lines = SSLT.splitlines()
     i = next(n for n, line in enumerate(lines) if line.startswith("topic topic3:"))
     lines[i:i + 2] = [lines[i] + "  " + lines[i + 1]]
@@ -78,14 +78,14 @@ def test_two_sslt_topics_on_one_line(tmp_path):
 
 
 @pytest.mark.parametrize("odd", ["\x0c", "\r", "\x85", "\x1e", "\u2028"])
-def test_unusual_line_breaks_in_a_comment(tmp_path, odd):
+def test_unusual_line_breaks_in_a_comment(tmp_path: Path, odd: str) -> None:
     config = platform(tmp_path, f"# a comment{odd}with an odd break\n" + SSLT)
     KnowledgeManager.from_config(config).remove_topic("topic5")
     assert names(tmp_path / "specs.sslt") == [n for n in original() if n != "topic5"]
 
 
 @pytest.mark.parametrize("newline", ["\r\n", "\r"])
-def test_line_ends_are_kept(tmp_path, newline):
+def test_line_ends_are_kept(tmp_path: Path, newline: str) -> None:
     config = platform(tmp_path, SSLT.replace("\n", newline))
     km = KnowledgeManager.from_config(config)
     km.remove_topic("topic4")
@@ -96,7 +96,7 @@ def test_line_ends_are_kept(tmp_path, newline):
         ["topic10"]
 
 
-def test_mode_symlink_and_temporaries(tmp_path):
+def test_mode_symlink_and_temporaries(tmp_path: Path) -> None:
     config = platform(tmp_path, SSLT, "real.sslt")
     (tmp_path / "real.sslt").chmod(0o640)
     (tmp_path / "specs.sslt").symlink_to("real.sslt")
@@ -109,7 +109,7 @@ def test_mode_symlink_and_temporaries(tmp_path):
     assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob(".*.tmp"))
 
 
-def test_removing_a_missing_topic_is_one_line_exit_2(tmp_path):
+def test_removing_a_missing_topic_is_one_line_exit_2(tmp_path: Path) -> None:
     config = platform(tmp_path, SSLT)
     done = subprocess.run([sys.executable, "-m", "dkreason.cli", "specs", "remove",
                            "--config", str(config), "topic99"], capture_output=True, text=True)
@@ -117,7 +117,7 @@ def test_removing_a_missing_topic_is_one_line_exit_2(tmp_path):
     assert (tmp_path / "specs.sslt").read_text() == SSLT
 
 
-def test_a_topic_added_behind_our_back_is_refused_not_duplicated(tmp_path):
+def test_a_topic_added_behind_our_back_is_refused_not_duplicated(tmp_path: Path) -> None:
     config = platform(tmp_path, SSLT)
     km = KnowledgeManager.from_config(config)
     with (tmp_path / "specs.sslt").open("a") as out:
@@ -128,7 +128,7 @@ def test_a_topic_added_behind_our_back_is_refused_not_duplicated(tmp_path):
     assert "topic10" not in km.list_topics()
 
 
-def test_fifty_concurrent_editors(tmp_path):
+def test_fifty_concurrent_editors(tmp_path: Path) -> None:
     """25 adds and 25 removes at once: every add present, every remove applied, mode kept."""
     extra = "\n".join(f"topic old{i}:UavMsg contains Altitude(uav1) = msg.alt{i} for uav1 = msg.id"
                       for i in range(25))

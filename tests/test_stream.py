@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from rosbags.typesys.store import Typestore
 
 from dkreason.stream.fastread import compile_extractor
 from dkreason.stream.fields import accessor, check
@@ -16,7 +17,7 @@ FIELDS = ["msg.speed", "msg.id", "msg.header.stamp.sec", "msg.header.stamp.nanos
           "msg.arr[2]", "msg.name", "msg.flag", "msg.big", "msg.where.z", "msg.header.frame_id"]
 
 
-def store(ros1: bool):
+def store(ros1: bool) -> Typestore:
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
@@ -33,8 +34,9 @@ STORES = {ros1: store(ros1) for ros1 in (False, True)}
        ident=st.integers(-2**31, 2**31 - 1), speed=st.floats(allow_nan=False),
        arr=st.lists(st.integers(0, 255), min_size=4, max_size=4), flag=st.booleans(),
        big=st.integers(-2**63, 2**63 - 1), z=st.floats(allow_nan=False))
-def test_extracted_fields_equal_full_deserialisation(ros1, frame, name, sec, nsec, ident, speed,
-                                                     arr, flag, big, z):
+def test_extracted_fields_equal_full_deserialisation(
+        ros1: bool, frame: str, name: str, sec: int, nsec: int, ident: int, speed: float,
+        arr: list[int], flag: bool, big: int, z: float) -> None:
     ts = STORES[ros1]
     header = {"seq": 7} if ros1 else {}
     msg = ts.types["x/msg/T"](
@@ -44,7 +46,7 @@ def test_extracted_fields_equal_full_deserialisation(ros1, frame, name, sec, nse
         id=ident, speed=speed, arr=np.array(arr, dtype=np.uint8), name=name, flag=flag,
         big=big, where=ts.types["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=z),
         tail=np.array([1.5]), last=3)
-    raw = (ts.serialize_ros1 if ros1 else ts.serialize_cdr)(msg, "x/msg/T")
+    raw = bytes((ts.serialize_ros1 if ros1 else ts.serialize_cdr)(msg, "x/msg/T"))
     extract = compile_extractor(ts.fielddefs, "x/msg/T", FIELDS, ros1)
     assert extract is not None
     back = (ts.deserialize_ros1 if ros1 else ts.deserialize_cdr)(raw, "x/msg/T")
@@ -54,13 +56,13 @@ def test_extracted_fields_equal_full_deserialisation(ros1, frame, name, sec, nse
 
 
 @pytest.mark.parametrize("ros1", [False, True])
-def test_layouts_it_cannot_read_fall_back_to_deserialisation(ros1):
+def test_layouts_it_cannot_read_fall_back_to_deserialisation(ros1: bool) -> None:
     ts = STORES[ros1]
     assert compile_extractor(ts.fielddefs, "x/msg/T", ["msg.last"], ros1) is None  # after tail
     assert compile_extractor(ts.fielddefs, "x/msg/T", ["msg.nope"], ros1) is None
 
 
-def test_big_endian_cdr_is_left_to_the_deserialiser():
+def test_big_endian_cdr_is_left_to_the_deserialiser() -> None:
     ts = STORES[False]
     extract = compile_extractor(ts.fielddefs, "x/msg/T", ["msg.id"], False)
     assert extract is not None and extract(bytes([0, 0, 0, 0]) + bytes(64)) is None
@@ -72,5 +74,5 @@ def test_big_endian_cdr_is_left_to_the_deserialiser():
     ("msg.speed[1]", "is not an array"),
     ("msg.nope", "x/msg/T has no field 'nope'"),
 ])
-def test_field_checks_say_why(field, says):
+def test_field_checks_say_why(field: str, says: str) -> None:
     assert says in (check(STORES[False].fielddefs, "x/msg/T", field) or "")

@@ -12,7 +12,7 @@ from dkreason.errors import ParseError
 from .conftest import entity_bomb
 
 
-def test_internal_entities_as_protege_writes_them_are_fine():
+def test_internal_entities_as_protege_writes_them_are_fine() -> None:
     xmlsafe.check(b'<!DOCTYPE r [<!ENTITY o "http://x.org/o#">]><r a="&o;b"/>', "f.xml")
 
 
@@ -22,12 +22,12 @@ def test_internal_entities_as_protege_writes_them_are_fine():
     b'<!DOCTYPE r PUBLIC "-//X//Y" "http://example.com/y.dtd"><r/>',
     b'<!DOCTYPE r [<!ENTITY % p SYSTEM "http://example.com/p.dtd"> %p;]><r/>',
 ])
-def test_external_references_are_refused_without_opening_them(doc):
+def test_external_references_are_refused_without_opening_them(doc: bytes) -> None:
     with pytest.raises(ParseError, match="refused"):
         xmlsafe.check(doc, "f.xml")
 
 
-def test_entity_bomb_is_refused_with_bounded_memory():
+def test_entity_bomb_is_refused_with_bounded_memory() -> None:
     bomb = entity_bomb("r").encode()
     tracemalloc.start()
     try:

@@ -122,7 +122,7 @@ def time_formula(km: KnowledgeManager, text: str) -> dict[str, float]:
     t1 = time.perf_counter()
     checked = check_formula(kb, parsed)
     t2 = time.perf_counter()
-    ground = expand(kb, checked)
+    ground = list(expand(kb, parsed, checked).ground)
     matches, rejected = match(kb, ground)
     t3 = time.perf_counter()
     request = build_request(kb, text, ground, matches, rejected)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 from .errors import Span
 
@@ -216,8 +216,8 @@ class StreamRequest:
     features: tuple[FeatureRequest, ...]
     warnings: tuple[str, ...] = ()
 
-    def to_json(self) -> dict[str, object]:
-        out: dict[str, object] = {"formula": self.formula, "features": [
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"formula": self.formula, "features": [
             {"feature": f.feature.name, "args": list(f.feature.args),
              "topics": [t.to_json(self.local) for t in f.topics]} for f in self.features]}
         if self.warnings:
