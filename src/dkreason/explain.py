@@ -17,6 +17,7 @@ import itertools
 from collections import defaultdict
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 from .datalog import Comparison, Literal, Row, Rule, Term, Value, Var
 from .facts import THING
@@ -100,6 +101,21 @@ class Explanation:
 # ---- reading facts: told facts with their sources, derived facts generically ---------------
 
 _BRIDGE = {"equiv": "≡", "same": "=", "into": "⊑", "onto": "⊒", "incompat": "⊥", "compat": "★"}
+# Told facts in words, by the column names rules/schema.dl declares.
+_GLOSSES = {
+    "equivalent_class": "{Class} ≡ {Other} ({Platform} axiom)",
+    "subclass_of": "{Sub} ⊑ {Super} ({Platform} axiom)",
+    "type_of": "{Object} : {Sort} ({Platform} axiom)",
+    "same_as": "{Object} = {Other} ({Platform} sameAs)",
+    "feature": "{Feature} is a feature of {Platform} with {Arity} argument(s)",
+    "feature_arg": "{Feature} argument {Position} takes {Sort} ({Platform})",
+    "individual": "{Object} is an object of {Platform}",
+    "sort": "{Sort} is a sort of {Platform}",
+    "bridge": "{SourceEntity} {Type} {TargetEntity} (bridge {SourcePlatform}→{TargetPlatform})",
+    "topic_feature": "{Topic} carries {Feature} in {Field} ({Platform})",
+    "id_property": "{Object} has id {Id} ({Platform})",
+    "name_digits": "{Object} ends in the digits {Digits} ({Platform})",
+}
 
 
 class Reader:
@@ -118,50 +134,50 @@ class Reader:
             return "–"
         return local_name(value) if isinstance(value, str) and "/" in value else str(value)
 
+    def columns(self, fact: Pattern | Row) -> dict[str, Any]:
+        """The fact's values by the column names its relation is declared with."""
+        relation = self.kb.engine.schema.get(str(fact[0]))
+        if relation is None or relation.arity != len(fact) - 1:
+            return {}
+        return dict(zip(relation.columns, fact[1:], strict=True))
+
     def text(self, fact: Pattern) -> str:
         pred, *args = fact
         a = [self.name(x) for x in args]
-        glosses = {
-            "equivalent_class": lambda: f"{a[1]} ≡ {a[2]} ({a[0]} axiom)",
-            "subclass_of": lambda: f"{a[1]} ⊑ {a[2]} ({a[0]} axiom)",
-            "type_of": lambda: f"{a[1]} : {a[2]} ({a[0]} axiom)",
-            "same_as": lambda: f"{a[1]} = {a[2]} ({a[0]} sameAs)",
-            "feature": lambda: f"{a[1]} is a feature of {a[0]} with {a[2]} argument(s)",
-            "feature_arg": lambda: f"{a[1]} argument {a[2]} takes {a[3]} ({a[0]})",
-            "individual": lambda: f"{a[1]} is an object of {a[0]}",
-            "sort": lambda: f"{a[1]} is a sort of {a[0]}",
-            "bridge": lambda: f"{a[1]} {_BRIDGE.get(str(args[4]), args[4])} {a[3]} "
-                              f"(bridge {a[0]}→{a[2]})",
-            "topic_feature": lambda: f"{a[1]} carries {a[3]} in {a[4]} ({a[0]})",
-            "topic_arg": lambda: (f"{a[1]} has no argument {a[3]}" if args[5] == "" else
-                                  f"{a[1]} argument {a[3]}: {a[4]} {a[5]}"
-                                  + (f" = {a[6]}" if args[6] else " (implicit)")),
-            "wanted": lambda: f"the formula needs {self.ground[int(args[0])].key}"
-            if isinstance(args[0], int) and args[0] < len(self.ground) else f"wanted{tuple(a)}",
-        }
-        if pred in glosses and None not in args:
-            return glosses[str(pred)]()
+        c = self.columns(fact)
+        if pred == "wanted" and isinstance(c["Query"], int) and c["Query"] < len(self.ground):
+            return f"the formula needs {self.ground[c['Query']].key}"
+        if pred == "topic_arg" and None not in args:
+            named = {k: self.name(v) for k, v in c.items()}
+            if c["Entity"] == "":
+                return "{Topic} has no argument {Position}".format(**named)
+            return ("{Topic} argument {Position}: {Kind} {Entity}".format(**named)
+                    + (f" = {named['IdField']}" if c["IdField"] else " (implicit)"))
+        if pred in _GLOSSES and None not in args:
+            named = {k: self.name(v) for k, v in c.items()}
+            if pred == "bridge":
+                named["Type"] = _BRIDGE.get(str(c["Type"]), str(c["Type"]))
+            return _GLOSSES[str(pred)].format(**named)
         return f"{pred}({', '.join(a)})"
 
     def source(self, fact: Row) -> str:
         """Where a told fact comes from: file:line, or the ontology axiom and its file."""
         pred, *args = fact
-        kb = self.kb
+        kb, c = self.kb, self.columns(fact)
         if pred == "bridge":
             span = self.bridges.get(tuple(args))  # type: ignore[arg-type]
             return str(span) if span else "bridge rule"
         if pred in ("topic", "topic_feature", "topic_arg"):
-            platform = kb.platforms[str(args[0])]
-            spec = platform.specs.get(str(args[1]))
+            spec = kb.platforms[str(c["Platform"])].specs.get(str(c["Topic"]))
             if spec is None:
                 return "topic specification"
-            if pred == "topic_feature" or (pred == "topic_arg" and args[5] == ""):
-                return str(spec.features[int(args[2]) - 1].span)
+            if pred == "topic_feature" or (pred == "topic_arg" and c["Entity"] == ""):
+                return str(spec.features[int(c["K"]) - 1].span)
             if pred == "topic_arg":
-                return str(spec.features[int(args[2]) - 1].args[int(args[3]) - 1].span)
+                return str(spec.features[int(c["K"]) - 1].args[int(c["Position"]) - 1].span)
             return str(spec.span)
         if pred == "wanted":
-            q = int(args[0])
+            q = int(c["Query"])
             return str(self.ground[q].span) if q < len(self.ground) else "<formula>"
         if pred == "online" and kb.live:
             return "live: the platform is present (liveliness)"
@@ -169,21 +185,22 @@ class Reader:
             return str(kb.config.path) if kb.config else "configuration"
         if pred in ("position", "sort_kind"):
             return "built in (src/dkreason/facts.py)"
-        owner = kb.platforms.get(str(args[0])) if args else None
+        owner = kb.platforms.get(str(c.get("Platform"))) if c else None
         if owner is None:
             return "knowledge base"
         file = owner.ontology.file
         subject = f"<{args[1]}>" if len(args) > 1 else ""
-        if pred == "subclass_of" and args[2] == THING and \
-                (str(args[1]), THING) not in set(owner.ontology.subclass_of):
+        if pred == "subclass_of" and c["Super"] == THING and \
+                (str(c["Sub"]), THING) not in set(owner.ontology.subclass_of):
             return f"implicit: every sort is a subclass of owl:Thing ({file})"
-        if pred == "type_of" and args[2] == THING and \
-                (str(args[1]), THING) not in set(owner.ontology.types):
+        if pred == "type_of" and c["Sort"] == THING and \
+                (str(c["Object"]), THING) not in set(owner.ontology.types):
             return f"implicit: every object is a Thing ({file})"
         kind = {"equivalent_class": "owl:equivalentClass", "subclass_of": "rdfs:subClassOf",
                 "type_of": "rdf:type", "same_as": "owl:sameAs", "individual": "NamedIndividual",
                 "sort": "owl:Class", "feature": "subClassOf (…Relation ⊓ …)",
-                "feature_arg": f"subClassOf ∀arg{args[2] if len(args) > 2 else ''}"}
+                "feature_arg": f"subClassOf ∀arg{c.get('Position', '')}",
+                "id_property": "id data property", "name_digits": "digits ending the name"}
         return f"{subject} {kind.get(str(pred), str(pred))}, {file}"
 
 

@@ -47,19 +47,23 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
     wanted = wanted_rows(ground)
     if not wanted:
         return [], []
-    rows = kb.engine.ask("match_result", {"wanted": wanted}, *[None] * 11)
+    relation = kb.engine.schema["match_result"]
+    rows = kb.engine.ask("match_result", {"wanted": wanted}, *[None] * relation.arity)
     matches, rejected = [], []
-    for q, answer, platform, what, k, *columns in rows:
-        assert isinstance(q, int) and isinstance(k, int)
+    for row in rows:
+        c = relation.row(row)
+        q, k = int(c["Query"]), int(c["K"])
         n = len(ground[q].args)
-        objects = tuple(str(o) for o in columns[:n])
-        if answer == "topic":
-            matches.append(Match(q, str(platform), str(what), k, objects, tuple(columns[3:3 + n])))
-        elif answer == "rejected":
-            rejected.append(Rejected(q, str(platform), str(what), objects))
+        objects = tuple(str(c[f"Arg{i}"]) for i in range(1, n + 1))
+        platform, what = str(c["Platform"]), str(c["What"])
+        if c["Answer"] == "topic":
+            ids = tuple(c[f"Filter{i}"] for i in range(1, n + 1))
+            matches.append(Match(q, platform, what, k, objects, ids))
+        elif c["Answer"] == "rejected":
+            rejected.append(Rejected(q, platform, what, objects))
         else:
-            ontology = kb.platforms[str(platform)].ontology
-            raise MissingIdError(f"object {local_name(str(columns[0]))} on {platform} has no id "
+            raise MissingIdError(f"object {local_name(str(c['Arg1']))} on {platform} has no id "
                                  f"(no id property and no digits ending its name), but topic "
-                                 f"{what} filters on {columns[3]}", Span(ontology.file))
+                                 f"{what} filters on {c['Filter1']}",
+                                 Span(kb.platforms[platform].ontology.file))
     return matches, rejected
