@@ -18,8 +18,9 @@ FORMULA = "forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] Speed[c]
 
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """The wheel built from a copy of the source (the tree stays clean), and a directory it
-    is installed into without dependencies (the test environment provides those)."""
+    """The wheel built from a copy of the source (the tree stays clean), and a fresh venv it
+    is installed into, non-editable.  Offline: the venv sees the test environment's
+    dependencies through a path entry (not its .pth files, so not the editable dkreason)."""
     root = tmp_path_factory.mktemp("package")
     source = root / "source"
     for part in ("src", "rules"):
@@ -31,11 +32,15 @@ def installed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
                     "--no-build-isolation", "--disable-pip-version-check", "-w",
                     str(root / "dist"), str(source)], check=True, capture_output=True)
     (wheel,) = (root / "dist").glob("dkreason-*.whl")
-    site = root / "site"
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
-                    "--disable-pip-version-check", "--target", str(site), str(wheel)],
+    venv = root / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, capture_output=True)
+    (site,) = (venv / "lib").glob("python3*/site-packages")
+    deps = [p for p in sys.path if p.endswith("site-packages")]
+    (site / "test-dependencies.pth").write_text("\n".join(deps) + "\n")
+    subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "--quiet", "--no-deps",
+                    "--no-index", "--disable-pip-version-check", str(wheel)],
                    check=True, capture_output=True)
-    return wheel, site
+    return wheel, venv
 
 
 def test_the_wheel_holds_every_module_grammar_and_rule_file(installed: tuple[Path, Path]) -> None:
@@ -49,22 +54,23 @@ def test_the_wheel_holds_every_module_grammar_and_rule_file(installed: tuple[Pat
     assert wanted - names == set()
 
 
-def run_installed(site: Path, cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
-    code = ("import sys, dkreason; assert dkreason.__file__.startswith(sys.argv[1]), "
-            "dkreason.__file__; from dkreason.cli import main; sys.exit(main(sys.argv[2:]))")
-    return subprocess.run([sys.executable, "-c", code, str(site), *args], cwd=cwd,
-                          env={"PYTHONPATH": str(site), "PATH": "/usr/bin:/bin"},
+def run_installed(venv: Path, cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    where = subprocess.run([str(venv / "bin" / "python"), "-c",
+                            "import dkreason; print(dkreason.__file__)"], cwd=cwd,
+                           capture_output=True, text=True, check=True).stdout
+    assert where.startswith(str(venv)), where  # the installed copy, not the source tree
+    return subprocess.run([str(venv / "bin" / "dkreason"), *args], cwd=cwd,
                           capture_output=True, text=True, timeout=120)
 
 
 def test_the_installed_package_matches_and_monitors_from_another_directory(
         installed: tuple[Path, Path], traffic: Path, tmp_path: Path) -> None:
-    site = installed[1]
+    venv = installed[1]
     config = str(REPO / "examples" / "federation.toml")
-    matched = run_installed(site, tmp_path, "match", "--config", config, FORMULA)
+    matched = run_installed(venv, tmp_path, "match", "--config", config, FORMULA)
     assert matched.returncode == 0, matched.stderr
     assert "carstopic1 (platform platform2, as Speed[car12])" in matched.stdout
-    monitored = run_installed(site, tmp_path, "monitor", "--config", config, "--source",
+    monitored = run_installed(venv, tmp_path, "monitor", "--config", config, "--source",
                               str(traffic), "--delay", "0.1", FORMULA)
     assert monitored.returncode == 1, monitored.stderr  # car2's violation
     assert "300.02" in monitored.stdout
