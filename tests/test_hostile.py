@@ -375,6 +375,37 @@ def test_nested_quantifiers_past_the_bound_are_one_line(capsys: pytest.CaptureFi
     assert "more than the 100000" in err
 
 
+def cyclic_ontology(n: int) -> str:
+    """Sorts C0 ⊑ C1 ⊑ … ⊑ C0 and objects o0 = o1 = … = o0, one object typed in each sort."""
+    head = ("@prefix : <http://www.example.com/ontology#> .\n"
+            "@prefix owl: <http://www.w3.org/2002/07/owl#> .\n"
+            "@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .\n"
+            ":UnaryRelation a owl:Class .\n:Altitude a owl:Class ; rdfs:subClassOf [ a owl:Class ;"
+            " owl:intersectionOf ( :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ;"
+            " owl:allValuesFrom :C0 ] ) ] .\n")
+    return head + "".join(f":C{i} a owl:Class ; rdfs:subClassOf :C{(i + 1) % n} .\n"
+                          f":o{i} a owl:NamedIndividual, :C{i} ; owl:sameAs :o{(i + 1) % n} .\n"
+                          for i in range(n))
+
+
+def test_cyclic_subclass_and_same_as_chains_stay_linear(tmp_path: Path) -> None:
+    """A 3000-step cycle makes 3000 equivalent sorts and 3000 sameAs objects: the knowledge
+    base holds each class once (a representative), not its 9 million pairs."""
+    n = 3000
+    (tmp_path / "o.ttl").write_text(cyclic_ontology(n))
+    (tmp_path / "s.sslt").write_text(
+        "topic t1:M contains Altitude(C0) = msg.alt for some C0 = msg.id\n")
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.ttl"\nspecs = "s.sslt"\n')
+    km = KnowledgeManager.from_config(tmp_path / "c.toml")
+    held = km.kb.engine.view_sizes()
+    assert sum(held.values()) < 10 * n, held
+    request = km.check_formula("forall x in C1234: always (Altitude[x] > 1)")
+    (feature,) = request.features  # one sameAs class: one object, named o0
+    assert feature.feature.args == ("o0",)
+    assert sorted(t.filter[0][1] for t in feature.topics) == list(range(n))  # each partner's id
+    assert len(km.list_sort("C2999")) == n
+
+
 def test_no_traceback_from_the_installed_command(tmp_path: Path) -> None:
     """The console script itself: one line on stderr, exit 2."""
     done = subprocess.run([sys.executable, "-m", "dkreason.cli", "match", "--config",

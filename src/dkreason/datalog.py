@@ -251,6 +251,10 @@ class Datalog:
             self.assert_rows(name, found)
             self._frozen[name] = (rules, found)
 
+    def view_sizes(self) -> dict[str, int]:
+        """Rows each materialized view holds: what a knowledge base costs in memory."""
+        return {name: len(rows) for name, (_, rows) in self._frozen.items()}
+
     def _reads(self) -> dict[str, set[str]]:
         """Each derived predicate and the predicates its rules' bodies name."""
         reads: dict[str, set[str]] = {}

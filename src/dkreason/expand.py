@@ -90,17 +90,13 @@ def _size(f: Any, count: Any) -> int:
 
 
 def members(kb: KnowledgeBase, sorts: set[str]) -> dict[str, list[str]]:
-    """Each sort's objects, one representative per sameAs class, sorted by local name."""
+    """Each sort's objects, one per sameAs class (named by its smallest local name, the class's
+    representative), sorted by local name."""
     if not sorts:
         return {}
-    pairs = kb.engine.ask("expansion", {"expand_sort": [(s,) for s in sorted(sorts)]},
-                          None, None, None)
-    same: dict[str, set[str]] = defaultdict(set)
-    objects: dict[str, set[str]] = defaultdict(set)
-    for sort, obj, other in pairs:
-        assert isinstance(sort, str) and isinstance(obj, str) and isinstance(other, str)
-        same[obj].add(other)
-        objects[sort].add(obj)
-    rep = {o: min(same[o], key=lambda x: (local_name(x), x)) for o in same}
-    return {s: sorted({rep[o] for o in objects.get(s, ())}, key=lambda x: (local_name(x), x))
-            for s in sorts}
+    rows = kb.engine.ask("expansion", {"expand_sort": [(s,) for s in sorted(sorts)]},
+                         None, None, None)
+    classes: dict[str, set[str]] = defaultdict(set)
+    for sort, _obj, cls in rows:
+        classes[str(sort)].add(str(cls))
+    return {s: sorted(classes.get(s, ()), key=lambda x: (local_name(x), x)) for s in sorts}

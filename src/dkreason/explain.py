@@ -115,6 +115,8 @@ _GLOSSES = {
     "topic_feature": "{Topic} carries {Feature} in {Field} ({Platform})",
     "id_property": "{Object} has id {Id} ({Platform})",
     "name_digits": "{Object} ends in the digits {Digits} ({Platform})",
+    "same_rep": "{Object} is in the sameAs class of {Class} ({Platform})",
+    "sort_rep": "{Sort} is in the class of sorts equivalent to {Class} ({Platform})",
 }
 
 
@@ -160,6 +162,36 @@ class Reader:
             return _GLOSSES[str(pred)].format(**named)
         return f"{pred}({', '.join(a)})"
 
+    def told_path(self, fact: Row) -> list[tuple[str, str, str, str]]:
+        """same_rep(P, X, R) or sort_rep(P, X, R) as the told sameAs, subClassOf or
+        equivalentClass links from X to its class's representative R (breadth first)."""
+        pred, platform, start, goal = (str(x) for x in fact)
+        ont = self.kb.platforms[platform].ontology
+        if pred == "same_rep":
+            told = [(a, b, "=") for a, b in ont.same_as]
+        else:
+            told = [(a, b, "⊑") for a, b in ont.subclass_of] + \
+                [(a, b, "≡") for a, b in ont.equivalent]
+        near: dict[str, list[tuple[str, str, str]]] = defaultdict(list)
+        for a, b, sym in told:
+            near[a].append((a, b, sym))
+            near[b].append((a, b, sym))
+        came: dict[str, tuple[str, str, str] | None] = {start: None}
+        todo = [start]
+        while todo and goal not in came:
+            x = todo.pop(0)
+            for edge in near[x]:
+                y = edge[1] if edge[0] == x else edge[0]
+                if y not in came:
+                    came[y] = edge
+                    todo.append(y)
+        path, x = [], goal
+        while came.get(x) is not None:
+            a, b, sym = came[x]  # type: ignore[misc]
+            path.append((a, b, sym, f"{platform} axiom, {ont.file}"))
+            x = a if b == x else b
+        return path[::-1]
+
     def source(self, fact: Row) -> str:
         """Where a told fact comes from: file:line, or the ontology axiom and its file."""
         pred, *args = fact
@@ -200,7 +232,8 @@ class Reader:
                 "type_of": "rdf:type", "same_as": "owl:sameAs", "individual": "NamedIndividual",
                 "sort": "owl:Class", "feature": "subClassOf (…Relation ⊓ …)",
                 "feature_arg": f"subClassOf ∀arg{c.get('Position', '')}",
-                "id_property": "id data property", "name_digits": "digits ending the name"}
+                "id_property": "id data property", "name_digits": "digits ending the name",
+                "same_rep": "owl:sameAs closure", "sort_rep": "subClassOf/equivalentClass closure"}
         return f"{subject} {kind.get(str(pred), str(pred))}, {file}"
 
 
@@ -513,7 +546,7 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
                                                             "subclass_of"))
         lines.append(f"feature: {chain}")
     seen = set()
-    for node in proof.find("object_candidate"):
+    for node in proof.find("arg_candidate"):
         _, _, start, end = node.fact
         if start == "" or (start, end) in seen:
             continue
@@ -538,6 +571,9 @@ def _chain(reader: Reader, node: Proof, start: str, end: str, kinds: tuple[str, 
     edges = []
     for leaf in node.leaves():
         pred, *a = leaf.fact
+        if pred in ("same_rep", "sort_rep") and \
+                ("same_as" if pred == "same_rep" else "subclass_of") in kinds:
+            edges += reader.told_path(leaf.fact)  # a class's representative: the told links
         if pred not in kinds:
             continue
         if pred == "bridge":

@@ -68,9 +68,88 @@ def ontology_facts(ont: Ontology) -> Facts:
     out["type_of"] = [(p, o, c) for o, c in ont.types]
     out["type_of"] += [(p, o, THING) for o in sorted(ont.individuals - typed)]
     out["same_as"] = [(p, a, b) for a, b in ont.same_as]
+    out["same_rep"] = [(p, o, r) for o, r in sorted(same_classes(ont).items())]
+    steps = [*ont.subclass_of, *((s, THING) for s in sorts - has_super - {THING}),
+             *(e for a, b in ont.equivalent for e in ((a, b), (b, a)))]
+    out["sort_rep"] = [(p, c, r) for c, r in sorted(equivalent_sorts(sorts, steps).items())]
     out["id_property"] = [(p, o, v) for o, v in sorted(ont.ids.items(), key=str)]
     out["name_digits"] = [(p, o, d) for o in sorted(ont.individuals)
                           if (d := name_digits(local_name(o))) is not None]
+    return out
+
+
+def _named(members: Iterable[str]) -> str:
+    """A class's representative: its smallest local name (the name expansion shows)."""
+    return min(members, key=lambda x: (local_name(x), x))
+
+
+def same_classes(ont: Ontology) -> dict[str, str]:
+    """Each object → the representative of its sameAs class (union-find: linear, where the
+    pairwise closure of a class of n objects has n² rows)."""
+    parent = {o: o for o in ont.individuals}
+    for a, b in ont.same_as:
+        parent.setdefault(a, a)
+        parent.setdefault(b, b)
+
+    def root(x: str) -> str:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for a, b in ont.same_as:
+        parent[root(a)] = root(b)
+    classes: dict[str, list[str]] = defaultdict(list)
+    for o in parent:
+        classes[root(o)].append(o)
+    return {o: name for members in classes.values() for name in [_named(members)]
+            for o in members}
+
+
+def equivalent_sorts(sorts: Iterable[str], steps: list[tuple[str, str]]) -> dict[str, str]:
+    """Each class → the representative of its strongly connected component under ⊑ steps
+    (a subClassOf cycle, or equivalentClass, makes classes equivalent).  Iterative Tarjan."""
+    graph: dict[str, list[str]] = defaultdict(list)
+    for a, b in steps:
+        graph[a].append(b)
+    nodes = list(dict.fromkeys([*sorts, *(x for step in steps for x in step)]))
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    out: dict[str, str] = {}
+    for start in nodes:
+        if start in index:
+            continue
+        work = [(start, 0)]
+        while work:
+            node, i = work.pop()
+            if i == 0:
+                index[node] = low[node] = len(index)
+                stack.append(node)
+                on_stack.add(node)
+            succ = graph.get(node, [])
+            if i < len(succ):
+                work.append((node, i + 1))
+                nxt = succ[i]
+                if nxt not in index:
+                    work.append((nxt, 0))
+                elif nxt in on_stack:
+                    low[node] = min(low[node], index[nxt])
+                continue
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    x = stack.pop()
+                    on_stack.discard(x)
+                    component.append(x)
+                    if x == node:
+                        break
+                name = _named(component)
+                out.update(dict.fromkeys(component, name))
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[node])
     return out
 
 

@@ -244,6 +244,7 @@ class KnowledgeBase:
         facts: Facts = {"type_of": [(platform, iri, sort_iri)]}
         if iri not in p.ontology.individuals:
             facts["individual"] = [(platform, iri)]
+            facts["same_rep"] = [(platform, iri, iri)]  # a new object: a class of its own
             digits = name_digits(local_name(iri))
             if digits is not None:
                 facts["name_digits"] = [(platform, iri, digits)]
