@@ -64,12 +64,15 @@ class Change:
     detail: str = ""
     feature: str = ""
     topic: str = ""
+    last_sample: int | None = None  # source_lost: ns valid time of the feature's newest sample
 
     def to_json(self) -> dict[str, Any]:
         out = {"event": self.event, "time": None if self.time is None else seconds(self.time),
                "platform": self.platform}
         out |= {k: v for k, v in (("feature", self.feature), ("topic", self.topic),
                                   ("detail", self.detail)) if v}
+        if self.last_sample is not None:
+            out["last_sample"] = seconds(self.last_sample)
         return out
 
     def __str__(self) -> str:
@@ -79,6 +82,8 @@ class Change:
                 "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
                 "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
                 "source_lost": f"source lost: {self.feature} has no topic left"}[self.event]
+        if self.last_sample is not None:
+            what += f"; its last sample is from {seconds(self.last_sample)} s"
         return f"{when}: {what}" + (f" ({self.detail})" if self.detail else "")
 
 
@@ -434,7 +439,8 @@ class LiveMonitor:
             changes.append(Change("unsubscribed", now, q, why, topic=t))
         for key, pts in before.items():
             if pts and not self.topics.get(key):
-                changes.append(Change("source_lost", now, p or "", why, feature=str(key)))
+                changes.append(Change("source_lost", now, p or "", why, feature=str(key),
+                                      last_sample=self.processor.newest(key)))
         return changes
 
     def close(self) -> None:

@@ -382,6 +382,11 @@ class StreamProcessor:
             if self.made is None or s > self.made:
                 self._state(s)
 
+    def newest(self, key: FeatureKey) -> int | None:
+        """The valid time (ns) of the feature's newest sample; None before its first."""
+        hist = self.hist[self.keys.index(key)]
+        return hist[-1][0] if hist else None
+
     def _stale(self, q: int, s: int) -> bool:
         """Whether feature q's newest sample at or before s is older than the maximum age."""
         hist = self.hist[q]
