@@ -102,3 +102,34 @@ def test_malformed_xml_specs_are_rejected_with_their_line(xml: bytes, says: str)
     with pytest.raises(ParseError) as err:
         parse_xml(xml, "s.xml")
     assert str(err.value).startswith("s.xml:1") and says in str(err.value)
+
+
+# ---- ROS names (issue 14) ----------------------------------------------------------------
+
+ROS_SPECS = """topic /turtle1/pose:turtlesim/Pose contains X(turtle1) = msg.x
+topic imu/data:sensor_msgs/msg/Imu contains Roll(imu1) = msg.orientation.x
+topic /camera/imu/data:Imu contains Roll(imu2) = msg.orientation.x
+topic "ORB-SLAM":orb_slam/msg/Pose contains X(cam1) = msg.x
+topic topic1:UavMsg contains Altitude(uav1) = msg.alt for uav1 = msg.id
+"""
+
+
+def test_topic_names_are_ros_names_or_quoted_and_types_may_name_their_package() -> None:
+    specs = parse_text(ROS_SPECS, "ros.sslt").specs
+    assert [(s.name, s.msgtype) for s in specs] == [
+        ("/turtle1/pose", "turtlesim/Pose"), ("imu/data", "sensor_msgs/msg/Imu"),
+        ("/camera/imu/data", "Imu"), ("ORB-SLAM", "orb_slam/msg/Pose"), ("topic1", "UavMsg")]
+    again = parse_text("".join(f"{format_spec(s)}\n" for s in specs), "again.sslt").specs
+    via_xml = parse_xml(format_xml(specs).encode()).specs
+    assert again == via_xml == specs
+
+
+@pytest.mark.parametrize(("line", "says"), [
+    ("topic /a//b:T contains X(o) = msg.x", "ros.sslt:1:"),
+    ("topic /a/:T contains X(o) = msg.x", "ros.sslt:1:"),
+    ('topic "":T contains X(o) = msg.x', "an empty topic name"),
+    ("topic a:pkg/msg/sub/T contains X(o) = msg.x", "ros.sslt:1:"),
+])
+def test_bad_ros_names_are_syntax_errors(line: str, says: str) -> None:
+    with pytest.raises(ParseError, match=says):
+        parse_text(line + "\n", "ros.sslt")

@@ -70,8 +70,12 @@ def _build() -> _Parser:
 
     p = sub.add_parser("monitor", help="verdicts of formulas over a robot recording, or live")
     config(p)
-    p.add_argument("--source", type=Path,
-                   help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages")
+    p.add_argument("--source", action="append", default=[], metavar="[PLATFORM=]PATH",
+                   help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages; "
+                        "repeat for several recordings (merged by record time); PLATFORM= "
+                        "binds a recording's topics to that platform's specs only")
+    p.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
+                   help="read recording topic FROM as TO (repeatable)")
     p.add_argument("--live", action="store_true",
                    help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
     network(p)
@@ -82,8 +86,9 @@ def _build() -> _Parser:
                    help="live: TOML of platform = Ed25519 public key (PEM); their samples "
                         "must be signed (`serve --sign`)")
     p.add_argument("--duration", type=_positive, help="live: stop after this many wall seconds")
-    p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
-                   help="pkg/msg/Name.msg definitions for recordings that carry none")
+    p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
+                   help="a pkg/msg/Name.msg definition for recordings that carry none "
+                        "(repeatable)")
     p.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
     p.add_argument("--plot", type=Path, help="draw features, verdicts and violations (PNG)")
     p.add_argument("--period", type=_seconds, help="state every PERIOD s (default: on change)")
@@ -108,8 +113,9 @@ def _build() -> _Parser:
     p.add_argument("--source", type=Path,
                    help="replay this recording's topics of the platform (- : JSON lines on "
                         "stdin, published as they come)")
-    p.add_argument("--msg", type=Path, nargs="*", default=[], metavar="FILE",
-                   help="pkg/msg/Name.msg definitions for recordings that carry none")
+    p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
+                   help="a pkg/msg/Name.msg definition for recordings that carry none "
+                        "(repeatable)")
     p.add_argument("--origin", type=_finite,
                    help="wall time (Unix s) the replay starts at; nodes given the same one "
                         "replay in step (default: now)")
@@ -307,7 +313,6 @@ def _monitor(args: argparse.Namespace) -> int:
     from .monitor import Monitor, plot
     from .progress import Verdict
     from .stream.processor import StreamPolicy
-    from .stream.sources import open_source
 
     policy = StreamPolicy(
         sample_period=args.period, sample_period_deviation=args.deviation,
@@ -319,10 +324,10 @@ def _monitor(args: argparse.Namespace) -> int:
         raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
     if args.live:
         return _monitor_live(args, policy)
-    if args.source is None:
+    if not args.source:
         raise DkError("monitor needs --source RECORDING, or --live")
     monitor = Monitor(_km(args), args.formulas, policy, keep_states=args.plot is not None)
-    source = open_source(args.source, args.msg)
+    source = _recordings(args, set(monitor.km.platforms))
     note = getattr(source, "note", None)
     if note:
         print(f"note: {note}", file=sys.stderr)
@@ -354,7 +359,7 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
     from .live.wire import trusted_keys
     from .progress import Verdict
 
-    if args.source is not None or args.plot is not None:
+    if args.source or args.plot is not None:
         raise DkError("--live takes no --source and no --plot")
     _logging()
     trust = trusted_keys(args.trust) if args.trust is not None else None
@@ -378,6 +383,34 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
     if not args.json:
         _summary(verdicts, violations)
     return exit_status([v.verdict for v in verdicts])
+
+
+def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
+    """--source [PLATFORM=]PATH (repeatable) and --remap FROM:=TO, as one source."""
+    from .stream.binding import Recording, Recordings
+    from .stream.sources import open_source
+
+    remap = {}
+    for rule in args.remap:
+        old, sep, new = rule.partition(":=")
+        if not sep or not old or not new:
+            raise DkError(f"--remap {rule!r}: expected FROM:=TO")
+        remap[old] = new
+    parts = []
+    try:
+        for given in args.source:
+            platform, sep, path = given.partition("=")
+            if sep and platform not in platforms and not Path(given).exists():
+                raise DkError(f"--source {given}: {platform!r} is not a platform of the config "
+                              f"(platforms: {', '.join(sorted(platforms))})")
+            if not sep or platform not in platforms:
+                platform, path = "", given
+            parts.append(Recording(open_source(Path(path), args.msg), platform or None))
+        return Recordings(parts, remap)
+    except BaseException:
+        for r in parts:
+            r.source.close()
+        raise
 
 
 def _print_event(event: Any, as_json: bool) -> None:

@@ -215,6 +215,7 @@ class StreamRequest:
     local: str
     features: tuple[FeatureRequest, ...]
     warnings: tuple[str, ...] = ()
+    namespaces: tuple[tuple[str, str], ...] = ()  # platform → ROS namespace, where set
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"formula": self.formula, "features": [

@@ -32,7 +32,10 @@ def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
             t.platform != kb.local, t.platform, order.get((t.platform, t.topic), 0), t.filter))))
         for q, g in enumerate(ground))
     warnings = [*kb.warnings, *_warnings(kb, ground, rejected)]
-    return StreamRequest(formula, kb.local, features, tuple(dict.fromkeys(warnings)))
+    namespaces = tuple((p.name, p.namespace) for p in (kb.config.platforms if kb.config else ())
+                       if p.namespace is not None)
+    return StreamRequest(formula, kb.local, features, tuple(dict.fromkeys(warnings)),
+                         namespaces)
 
 
 def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:

@@ -6,6 +6,8 @@
     [platforms.platform1]
     ontology = "ontologies/platform1.owl"
     specs = "specs/platform1.sslt"                  # .sslt or .xml; optional
+    namespace = "/robot1"                           # optional: relative topic names resolve
+                                                    # under it, as ROS resolves them
     [platforms.platform2]                           # no files: fetched from the platform's
                                                     # node (`dkreason monitor --live`)
     [[mappings]]
@@ -32,6 +34,7 @@ from typing import Any
 from ..errors import DkError, ParseError, Span
 from .files import read_text
 
+_NAMESPACE = re.compile(r"/|(/[A-Za-z_][A-Za-z0-9_]*)+/?")
 SHIPPED_RULES = Path(str(importlib.resources.files("dkreason.rules")))
 SCHEMA = SHIPPED_RULES / "schema.dl"
 
@@ -46,6 +49,7 @@ class PlatformFiles:
     name: str
     ontology: Path | None  # None: the knowledge comes from the platform's live node
     specs: Path | None
+    namespace: str | None = None  # ROS namespace of the platform's relative topic names
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,13 +103,17 @@ def read_config(path: Path) -> Config:
     for name, table in platforms_raw.items():
         if not isinstance(table, dict):
             raise fail(f"platforms.{name} must be a table")
-        _only(table, {"ontology", "specs"}, f"[platforms.{name}]", fail)
+        _only(table, {"ontology", "specs", "namespace"}, f"[platforms.{name}]", fail)
         section = f"[platforms.{name}]"
         if "specs" in table and "ontology" not in table:
             raise fail(f"{section}: specs without an ontology")
-        platforms.append(PlatformFiles(name, *(
-            at(text(table, key, section)) if key in table else None
-            for key in ("ontology", "specs"))))
+        namespace = text(table, "namespace", section) if "namespace" in table else None
+        if namespace is not None and not _NAMESPACE.fullmatch(namespace):
+            raise fail(f"{section}: namespace {namespace!r} is not an absolute ROS namespace "
+                       f"like /robot1")
+        ontology, specs = (at(text(table, key, section)) if key in table else None
+                           for key in ("ontology", "specs"))
+        platforms.append(PlatformFiles(name, ontology, specs, namespace))
     names = [p.name for p in platforms]
     local = data.get("local", names[0] if len(names) == 1 else None)
     if local not in names:

@@ -7,6 +7,7 @@ name repeats within one feature and binding by name would be ambiguous to a read
 
 from __future__ import annotations
 
+import re
 from contextvars import ContextVar
 from dataclasses import dataclass, replace
 from functools import cache
@@ -77,6 +78,15 @@ def _span(token: Token) -> Span:
 class _ToModel(Transformer[Token, Any]):
     def name(self, children: list[Token]) -> Token:
         return children[0]
+
+    def topic_name(self, children: list[Token]) -> str:
+        token = children[0]
+        if token.type == "ROSNAME":
+            return str(token)
+        text = re.sub(r"\\(.)", r"\1", str(token)[1:-1])
+        if not text:
+            raise ParseError("an empty topic name", _span(token))
+        return text
 
     def arg(self, children: list[Any]) -> _Arg:
         return _Arg(str(children[0]), str(children[1]) if len(children) > 1 else None,
@@ -187,9 +197,19 @@ def _no_duplicates(specs: tuple[TopicSpec, ...]) -> None:
         seen[spec.name] = spec
 
 
+_ROS_NAME = re.compile(r"/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
+
+
+def topic_name_text(name: str) -> str:
+    """A topic name as SSL_T writes it: a ROS name as it is, any other name quoted."""
+    if _ROS_NAME.fullmatch(name):
+        return name
+    return '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
 def format_spec(spec: TopicSpec) -> str:
     """One line of SSL_T text for `spec` (the inverse of `parse_text`)."""
-    head = f"topic {spec.name}:{spec.msgtype} contains "
+    head = f"topic {topic_name_text(spec.name)}:{spec.msgtype} contains "
     if spec.entity is not None:
         e = spec.entity
         return head + (f"{e.name} = {e.id_field}" if e.kind == "object"

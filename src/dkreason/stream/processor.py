@@ -174,16 +174,17 @@ class StreamProcessor:
     # ---- set-up: which recording topic feeds which feature, checked before replay -------
 
     def _route(self, request: StreamRequest, source: Source) -> None:
+        from .binding import message_type_fits, recording_names
+
         types = source.types()
+        namespaces = dict(request.namespaces)
         for q, f in enumerate(request.features):
             for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
-                names = [f"/{m.platform}/{m.topic}", f"{m.platform}/{m.topic}"]
-                if m.platform == request.local:
-                    names += [f"/{m.topic}", m.topic]
+                names = recording_names(m, request.local, namespaces.get(m.platform))
                 present = [n for n in names if n in types] if types else names
                 if types and present:
                     msgtype = types[present[0]]
-                    if msgtype.rsplit("/", 1)[-1] != m.msgtype:
+                    if not message_type_fits(msgtype, m.msgtype):
                         raise DkError(f"{source.name}: topic {present[0]} carries {msgtype}, but "
                                       f"its specification says {m.msgtype}")
                     for field in (m.field, *(k for k, _ in m.filter)):

@@ -1,0 +1,122 @@
+"""Which recording topics carry a spec topic, and several recordings read as one.
+
+A spec topic's name is a ROS graph name.  On a platform with a `namespace` (config) a relative
+name resolves under it as ROS resolves it (`imu/data` on `/robot1` is `/robot1/imu/data`); an
+absolute name stands for itself.  A platform without a namespace keeps the thesis' layout: a
+relative name `T` of platform P is `/P/T`, and on the local platform also `/T`.  A recording
+name without its leading slash is the same name.  A recording given as `PLATFORM=PATH` binds
+only to that platform's specs, by the names that robot records (its topics are presented as
+`PLATFORM:/name`).
+"""
+
+from __future__ import annotations
+
+import heapq
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+
+from ..errors import DkError
+from ..model import TopicMatch
+from .sources import Message, Source, Wanted
+
+
+def recording_names(m: TopicMatch, local: str, namespace: str | None) -> list[str]:
+    """The recording topic names that may carry `m`, best first: first as a recording given
+    for m's platform (`PLATFORM=PATH`) names it, then as any recording does."""
+    t = m.topic
+    own = t if t.startswith("/") else (namespace or "/").rstrip("/") + "/" + t
+    if t.startswith("/") or namespace is not None:
+        shared = [own]
+    else:  # the thesis' layout: /P/T, and /T on the local platform
+        shared = [f"/{m.platform}/{t}", *([f"/{t}"] if m.platform == local else [])]
+    return [f"{m.platform}:{own}", f"{m.platform}:{own[1:]}",
+            *(n for full in shared for n in (full, full[1:]))]
+
+
+def message_type_fits(recorded: str, written: str) -> bool:
+    """`turtlesim/msg/Pose` (ROS 2) or `turtlesim/Pose` (ROS 1) is what a spec writes as
+    `Pose`, `turtlesim/Pose` or `turtlesim/msg/Pose`."""
+    def parts(t: str) -> tuple[str | None, str]:
+        pieces = t.split("/")
+        return (pieces[0] if len(pieces) > 1 else None), pieces[-1]
+
+    (rec_pkg, rec_name), (pkg, name) = parts(recorded), parts(written)
+    return rec_name == name and (pkg is None or pkg == rec_pkg)
+
+
+@dataclass(frozen=True, slots=True)
+class Recording:
+    source: Source
+    platform: str | None  # PLATFORM=PATH: its topics bind to that platform's specs only
+
+
+class Recordings:
+    """Several recordings as one source, merged by record time as they stream (each is read
+    in order, so memory stays flat); `remap` reads a recording topic under another name."""
+
+    def __init__(self, recordings: Sequence[Recording],
+                 remap: Mapping[str, str] | None = None) -> None:
+        if not recordings:
+            raise DkError("no recording given")
+        self.parts = list(recordings)
+        self.remap = {_slash(a): b for a, b in (remap or {}).items()}
+        self.unmap = {_slash(b): a for a, b in self.remap.items()}
+        self.name = ", ".join(r.source.name for r in self.parts)
+        self.note = "; ".join(n for r in self.parts if (n := getattr(r.source, "note", None)))
+
+    def _shown(self, r: Recording, own: str) -> str:
+        name = self.remap.get(_slash(own), own)
+        return f"{r.platform}:{name}" if r.platform else name
+
+    def _own(self, r: Recording, shown: str) -> str | None:
+        """The recording's own name for a presented one (None: not one of its topics)."""
+        if r.platform is not None:
+            if not shown.startswith(f"{r.platform}:"):
+                return None
+            shown = shown[len(r.platform) + 1:]
+        return self.unmap.get(_slash(shown), shown)
+
+    def types(self) -> dict[str, str]:
+        """Known only when every recording knows its topics (JSON lines do not)."""
+        out: dict[str, str] = {}
+        for r in self.parts:
+            types = r.source.types()
+            if not types:
+                return {}
+            out |= {self._shown(r, own): t for own, t in types.items()}
+        return out
+
+    def check_field(self, topic: str, field: str) -> str | None:
+        for r in self.parts:
+            own = self._own(r, topic)
+            if own is not None and own in r.source.types():
+                return r.source.check_field(own, field)
+        return None
+
+    def count(self, topics: set[str] | None) -> int | None:
+        counts = [r.source.count(None if topics is None else
+                                 {o for t in topics if (o := self._own(r, t)) is not None})
+                  for r in self.parts]
+        return None if None in counts else sum(c for c in counts if c is not None)
+
+    def messages(self, wanted: Wanted) -> Iterator[Message]:
+        streams = [self._stream(r, wanted) for r in self.parts]
+        return streams[0] if len(streams) == 1 else heapq.merge(*streams, key=lambda m: m[1])
+
+    def _stream(self, r: Recording, wanted: Wanted) -> Iterator[Message]:
+        shown: dict[str, str] = {}
+        own: Wanted = {}
+        for topic, fields in wanted.items():
+            name = self._own(r, topic)
+            if name is not None and name not in own:
+                own[name], shown[name] = fields, topic
+        for topic, available, valid, values in r.source.messages(own):
+            yield shown[topic], available, valid, values
+
+    def close(self) -> None:
+        for r in self.parts:
+            r.source.close()
+
+
+def _slash(name: str) -> str:
+    return name if name.startswith("/") else "/" + name

@@ -1,0 +1,120 @@
+"""Real recordings as they come (issue 14): ROS topic names, namespaces, several recordings,
+remapping, message types named with or without their package."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from dkreason.cli import main
+from dkreason.stream.recording import Row, write_recording
+
+from .conftest import REPO
+
+TURTLES = REPO / "tests" / "data" / "turtles"
+POSE = "float32 x\nfloat32 y\nfloat32 theta\nfloat32 linear_velocity\nfloat32 angular_velocity\n"
+S = 10**9
+
+
+def pose(x: float) -> dict[str, Any]:
+    return {"x": x, "y": 0.0, "theta": 0.5, "linear_velocity": 0.0, "angular_velocity": 0.0}
+
+
+def bag(path: Path, topics: dict[str, float], msgtype: str = "turtlesim/msg/Pose") -> Path:
+    """Ten poses a second for a second on each topic, x starting at the value given."""
+    rows: list[Row] = [(topic, msgtype, i * S // 10, pose(x + i))
+                       for i in range(10) for topic, x in topics.items()]
+    write_recording(path, "bare-mcap", {msgtype: POSE}, rows)
+    return path
+
+
+def verdicts(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, list[Any], str]:
+    code = main(["monitor", "--json", *argv])
+    out = capsys.readouterr()
+    lines = [json.loads(line) for line in out.out.splitlines()]
+    return code, [(v["verdict"], v["time"]) for v in lines if "verdict" in v], out.err
+
+
+def test_one_specs_file_serves_two_robots_through_their_namespaces(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rec = str(bag(tmp_path / "fleet.mcap", {"/robot1/pose": 1.0, "/robot2/pose": 20.0}))
+    formula = "always (X[me] < 15)"
+    assert verdicts(capsys, "--config", str(TURTLES / "robot1.toml"), "--source", rec,
+                    formula)[:2] == (0, [(True, 0.9)])
+    assert verdicts(capsys, "--config", str(TURTLES / "robot2.toml"), "--source", rec,
+                    formula)[:2] == (1, [(False, 0)])
+
+
+def pair(tmp_path: Path) -> Path:
+    """Two robots without namespaces, each recording /odom."""
+    (tmp_path / "odom.sslt").write_text("topic /odom:turtlesim/Pose contains X(me) = msg.x\n")
+    config = tmp_path / "pair.toml"
+    config.write_text(f'local = "robot1"\n[platforms.robot1]\nontology = "{TURTLES}/turtle.ttl"\n'
+                      f'specs = "odom.sslt"\n[platforms.robot2]\n'
+                      f'ontology = "{TURTLES}/turtle.ttl"\nspecs = "odom.sslt"\n')
+    return config
+
+
+def test_several_recordings_bind_to_their_own_platform(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    config = str(pair(tmp_path))
+    one = bag(tmp_path / "one.mcap", {"/odom": 1.0})
+    two = bag(tmp_path / "two.mcap", {"/odom": 20.0})
+    formula = "always (X[me] < 15)"
+    code, got, _ = verdicts(capsys, "--config", config, "--source", f"robot1={one}",
+                            "--source", f"robot2={two}", formula)
+    assert (code, got) == (0, [(True, 0.9)])  # robot2's /odom is not robot1's
+    code, got, _ = verdicts(capsys, "--config", config, "--source", f"robot2={one}",
+                            "--source", f"robot1={two}", formula)
+    assert (code, got) == (1, [(False, 0)])
+    code, _, err = verdicts(capsys, "--config", config, "--source", f"robot3={one}", formula)
+    assert code == 2 and "'robot3' is not a platform of the config" in err
+
+
+def test_merged_recordings_stream_in_record_time_order(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """X holds from the first recording until 0.45 s, then the second one's samples (later
+    record times) take over: the merge interleaves them by record time."""
+    config = str(pair(tmp_path))
+    early = tmp_path / "early.mcap"
+    late = tmp_path / "late.mcap"
+    write_recording(early, "bare-mcap", {"turtlesim/msg/Pose": POSE},
+                    [("/odom", "turtlesim/msg/Pose", i * S // 10, pose(1.0)) for i in range(5)])
+    write_recording(late, "bare-mcap", {"turtlesim/msg/Pose": POSE},
+                    [("/odom", "turtlesim/msg/Pose", S // 20 + i * S // 10, pose(50.0))
+                     for i in range(5)])
+    code, got, _ = verdicts(capsys, "--config", config, "--source", f"robot1={early}",
+                            "--source", f"robot1={late}", "always (X[me] < 15)")
+    assert (code, got) == (1, [(False, 0.05)])
+
+
+def test_remap_reads_a_recording_topic_under_another_name(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rec = str(bag(tmp_path / "sim.mcap", {"/turtle1/pose": 1.0}))
+    args = ["--config", str(TURTLES / "robot1.toml"), "--source", rec, "always (X[me] < 15)"]
+    assert verdicts(capsys, *args)[1] == [(None, None)]  # nothing is /robot1/pose
+    assert verdicts(capsys, "--remap", "/turtle1/pose:=/robot1/pose", *args)[:2] == \
+        (0, [(True, 0.9)])
+    code, _, err = verdicts(capsys, "--remap", "nonsense", *args)
+    assert code == 2 and "expected FROM:=TO" in err
+
+
+@pytest.mark.parametrize(("written", "fits"), [
+    ("Pose", True), ("turtlesim/Pose", True), ("turtlesim/msg/Pose", True),
+    ("geometry_msgs/Pose", False)])
+def test_a_message_type_may_be_written_with_or_without_its_package(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, written: str, fits: bool) -> None:
+    (tmp_path / "t.sslt").write_text(f"topic /turtle1/pose:{written} contains X(me) = msg.x\n")
+    config = tmp_path / "t.toml"
+    config.write_text(f'[platforms.t]\nontology = "{TURTLES}/turtle.ttl"\nspecs = "t.sslt"\n')
+    rec = str(bag(tmp_path / "t.mcap", {"/turtle1/pose": 1.0}))
+    code, got, err = verdicts(capsys, "--config", str(config), "--source", rec,
+                              "always (X[me] < 15)")
+    if fits:
+        assert (code, got) == (0, [(True, 0.9)])
+    else:
+        assert code == 2 and "carries turtlesim/msg/Pose, but its specification says " \
+            "geometry_msgs/Pose" in err
