@@ -118,3 +118,90 @@ def test_a_message_type_may_be_written_with_or_without_its_package(
     else:
         assert code == 2 and "carries turtlesim/msg/Pose, but its specification says " \
             "geometry_msgs/Pose" in err
+
+
+# ---- command-line conventions -----------------------------------------------------------------
+
+def test_version_and_help_say_what_a_user_needs(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0 and capsys.readouterr().out.startswith("dkreason ")
+    with pytest.raises(SystemExit):
+        main(["monitor", "--help"])
+    text = capsys.readouterr().out
+    assert "exit status: 0 every formula held, 1 one was violated" in text
+    assert "default 5" in text and "example:" in text
+
+
+def test_durations_take_the_formula_units(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rec = str(bag(tmp_path / "t.mcap", {"/robot1/pose": 1.0}))
+    base = ["--config", str(TURTLES / "robot1.toml"), "--source", rec]
+    assert verdicts(capsys, *base, "--max-age", "500ms", "--delay", "0.05s",
+                    "always (X[me] < 15)")[:2] == (0, [(True, 0.9)])
+    with pytest.raises(SystemExit) as done:
+        verdicts(capsys, *base, "--max-age", "5 parsecs", "always (X[me] < 15)")
+    err = capsys.readouterr().err
+    assert done.value.code == 2 and "--max-age: '5 parsecs' is not a duration" in err
+
+
+@pytest.mark.parametrize("suffix", [".png", ".svg", ".pdf"])
+def test_the_plot_is_written_in_the_format_its_name_says(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, suffix: str) -> None:
+    rec = str(bag(tmp_path / "t.mcap", {"/robot1/pose": 1.0}))
+    plot = tmp_path / f"x{suffix}"
+    verdicts(capsys, "--config", str(TURTLES / "robot1.toml"), "--source", rec, "--plot",
+             str(plot), "always (X[me] < 15)")
+    magic = {".png": b"\x89PNG", ".svg": b"<?xml", ".pdf": b"%PDF"}[suffix]
+    assert plot.read_bytes().startswith(magic)
+    code, _, err = verdicts(capsys, "--config", str(TURTLES / "robot1.toml"), "--source", rec,
+                            "--plot", str(tmp_path / "x.gif"), "always (X[me] < 15)")
+    assert code == 2 and "x.gif" in err and ".png, .svg or .pdf" in err
+
+
+def test_a_closed_pipe_ends_quietly(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    rec = str(bag(tmp_path / "t.mcap", {"/robot1/pose": 1.0}))
+    script = (f"{sys.executable} -m dkreason.cli monitor --json --config "
+              f"{TURTLES / 'robot1.toml'} --source {rec} "
+              + " ".join(f"'always (X[me] < {k})'" for k in range(20, 60))
+              + " | head -1")
+    done = subprocess.run(["bash", "-o", "pipefail", "-c", script], capture_output=True,
+                          text=True, timeout=120)
+    assert done.stdout.count("\n") == 1 and "Traceback" not in done.stderr
+    assert "BrokenPipe" not in done.stderr
+
+
+def test_json_line_times_are_rounded_to_the_nanosecond(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rows = [{"topic": "/robot1/pose", "time": i * 0.1, "msg": pose(1.0 + i)} for i in range(10)]
+    rec = tmp_path / "t.jsonl"
+    rec.write_text("".join(json.dumps(r) + "\n" for r in rows))  # 0.30000000000000004 …
+    assert verdicts(capsys, "--config", str(TURTLES / "robot1.toml"), "--source", str(rec),
+                    "always (X[me] < 15)")[:2] == (0, [(True, 0.9)])
+
+
+def test_a_push_source_that_fails_ends_the_monitor_with_the_error() -> None:
+    import threading
+
+    from dkreason import KnowledgeManager, StreamPolicy
+    from dkreason.errors import DkError
+    from dkreason.monitor import Monitor
+    from dkreason.stream.sources import PushSource
+
+    km = KnowledgeManager.from_config(TURTLES / "robot1.toml")
+    source = PushSource()
+
+    def feed() -> None:
+        source.push("/robot1/pose", 0, pose(1.0))
+        try:
+            source.push("/robot1/pose", "soon", pose(2.0))  # not a time
+        except DkError:
+            pass
+
+    threading.Thread(target=feed).start()
+    events = Monitor(km, ["always (X[me] < 15)"], StreamPolicy()).run(source)
+    with pytest.raises(DkError, match="must be a number"):
+        list(events)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from collections.abc import Sequence
 from fractions import Fraction
@@ -25,22 +26,35 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
 
 
+EXIT_STATUS = ("exit status: 0 every formula held, 1 one was violated, 2 bad input (one line "
+               "on stderr), 3 one stayed undecided")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = _build()
     args = parser.parse_args(argv)
 
     try:
         code: int = args.run(args)
+        sys.stdout.flush()
         return code
     except DkError as exc:
         print(f"error: {one_line(str(exc))}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130
+    except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as ROS tools do
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 def _build() -> _Parser:
+    from importlib.metadata import version
+
     parser = _Parser(prog="dkreason", description=__doc__.split("\n")[0] if __doc__ else None)
+    parser.add_argument("--version", action="version", version=f"dkreason {version('dkreason')}")
     sub = parser.add_subparsers(required=True, metavar="COMMAND", parser_class=_Parser)
 
     def config(p: argparse.ArgumentParser) -> None:
@@ -68,7 +82,12 @@ def _build() -> _Parser:
     p.add_argument("formulas", nargs="+", metavar="FORMULA")
     p.set_defaults(run=_progress)
 
-    p = sub.add_parser("monitor", help="verdicts of formulas over a robot recording, or live")
+    p = sub.add_parser(
+        "monitor", help="verdicts of formulas over a robot recording, or live",
+        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=f"{EXIT_STATUS}\n\n"
+        "example:\n  dkreason monitor --config examples/federation.toml --source "
+        "examples/traffic/recording --delay 100ms \\\n    'forall c in Car: always "
+        "(Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)'")
     config(p)
     p.add_argument("--source", action="append", default=[], metavar="[PLATFORM=]PATH",
                    help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages; "
@@ -90,15 +109,18 @@ def _build() -> _Parser:
                    help="a pkg/msg/Name.msg definition for recordings that carry none "
                         "(repeatable)")
     p.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
-    p.add_argument("--plot", type=Path, help="draw features, verdicts and violations (PNG)")
+    p.add_argument("--plot", type=Path, help="draw features, verdicts and violations (.png, "
+                                             ".svg or .pdf, as the name says)")
     p.add_argument("--period", type=_seconds, help="state every PERIOD s (default: on change)")
     p.add_argument("--deviation", type=_seconds, default=Fraction(0),
-                   help="allowed sample period deviation (s)")
-    p.add_argument("--approximation", choices=("recent", "none"), default="recent")
+                   help="allowed sample period deviation (default 0)")
+    p.add_argument("--approximation", choices=("recent", "none"), default="recent",
+                   help="recent: the newest sample up to --max-age old; none: only a sample "
+                        "at the state's time (default recent)")
     p.add_argument("--max-age", type=_seconds_or_inf, default=Fraction(5),
                    help="oldest sample used, in s (default 5; inf: any)")
     p.add_argument("--delay", type=_seconds, default=Fraction(0),
-                   help="delay before approximation (s)")
+                   help="delay before approximation (default 0)")
     p.add_argument("--start", type=_seconds, help="start time (s)")
     p.add_argument("--end", type=_seconds, help="end time (s)")
     p.add_argument("--max-delay", type=_seconds, help="largest allowed sample delay (s)")
@@ -219,12 +241,16 @@ def _progress(args: argparse.Namespace) -> int:
 
 
 def _seconds(text: str) -> Fraction:
+    """A duration as formulas write it: seconds, or a number with ms, s, min or h."""
     from .numbers import exact
+    from .parse.formula import UNITS
 
+    number, unit = re.fullmatch(r"\s*(.*?)\s*(ms|s|min|h)?\s*", text).groups()  # type: ignore[union-attr]
     try:
-        value = exact(text, "seconds")
-    except DkError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+        value = exact(number, "seconds") * UNITS[unit or "s"]
+    except DkError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a duration (like 5, 0.1, 500ms, "
+                                         f"2min)") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"must not be negative: {text}")
     return value
@@ -322,6 +348,8 @@ def _monitor(args: argparse.Namespace) -> int:
         unique_valid_time=args.unique)
     if args.plot is not None and not args.plot.parent.is_dir():
         raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
+    if args.plot is not None and args.plot.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise DkError(f"--plot {args.plot}: name a .png, .svg or .pdf file")
     if args.live:
         return _monitor_live(args, policy)
     if not args.source:

@@ -118,7 +118,8 @@ def in_seconds(v: Verdict) -> Verdict:
 
 def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
     """Each feature over time (unobserved spans shaded), verdicts as vertical lines, stream
-    constraint violations as orange ticks; written atomically as PNG."""
+    constraint violations as orange ticks; written atomically, as PNG, SVG or PDF by the
+    file's suffix."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -164,7 +165,7 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)
     fig.tight_layout(rect=(0, 0, 1, 0.97 - 0.02 * len(lines)))
-    tmp = path.with_name(f".{path.name}.tmp.png")
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")  # the format follows the suffix
     fig.savefig(tmp, dpi=110)
     plt.close(fig)
     tmp.replace(path)

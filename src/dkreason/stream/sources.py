@@ -27,11 +27,9 @@ NS = 10**9
 
 
 def to_ns(seconds: Any, what: str = "time") -> int:
-    """Exact seconds (JSON decimals, ints, Fractions) → integer nanoseconds."""
-    ns = exact(seconds, what) * NS
-    if ns.denominator != 1:
-        raise DkError(f"{what} {seconds} is finer than a nanosecond")
-    return int(ns)
+    """Exact seconds (JSON decimals, ints, Fractions) → integer nanoseconds, rounded to the
+    nearest (`0.30000000000000004`, a float's `3 * 0.1`, is 0.3 s)."""
+    return round(exact(seconds, what) * NS)
 
 
 class Source(Protocol):
@@ -273,8 +271,14 @@ class PushSource:
         self._queue: queue.Queue[Any] = queue.Queue()
 
     def push(self, topic: str, time: Any, msg: Any, available: Any = None) -> None:
-        valid = to_ns(time)
-        self._queue.put((topic, valid if available is None else to_ns(available), valid, msg))
+        """One sample; a bad time raises here and ends the monitor with the same error."""
+        try:
+            valid = to_ns(time)
+            at = valid if available is None else to_ns(available, "available time")
+        except DkError as exc:
+            self._queue.put(exc)
+            raise
+        self._queue.put((topic, at, valid, msg))
 
     def end(self) -> None:
         """No more samples: the monitor settles what is open and stops."""
@@ -295,6 +299,8 @@ class PushSource:
     def messages(self, wanted: Wanted) -> Iterator[Message]:
         read = dict_reader(self.name, wanted)
         while (item := self._queue.get()) is not self._END:
+            if isinstance(item, DkError):
+                raise item
             topic, available, valid, msg = item
             if topic in wanted:
                 yield topic, available, valid, read(topic, valid, msg)
