@@ -205,3 +205,31 @@ def test_a_push_source_that_fails_ends_the_monitor_with_the_error() -> None:
     events = Monitor(km, ["always (X[me] < 15)"], StreamPolicy()).run(source)
     with pytest.raises(DkError, match="must be a number"):
         list(events)
+
+
+# ---- routing ---------------------------------------------------------------------------------
+
+def test_a_topic_without_id_field_is_routed_once(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Each sample reaches its feature once: --unique sees no duplicate valid times, and a
+    late sample is reported once."""
+    rec = str(bag(tmp_path / "t.mcap", {"/robot1/pose": 1.0}))
+    code = main(["monitor", "--json", "--unique", "--config", str(TURTLES / "robot1.toml"),
+                 "--source", rec, "always (X[me] < 15)"])
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert code == 0 and not [e for e in lines if "violation" in e]
+
+
+def test_a_string_id_is_routed_once(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    (tmp_path / "o.ttl").write_text((TURTLES / "turtle.ttl").read_text().replace(
+        ":me a owl:NamedIndividual, :Robot .", ':me a owl:NamedIndividual, :Robot ; :id "T-1" .'))
+    (tmp_path / "s.sslt").write_text("topic /poses:turtlesim/Pose contains X(me) = msg.x "
+                                     "for me = msg.name\n")
+    (tmp_path / "c.toml").write_text('[platforms.t]\nontology = "o.ttl"\nspecs = "s.sslt"\n')
+    rows = [{"topic": "/poses", "time": t, "msg": {"name": "T-1", "x": 1.0}} for t in range(3)]
+    rec = tmp_path / "s.jsonl"
+    rec.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    code = main(["monitor", "--json", "--unique", "--config", str(tmp_path / "c.toml"),
+                 "--source", str(rec), "always (X[me] < 15)"])
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert code == 0 and not [e for e in lines if "violation" in e], lines

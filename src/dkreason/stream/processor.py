@@ -106,7 +106,7 @@ class _Group:
         self.index: dict[Any, list[_Route]] = {}
 
     def add(self, ids: tuple[Any, ...], route: _Route) -> None:
-        for key in (ids, tuple(str(v) for v in ids)):
+        for key in dict.fromkeys((ids, tuple(str(v) for v in ids))):  # once if alike
             self.index.setdefault(key[0] if len(key) == 1 else key, []).append(route)
 
     def routes(self, msg: Any) -> list[_Route]:
