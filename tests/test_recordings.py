@@ -233,3 +233,47 @@ def test_a_string_id_is_routed_once(capsys: pytest.CaptureFixture[str], tmp_path
                  "--source", str(rec), "always (X[me] < 15)"])
     lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert code == 0 and not [e for e in lines if "violation" in e], lines
+
+
+# ---- message definitions ---------------------------------------------------------------------
+
+def humble_bag(folder: Path) -> Path:
+    """A rosbag2 sqlite3 folder as ROS 2 Humble writes it: no message definitions stored."""
+    import re
+    import sqlite3
+
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    point = store.types["geometry_msgs/msg/Point"]
+    with Writer(folder, version=8) as writer:
+        conn = writer.add_connection("/robot1/point", "geometry_msgs/msg/Point", typestore=store)
+        for i in range(10):
+            writer.write(conn, i * S // 10, store.serialize_cdr(
+                point(x=float(i), y=0.0, z=0.0), "geometry_msgs/msg/Point"))
+    db = sqlite3.connect(folder / f"{folder.name}.db3")
+    db.execute("DROP TABLE message_definitions")
+    db.execute("UPDATE schema SET schema_version = 3")
+    db.commit()
+    db.close()
+    meta = folder / "metadata.yaml"
+    meta.write_text(re.sub(r"\n +type_description_hash: *\n +\S+", "", meta.read_text())
+                    .replace("  version: 8", "  version: 5"))
+    return folder
+
+
+def test_a_bag_without_stored_definitions_is_read_with_the_standard_ones(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    (tmp_path / "p.sslt").write_text("topic point:geometry_msgs/Point contains X(me) = msg.x\n")
+    config = tmp_path / "p.toml"
+    config.write_text(f'[platforms.robot1]\nontology = "{TURTLES}/turtle.ttl"\n'
+                      f'specs = "p.sslt"\nnamespace = "/robot1"\n')
+    rec = str(humble_bag(tmp_path / "humble"))
+    code, got, err = verdicts(capsys, "--config", str(config), "--source", rec,
+                              "always (X[me] < 15)")
+    assert (code, got) == (0, [(True, 0.9)])
+    assert "stores no message definitions: using rosbags' ros2_humble ones" in err
+    code, got, _ = verdicts(capsys, "--config", str(config), "--source", rec, "--typestore",
+                            "ros2_jazzy", "always (X[me] < 15)")
+    assert (code, got) == (0, [(True, 0.9)])

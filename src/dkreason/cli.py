@@ -53,6 +53,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _build() -> _Parser:
     from importlib.metadata import version
 
+    from .stream.sources import TYPESTORES
+
     parser = _Parser(prog="dkreason", description=__doc__.split("\n")[0] if __doc__ else None)
     parser.add_argument("--version", action="version", version=f"dkreason {version('dkreason')}")
     sub = parser.add_subparsers(required=True, metavar="COMMAND", parser_class=_Parser)
@@ -95,6 +97,9 @@ def _build() -> _Parser:
                         "binds a recording's topics to that platform's specs only")
     p.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
                    help="read recording topic FROM as TO (repeatable)")
+    p.add_argument("--typestore", choices=TYPESTORES,
+                   help="rosbags' standard message definitions for recordings that store none "
+                        "(default ros1_noetic for .bag, else ros2_humble)")
     p.add_argument("--live", action="store_true",
                    help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
     network(p)
@@ -433,7 +438,8 @@ def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
                               f"(platforms: {', '.join(sorted(platforms))})")
             if not sep or platform not in platforms:
                 platform, path = "", given
-            parts.append(Recording(open_source(Path(path), args.msg), platform or None))
+            parts.append(Recording(open_source(Path(path), args.msg, args.typestore),
+                                   platform or None))
         return Recordings(parts, remap)
     except BaseException:
         for r in parts:

@@ -59,12 +59,13 @@ def kind_of(path: Path) -> tuple[Kind, Path] | None:
 class SequentialSource:
     """A Source over a damaged or unindexed recording (see the module docstring)."""
 
-    def __init__(self, path: Path, kind: Kind, msg_files: Sequence[Path], why: str) -> None:
+    def __init__(self, path: Path, kind: Kind, msg_files: Sequence[Path], why: str,
+                 typestore: str | None = None) -> None:
         from .sources import _typestore
 
         self.name, self.path, self.kind = str(path), path, kind
         self.note = f"{path}: {why}; reading it sequentially up to the damage"
-        self.store = _typestore(msg_files, ros1=kind == "ros1")
+        self.store = _typestore(msg_files, kind == "ros1", typestore)
         self.channels: dict[Any, tuple[str, str]] = {}  # id → topic, msgtype
         self._known: set[str] = set()
         try:

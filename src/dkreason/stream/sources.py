@@ -57,21 +57,33 @@ class Source(Protocol):
 class RosbagSource:
     """ROS 1 `.bag`, ROS 2 bag folders (sqlite3 or MCAP) and bare `.mcap`/`.db3` files.
 
-    Message definitions come from the recording; `msg_files` (`pkg/msg/Name.msg`) supply
-    custom types for recordings that carry none."""
+    Message definitions come from the recording; one that stores none (a Humble-era `.db3`)
+    is read with rosbags' standard definitions of `typestore` (default: ros1_noetic for a
+    `.bag`, else ros2_humble), extended by `msg_files` (`pkg/msg/Name.msg`)."""
 
-
-    def __init__(self, path: Path, msg_files: Sequence[Path] = ()) -> None:
+    def __init__(self, path: Path, msg_files: Sequence[Path] = (),
+                 typestore: str | None = None) -> None:
         self.name = str(path)
         self.path = path
+        self.note = ""
         if not path.exists():
             raise DkError(f"{path}: no such recording")
-        from rosbags.highlevel import AnyReader
+        from rosbags.highlevel import AnyReader, AnyReaderError
 
-        default = _typestore(msg_files, ros1=path.suffix == ".bag") if msg_files else None
+        ros1 = path.suffix == ".bag"
+        default = _typestore(msg_files, ros1, typestore)
         try:
             self.reader = AnyReader([path], default_typestore=default)
             self.reader.open()
+            if not msg_files and typestore is None:  # say so when the bag stores no types
+                probe = AnyReader([path])
+                try:
+                    probe.open()
+                    probe.close()
+                except AnyReaderError as exc:
+                    if "no type definitions" in str(exc):
+                        self.note = (f"{path} stores no message definitions: using rosbags' "
+                                     f"{_store_name(ros1, None)} ones (--typestore, --msg)")
         except Exception as exc:  # rosbags raises several kinds for unreadable files
             raise DkError(f"{path}: not a readable ROS recording ({_why(exc)})") from None
 
@@ -179,10 +191,20 @@ def dict_reader(name: str, wanted: Wanted) -> Any:
     return read
 
 
-def _typestore(msg_files: Sequence[Path], ros1: bool) -> Any:
+TYPESTORES = ("ros1_noetic", "ros2_foxy", "ros2_galactic", "ros2_humble", "ros2_iron",
+              "ros2_jazzy", "ros2_kilted", "latest")
+
+
+def _store_name(ros1: bool, name: str | None) -> str:
+    return name or ("ros1_noetic" if ros1 else "ros2_humble")
+
+
+def _typestore(msg_files: Sequence[Path], ros1: bool, name: str | None = None) -> Any:
+    """rosbags' standard definitions of `name` (default by the recording's kind), with the
+    types of `msg_files` added."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    store = get_typestore(Stores(_store_name(ros1, name)))
     types: dict[str, Any] = {}
     for path in msg_files:
         if path.suffix != ".msg" or path.parent.name != "msg":
@@ -306,7 +328,8 @@ class PushSource:
                 yield topic, available, valid, read(topic, valid, msg)
 
 
-def open_source(path: Path, msg_files: Sequence[Path] = ()) -> Source:
+def open_source(path: Path, msg_files: Sequence[Path] = (),
+                typestore: str | None = None) -> Source:
     """The source for `path`; a recording whose index or metadata rosbags cannot read is read
     sequentially up to its damage (stream/damaged.py)."""
     from .damaged import SequentialSource, declared_size, kind_of
@@ -317,11 +340,11 @@ def open_source(path: Path, msg_files: Sequence[Path] = ()) -> Source:
     if found is not None and found[0] == "db3" and declared_size(found[1]) > \
             found[1].stat().st_size:  # SQLite would read a cut file without a word
         return SequentialSource(found[1], "db3", msg_files, "the file is shorter than its "
-                                "header says (cut off)")
+                                "header says (cut off)", typestore)
     try:
-        return RosbagSource(path, msg_files)
+        return RosbagSource(path, msg_files, typestore)
     except DkError as exc:
         if found is None:
             raise
         why = str(exc).removeprefix(f"{path}: ")
-        return SequentialSource(found[1], found[0], msg_files, why)
+        return SequentialSource(found[1], found[0], msg_files, why, typestore)
