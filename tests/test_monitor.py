@@ -88,7 +88,8 @@ def test_traffic_example_federation_finds_car2s_violation_from_platform_2(
                       extra=["--delay", "0.1", "--plot", str(plot)])
     (verdict,) = [line for line in lines if "verdict" in line]
     assert code == 1 and verdict["verdict"] is False and verdict["time"] == 300.02
-    assert "Speed[car2] <= 60 never held within [0.01, 300.01]" in verdict["witness"]
+    # judged from 0.02 s, the first state with every car's speed (car3's comes last)
+    assert "Speed[car2] <= 60 never held within [0.02, 300.02]" in verdict["witness"]
     assert not [line for line in lines if "violation" in line]
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

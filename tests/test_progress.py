@@ -227,3 +227,11 @@ def test_formulas_sharing_one_progressor_each_keep_their_own_semantics(
         assert verdict == holds(parsed, trace, 0), f
         if at is not None:
             assert verdict == holds(parsed, trace[:at + 1], 0), f
+
+
+def test_times_print_as_exact_decimals_never_as_fractions() -> None:
+    from dkreason.progress.nodes import fmt
+
+    assert fmt(Fraction(279258777611209011, 200000000)) == "1396293888.056045055"
+    assert fmt(1779999999970000029, Fraction(1, 10**9)) == "1779999999.970000029"
+    assert fmt(Fraction(1, 10)) == "0.1" and fmt(Fraction(1, 3)) == "1/3"

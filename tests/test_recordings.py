@@ -276,3 +276,65 @@ def test_a_bag_without_stored_definitions_is_read_with_the_standard_ones(
     code, got, _ = verdicts(capsys, "--config", str(config), "--source", rec, "--typestore",
                             "ros2_jazzy", "always (X[me] < 15)")
     assert (code, got) == (0, [(True, 0.9)])
+
+
+# ---- clocks ------------------------------------------------------------------------------------
+
+STAMPED = "std_msgs/Header header\nfloat64 x\n"
+
+
+def stamped_bag(path: Path, stamp0: float, record0: int, jitter: bool = False) -> Path:
+    """Two stamped topics at 10 Hz for 3 s; header stamps start at stamp0 s, record times at
+    record0 ns, each message recorded 20–36 ms after its stamp; with `jitter` the second
+    topic's stamps run 30 ms behind the first's (ordinary sensor latency)."""
+    rows: list[Row] = []
+    for i in range(30):
+        for topic, lag in (("/robot1/a", 0), ("/robot1/b", 30 if jitter else 0)):
+            stamp = stamp0 + i / 10 - lag / 1000
+            rows.append((topic, "x/msg/Stamped", record0 + i * S // 10 + 20_000_000 + i % 17 *
+                         1_000_000, {"header": {"stamp": stamp, "frame_id": ""}, "x": 1.0}))
+    write_recording(path, "bare-mcap", {"x/msg/Stamped": STAMPED}, rows)
+    return path
+
+
+def stamped_config(tmp_path: Path) -> Path:
+    (tmp_path / "s.sslt").write_text("topic a:x/Stamped contains X(me) = msg.x\n"
+                                     "topic b:x/Stamped contains Theta(me) = msg.x\n")
+    config = tmp_path / "s.toml"
+    config.write_text(f'[platforms.robot1]\nontology = "{TURTLES}/turtle.ttl"\n'
+                      f'specs = "s.sslt"\nnamespace = "/robot1"\n')
+    return config
+
+
+def test_a_sim_time_recording_is_judged_on_one_clock(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Header stamps near 928 s (a simulator's clock), record times near 1.78e9 s: no flood of
+    late samples, decided verdicts, and one line saying which clock is used."""
+    rec = stamped_bag(tmp_path / "sim.mcap", 928.0, 1_780_000_000 * S, jitter=True)
+    code = main(["monitor", "--json", "--config", str(stamped_config(tmp_path)), "--source",
+                 str(rec), "always (X[me] < 15 and Theta[me] < 15)"])
+    out = capsys.readouterr()
+    lines = [json.loads(line) for line in out.out.splitlines()]
+    assert code == 0 and not [e for e in lines if "violation" in e]
+    assert [e["verdict"] for e in lines if "verdict" in e] == [True]
+    assert out.err.count("\n") == 1 and "header stamps" in out.err and "record time" in out.err
+
+
+def test_ordinary_latency_is_not_late_by_default(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rec = stamped_bag(tmp_path / "real.mcap", 1_780_000_000.0, 1_780_000_000 * S, jitter=True)
+    code = main(["monitor", "--json", "--config", str(stamped_config(tmp_path)), "--source",
+                 str(rec), "always (X[me] < 15 and Theta[me] < 15)"])
+    out = capsys.readouterr()
+    lines = [json.loads(line) for line in out.out.splitlines()]
+    assert code == 0 and not [e for e in lines if "violation" in e], lines[:3]
+    assert out.err == ""  # stamps on the record clock: nothing to say
+
+
+def test_epoch_times_are_decimals_never_fractions(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rec = stamped_bag(tmp_path / "real.mcap", 1_780_000_000.0, 1_780_000_000 * S)
+    code = main(["monitor", "--config", str(stamped_config(tmp_path)), "--source", str(rec),
+                 "always (X[me] > 5)"])
+    out = capsys.readouterr().out
+    assert code == 1 and "/" not in out.split("VIOLATED")[1].split("\n")[1]

@@ -97,6 +97,10 @@ def _build() -> _Parser:
                         "binds a recording's topics to that platform's specs only")
     p.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
                    help="read recording topic FROM as TO (repeatable)")
+    p.add_argument("--clock", choices=("auto", "header", "record"), default="auto",
+                   help="valid time from header.stamp or the record time; auto: the stamps, "
+                        "unless they run on another clock (simulated time), said in one line "
+                        "(default auto)")
     p.add_argument("--typestore", choices=TYPESTORES,
                    help="rosbags' standard message definitions for recordings that store none "
                         "(default ros1_noetic for .bag, else ros2_humble)")
@@ -124,8 +128,9 @@ def _build() -> _Parser:
                         "at the state's time (default recent)")
     p.add_argument("--max-age", type=_seconds_or_inf, default=Fraction(5),
                    help="oldest sample used, in s (default 5; inf: any)")
-    p.add_argument("--delay", type=_seconds, default=Fraction(0),
-                   help="delay before approximation (default 0)")
+    p.add_argument("--delay", type=_seconds, default=Fraction(1, 10),
+                   help="how long after a state's time its samples may still arrive (transport "
+                        "latency) before it is made (default 100ms)")
     p.add_argument("--start", type=_seconds, help="start time (s)")
     p.add_argument("--end", type=_seconds, help="end time (s)")
     p.add_argument("--max-delay", type=_seconds, help="largest allowed sample delay (s)")
@@ -440,7 +445,7 @@ def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
                 platform, path = "", given
             parts.append(Recording(open_source(Path(path), args.msg, args.typestore),
                                    platform or None))
-        return Recordings(parts, remap)
+        return Recordings(parts, remap, args.clock)
     except BaseException:
         for r in parts:
             r.source.close()

@@ -37,7 +37,11 @@ class Monitor:
         self.plan = km.plan(formulas)
         self.request = km.request(self.plan)
         self.progressor = Progressor(unit=Fraction(1, NS))
-        for f in self.plan.formulas:
+        # Each formula is judged from the first state in which every feature it reads has a
+        # value (a recording's warm-up is not "unknown", and no formula's start depends on
+        # the others'); with a start time, from the first state on.
+        self.waiting = [] if policy.start_time is not None else list(self.plan.formulas)
+        for f in self.plan.formulas if policy.start_time is not None else ():
             self.progressor.add(f.text, f.tree)
         self.states: list[tuple[int, dict[FeatureKey, Any]]] = []
         self.pending: list[Event] = []
@@ -53,6 +57,10 @@ class Monitor:
     def _on_state(self, time: int, values: dict[FeatureKey, Any]) -> None:
         if self.keep_states:
             self.states.append((time, dict(values)))
+        if self.waiting:
+            for f in [f for f in self.waiting if all(values[k] is not None for k in f.keys)]:
+                self.progressor.add(f.text, f.tree)
+                self.waiting.remove(f)
         for v in self.progressor.step(time, values):
             self.decided += 1
             self.pending.append(in_seconds(v))
@@ -78,6 +86,15 @@ class Monitor:
         assert self.processor is not None
         self.processor.finish()
         self.pending.extend(in_seconds(v) for v in self.progressor.finish())
+        last = self.progressor.last_input
+        for f in self.waiting:  # never judged: some feature never had a value
+            missing = ", ".join(str(g.key) for g in f.ground
+                                if not any(s.get(g.key) is not None for _, s in self.states))
+            self.pending.append(Verdict(
+                f.text, None, None if last is None else seconds(last), True,
+                "no state had a value for every feature it reads"
+                + (f" (never seen: {missing})" if missing and self.keep_states else "")))
+        self.waiting = []
         return self.events()
 
     def run(self, source: Source, progress: Callable[[int], None] | None = None

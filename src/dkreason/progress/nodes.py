@@ -78,8 +78,26 @@ def fmt(t: Time | None, unit: Fraction | int = 1) -> str:
         if t.denominator == 1:
             return str(t.numerator)
         as_float = float(t)
-        return repr(as_float) if Fraction(repr(as_float)) == t else str(t)
+        if Fraction(repr(as_float)) == t:
+            return repr(as_float)
+        digits = _decimals(t.denominator)  # exact when it is a finite decimal (ns times are)
+        if digits is None:
+            return str(t)
+        whole, part = divmod(abs(t.numerator) * 10**digits // t.denominator, 10**digits)
+        return f"{'-' if t < 0 else ''}{whole}.{part:0{digits}d}".rstrip("0")
     return str(t)
+
+
+def _decimals(denominator: int) -> int | None:
+    """Digits after the point that show 1/denominator exactly; None if no number does."""
+    twos = fives = 0
+    while denominator % 2 == 0:
+        denominator //= 2
+        twos += 1
+    while denominator % 5 == 0:
+        denominator //= 5
+        fives += 1
+    return max(twos, fives) if denominator == 1 else None
 
 
 class Node:

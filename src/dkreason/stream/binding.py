@@ -55,14 +55,44 @@ class Recordings:
     in order, so memory stays flat); `remap` reads a recording topic under another name."""
 
     def __init__(self, recordings: Sequence[Recording],
-                 remap: Mapping[str, str] | None = None) -> None:
+                 remap: Mapping[str, str] | None = None, clock: str = "auto") -> None:
         if not recordings:
             raise DkError("no recording given")
         self.parts = list(recordings)
         self.remap = {_slash(a): b for a, b in (remap or {}).items()}
         self.unmap = {_slash(b): a for a, b in self.remap.items()}
         self.name = ", ".join(r.source.name for r in self.parts)
-        self.note = "; ".join(n for r in self.parts if (n := getattr(r.source, "note", None)))
+        notes = [n for r in self.parts if (n := getattr(r.source, "note", None))]
+        self.clock = self._clock() if clock == "auto" else clock
+        if clock == "auto" and self.clock == "record":
+            notes.append("the header stamps run on another clock than the record time "
+                         f"(about {self._offset:.0f} s apart: simulated time?); valid times "
+                         "are the record time (--clock header to use the stamps)")
+        self.note = "; ".join(notes)
+
+    _offset = 0.0
+    SAMPLE = 200  # messages looked at to choose the clock
+    APART = 60 * 10**9  # stamps further than this from the record time: another clock
+
+    def _clock(self) -> str:
+        """'header' unless the first stamped messages are on another clock than the record
+        time (a simulator's, or a robot whose clock was never set), then 'record'."""
+        offsets = []
+        for r in self.parts:
+            topics = r.source.types()  # none known (JSON lines): times are written, not stamped
+            messages = r.source.messages({t: [] for t in topics}) if topics else iter(())
+            try:
+                for _, (_, available, valid, _) in zip(range(self.SAMPLE), messages,
+                                                       strict=False):
+                    if valid != available:
+                        offsets.append(available - valid)
+            except DkError:  # damage this early is reported when the recording is read
+                pass
+        if not offsets:
+            return "header"
+        offsets.sort()
+        self._offset = offsets[len(offsets) // 2] / 10**9
+        return "record" if abs(offsets[len(offsets) // 2]) > self.APART else "header"
 
     def _shown(self, r: Recording, own: str) -> str:
         name = self.remap.get(_slash(own), own)
@@ -110,8 +140,9 @@ class Recordings:
             name = self._own(r, topic)
             if name is not None and name not in own:
                 own[name], shown[name] = fields, topic
+        record = self.clock == "record"
         for topic, available, valid, values in r.source.messages(own):
-            yield shown[topic], available, valid, values
+            yield shown[topic], available, available if record else valid, values
 
     def close(self) -> None:
         for r in self.parts:
