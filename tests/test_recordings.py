@@ -338,3 +338,38 @@ def test_epoch_times_are_decimals_never_fractions(
                  "always (X[me] > 5)"])
     out = capsys.readouterr().out
     assert code == 1 and "/" not in out.split("VIOLATED")[1].split("\n")[1]
+
+
+# ---- what a recording holds ------------------------------------------------------------------
+
+def test_info_lists_topics_clock_and_bindings(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    sim = stamped_bag(tmp_path / "sim.mcap", 928.0, 1_780_000_000 * S)
+    config = stamped_config(tmp_path)
+    with (tmp_path / "s.sslt").open("a") as specs:
+        specs.write("topic gone:x/Stamped contains X(me) = msg.x\n")
+    assert main(["info", "--config", str(config), str(sim)]) == 0
+    out = capsys.readouterr().out
+    assert "/robot1/a  x/msg/Stamped  30" in out and "another clock" in out
+    assert "robot1/a (x/Stamped) ← /robot1/a" in out and "robot1/gone (x/Stamped): in no " \
+        "recording" in out
+    assert main(["info", "--json", str(sim)]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["recordings"][0]["clock"] == "record" and doc["specs"] == []
+    assert {t["topic"]: t["count"] for t in doc["recordings"][0]["topics"]} == {
+        "/robot1/a": 30, "/robot1/b": 30}
+
+
+def test_monitor_warns_about_relevant_topics_no_recording_holds(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rec = str(bag(tmp_path / "t.mcap", {"/robot1/pose": 1.0}))
+    (tmp_path / "f.txt").write_text("# the fleet's formulas\nalways (X[me] < 15)\n\n")
+    (tmp_path / "s.sslt").write_text("topic pose:turtlesim/Pose contains X(me) = msg.x\n"
+                                     "topic odom:turtlesim/Pose contains X(me) = msg.x\n")
+    config = tmp_path / "c.toml"
+    config.write_text(f'[platforms.robot1]\nontology = "{TURTLES}/turtle.ttl"\n'
+                      f'specs = "s.sslt"\nnamespace = "/robot1"\n')
+    code, got, err = verdicts(capsys, "--config", str(config), "--source", rec, "-f",
+                              str(tmp_path / "f.txt"))
+    assert (code, got) == (0, [(True, 0.9)])
+    assert err == "warning: robot1/odom (for X[me]) is in no recording\n"

@@ -136,7 +136,9 @@ def _build() -> _Parser:
     p.add_argument("--max-delay", type=_seconds, help="largest allowed sample delay (s)")
     p.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
     p.add_argument("--unique", action="store_true", help="valid times must be unique")
-    p.add_argument("formulas", nargs="+", metavar="FORMULA")
+    p.add_argument("-f", "--formulas-file", type=Path, action="append", default=[],
+                   metavar="FILE", help="formulas, one per line (# comments); repeatable")
+    p.add_argument("formulas", nargs="*", metavar="FORMULA")
     p.set_defaults(run=_monitor)
 
     p = sub.add_parser("serve", help="run a platform node: its knowledge and topics over Zenoh")
@@ -183,6 +185,16 @@ def _build() -> _Parser:
         elif action == "remove":
             q.add_argument("topic")
         q.set_defaults(run=_specs, action=action)
+
+    p = sub.add_parser("info", help="what recordings hold, and which spec topics they bind")
+    p.add_argument("--config", type=Path, help="TOML config: show which spec topics bind")
+    p.add_argument("--json", action="store_true", help="one JSON document")
+    p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
+                   help="a pkg/msg/Name.msg definition (repeatable)")
+    p.add_argument("--typestore", choices=TYPESTORES,
+                   help="standard definitions for recordings that store none")
+    p.add_argument("source", nargs="+", metavar="[PLATFORM=]PATH")
+    p.set_defaults(run=_info, remap=[], clock="auto")
 
     p = sub.add_parser("sort", help="the objects of a sort")
     config(p)
@@ -364,8 +376,16 @@ def _monitor(args: argparse.Namespace) -> int:
         return _monitor_live(args, policy)
     if not args.source:
         raise DkError("monitor needs --source RECORDING, or --live")
-    monitor = Monitor(_km(args), args.formulas, policy, keep_states=args.plot is not None)
+    monitor = Monitor(_km(args), _formulas(args), policy, keep_states=args.plot is not None)
     source = _recordings(args, set(monitor.km.platforms))
+    try:
+        processor = monitor.start(source)
+    except BaseException:
+        source.close()
+        raise
+    for topic, features in processor.absent.items():
+        print(f"warning: {topic} (for {', '.join(dict.fromkeys(features))}) is in no "
+              f"recording", file=sys.stderr)
     note = getattr(source, "note", None)
     if note:
         print(f"note: {note}", file=sys.stderr)
@@ -403,7 +423,7 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
     trust = trusted_keys(args.trust) if args.trust is not None else None
     session = _session(args)
     try:
-        monitor = LiveMonitor(args.config, args.formulas, policy, session, args.wait, trust=trust)
+        monitor = LiveMonitor(args.config, _formulas(args), policy, session, args.wait, trust=trust)
         _on_signals(lambda *_: monitor.stop.set())
         verdicts, violations = [], 0
         for event in monitor.run(args.until, args.duration):
@@ -421,6 +441,19 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
     if not args.json:
         _summary(verdicts, violations)
     return exit_status([v.verdict for v in verdicts])
+
+
+def _formulas(args: argparse.Namespace) -> list[str]:
+    """The formulas given, then those of each -f file (one a line, # comments)."""
+    from .parse.files import read_text
+
+    out = list(args.formulas)
+    for path in args.formulas_file:
+        out += [line.strip() for line in read_text(path).splitlines()
+                if line.strip() and not line.strip().startswith("#")]
+    if not out:
+        raise DkError("no formula given (as arguments or with -f FILE)")
+    return out
 
 
 def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
@@ -450,6 +483,24 @@ def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
         for r in parts:
             r.source.close()
         raise
+
+
+def _info(args: argparse.Namespace) -> int:
+    from .stream.info import bindings, describe, render
+
+    km = _km(args) if args.config else None
+    recordings = _recordings(args, set(km.platforms) if km else set())
+    try:
+        infos = [describe(r) for r in recordings.parts]
+        binds = bindings(km.kb, recordings) if km else None
+    finally:
+        recordings.close()
+    if args.json:
+        print(json.dumps({"recordings": [i.to_json() for i in infos],
+                          "specs": [b.to_json() for b in binds or ()]}, ensure_ascii=False))
+    else:
+        print(render(infos, binds))
+    return 0
 
 
 def _print_event(event: Any, as_json: bool) -> None:

@@ -102,7 +102,7 @@ class Monitor:
         """Events as they happen: violations as seen, verdicts as decided, the rest at the end.
         An error in the source comes after every event decided before it."""
         try:
-            processor = self.start(source)
+            processor = self.processor or self.start(source)
         except BaseException:
             source.close()
             raise

@@ -139,6 +139,7 @@ class StreamProcessor:
         self.keys: list[FeatureKey] = []  # the states' keys
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
         self.groups: dict[str, list[_Group]] = {}
+        self.absent: dict[str, list[str]] = {}  # spec topic in no recording → its features
         # on every change: state times to make, in order (samples in valid-time order), as a
         # heap (the others), and when each feature's latest sample grows stale (rescheduled
         # lazily: `due` holds the newest time, the heap at most one entry per feature)
@@ -182,6 +183,9 @@ class StreamProcessor:
             for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
                 names = recording_names(m, request.local, namespaces.get(m.platform))
                 present = [n for n in names if n in types] if types else names
+                if types and not present:
+                    self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(
+                        str(f.feature.key))
                 if types and present:
                     msgtype = types[present[0]]
                     if not message_type_fits(msgtype, m.msgtype):

@@ -1,0 +1,135 @@
+"""What recordings hold, and which spec topics they bind: `dkreason info`.
+
+Per recording: each topic with its message type and count, the time span and the clock of
+its header stamps.  With a knowledge base: every spec topic of every platform, and the
+recording topic it binds to (stream/binding.py), or that none does.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..model import TopicMatch
+from .binding import Recording, Recordings, message_type_fits, recording_names
+from .sources import NS
+
+
+@dataclass(frozen=True, slots=True)
+class TopicInfo:
+    name: str
+    msgtype: str
+    count: int | None
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingInfo:
+    name: str
+    topics: tuple[TopicInfo, ...]
+    start: int | None  # ns, record time
+    end: int | None
+    clock: str  # header, record (stamps on another clock), or none (nothing stamped)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"recording": self.name, "clock": self.clock,
+                "start": None if self.start is None else round(self.start / NS, 9),
+                "end": None if self.end is None else round(self.end / NS, 9),
+                "topics": [{"topic": t.name, "type": t.msgtype, "count": t.count}
+                           for t in self.topics]}
+
+
+@dataclass(frozen=True, slots=True)
+class Binding:
+    platform: str
+    topic: str
+    msgtype: str
+    bound: str | None  # the recording topic, None when no recording holds it
+    recorded_type: str | None
+
+    def to_json(self) -> dict[str, Any]:
+        return {"platform": self.platform, "topic": self.topic, "msgtype": self.msgtype,
+                "recording_topic": self.bound, "recorded_type": self.recorded_type}
+
+
+def describe(recording: Recording) -> RecordingInfo:
+    """A recording's topics, counts, span and clock (JSON lines are read through)."""
+    source = recording.source
+    types = source.types()
+    counts: dict[str, int] = {}
+    start = end = None
+    reader = getattr(source, "reader", None)
+    if types and reader is not None:
+        start, end = reader.start_time, reader.end_time
+        counts = {t: source.count({t}) or 0 for t in types}
+    else:  # read through: topics, counts and span as they come
+        found: dict[str, str] = {}
+        for topic, available, _, _ in _every(source):
+            found.setdefault(topic, types.get(topic, "(JSON)"))
+            counts[topic] = counts.get(topic, 0) + 1
+            start = available if start is None else min(start, available)
+            end = available if end is None else max(end, available)
+        types = types or found
+    clock = Recordings([recording], clock="auto")
+    stamped = clock.clock == "record" or _stamped(recording)
+    return RecordingInfo(source.name, tuple(TopicInfo(t, types[t], counts.get(t))
+                                            for t in sorted(types)), start, end,
+                         clock.clock if stamped else "none")
+
+
+def _every(source: Any) -> Any:
+    records = getattr(source, "records", None)
+    return records() if records is not None else source.messages(
+        {t: [] for t in source.types()})
+
+
+def _stamped(recording: Recording) -> bool:
+    source = recording.source
+    topics = source.types()
+    if not topics:
+        return False
+    messages = source.messages({t: [] for t in topics})
+    return any(valid != available for _, (_, available, valid, _) in zip(range(200), messages,
+                                                                          strict=False))
+
+
+def bindings(kb: Any, recordings: Recordings) -> list[Binding]:
+    """Every spec topic of every platform, and the recording topic that carries it."""
+    types = recordings.types()
+    namespaces = {p.name: p.namespace for p in (kb.config.platforms if kb.config else ())}
+    out = []
+    for name, platform in kb.platforms.items():
+        for spec in platform.specs.values():
+            m = TopicMatch(name, spec.name, spec.msgtype, "", (), "", ())
+            found = next((n for n in recording_names(m, kb.local, namespaces.get(name))
+                          if n in types), None)
+            out.append(Binding(name, spec.name, spec.msgtype, found,
+                               None if found is None else types[found]))
+    return out
+
+
+def _seconds(ns: int) -> str:
+    return f"{ns // NS}.{ns % NS:09d}".rstrip("0").rstrip(".")
+
+
+def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> str:
+    lines = []
+    for info in infos:
+        span = "" if info.start is None or info.end is None else \
+            f", {_seconds(info.end - info.start)} s from {_seconds(info.start)}"
+        lines.append(f"{info.name}: {len(info.topics)} topic(s){span}; header stamps: "
+                     + {"header": "on the record clock", "record": "on another clock "
+                        "(simulated time?): the record time is used",
+                        "none": "none"}[info.clock])
+        width = max((len(t.name) for t in info.topics), default=0)
+        lines += [f"  {t.name:<{width}}  {t.msgtype}  {t.count if t.count is not None else '?'}"
+                  for t in info.topics]
+    for b in binds or ():
+        where = f"{b.platform}/{b.topic} ({b.msgtype})"
+        if b.bound is None:
+            lines.append(f"{where}: in no recording")
+        elif b.recorded_type is not None and not message_type_fits(b.recorded_type, b.msgtype):
+            lines.append(f"{where}: {b.bound} carries {b.recorded_type}, not {b.msgtype}")
+        else:
+            lines.append(f"{where} ← {b.bound}")
+    return "\n".join(lines)
