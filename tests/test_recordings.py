@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from dkreason.cli import main
@@ -373,3 +374,50 @@ def test_monitor_warns_about_relevant_topics_no_recording_holds(
                               str(tmp_path / "f.txt"))
     assert (code, got) == (0, [(True, 0.9)])
     assert err == "warning: robot1/odom (for X[me]) is in no recording\n"
+
+
+# ---- typed atoms -------------------------------------------------------------------------------
+
+TYPED = "std_msgs/Header header\nstring mode\nbool armed\nfloat64 alt\nfloat64[3] pos\n"
+
+
+def typed_setup(tmp_path: Path) -> list[str]:
+    (tmp_path / "o.ttl").write_text((TURTLES / "turtle.ttl").read_text() + "".join(
+        f":{n} a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( "
+        f":UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom "
+        f":Robot ] ) ] .\n" for n in ("Mode", "Armed", "Alt", "Pos", "Frame")))
+    (tmp_path / "s.sslt").write_text(
+        "topic state:x/State contains Mode(me) = msg.mode, Armed(me) = msg.armed, "
+        "Alt(me) = msg.alt, Pos(me) = msg.pos, Frame(me) = msg.header.frame_id\n")
+    (tmp_path / "c.toml").write_text('[platforms.robot1]\nontology = "o.ttl"\n'
+                                     'specs = "s.sslt"\nnamespace = "/robot1"\n')
+    rows: list[Row] = [("/robot1/state", "x/msg/State", i * S // 10, {
+        "header": {"stamp": i / 10, "frame_id": "odom"}, "mode": "AUTO" if i < 8 else "MANUAL",
+        "armed": True, "alt": -2.0 + i, "pos": np.zeros(3)}) for i in range(10)]
+    write_recording(tmp_path / "r.mcap", "bare-mcap", {"x/msg/State": TYPED}, rows)
+    return ["--config", str(tmp_path / "c.toml"), "--source", str(tmp_path / "r.mcap")]
+
+
+def test_strings_booleans_and_abs_are_typed_atoms(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    args = typed_setup(tmp_path)
+    assert verdicts(capsys, *args, 'always (Frame[me] == "odom" and Armed[me])')[:2] == \
+        (0, [(True, 0.9)])
+    assert verdicts(capsys, *args, 'always (Mode[me] != "MANUAL")')[:2] == (1, [(False, 0.8)])
+    assert verdicts(capsys, *args, "always (abs(Alt[me]) <= 7 and -Alt[me] < 3)")[:2] == \
+        (0, [(True, 0.9)])
+
+
+@pytest.mark.parametrize(("formula", "says"), [
+    ("always (Mode[me] > 3)", "Mode[me] is read from /robot1/state msg.mode, a string, but "
+                              "the formula uses it as a number"),
+    ('always (Alt[me] == "high")', "Alt[me] is read from /robot1/state msg.alt, a float64, "
+                                   "but the formula uses it as a string"),
+    ("always (Pos[me] > 0)", "Pos[me] is read from /robot1/state msg.pos, an array, but"),
+    ("always Alt[me]", "a float64, but the formula uses it as a condition"),
+    ('always (Mode[me] < "B")', "strings compare only with == or !=, not <"),
+])
+def test_type_errors_are_one_line_before_any_message(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, formula: str, says: str) -> None:
+    code, got, err = verdicts(capsys, *typed_setup(tmp_path), formula)
+    assert code == 2 and got == [] and err.count("\n") == 1 and says in err, err

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 from .errors import DkError
 from .model import FeatureKey, StreamRequest
 from .progress import Progressor, Verdict
+from .progress.state import uses
 from .stream.processor import StreamPolicy, StreamProcessor, Violation, seconds
 from .stream.sources import NS, Source
 
@@ -49,9 +50,25 @@ class Monitor:
         self.processor: StreamProcessor | None = None
 
     def start(self, source: Source) -> StreamProcessor:
-        """The stream processor over `source`, states going to the progressor."""
-        self.processor = StreamProcessor(self.request, self.policy, source, self._on_state,
-                                         self.pending.append)
+        """The stream processor over `source`, states going to the progressor; each feature's
+        use in the formulas is checked against its fields' types before any message."""
+        used: dict[FeatureKey, str] = {}
+        for f in self.plan.formulas:
+            for k, use in uses(f.tree).items():
+                if used.setdefault(k, use) != use:
+                    raise DkError(f"{k} is used as a {used[k]} and as a {use}")
+        self.processor = StreamProcessor(
+            self.request, self.policy, source, self._on_state, self.pending.append,
+            frozenset(k for k, use in used.items() if use == "string"))
+        for f in self.plan.formulas:
+            for k, use in uses(f.tree).items():
+                for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
+                    if kind != use:
+                        what = {"bool": "a condition", "number": "a number",
+                                "string": "a string"}[use]
+                        raise DkError(f"{f.text}: {k} is read from {topic} {field}, "
+                                      f"{_article(kind, ros_type)}, but the formula uses it as "
+                                      f"{what}")
         return self.processor
 
     def _on_state(self, time: int, values: dict[FeatureKey, Any]) -> None:
@@ -123,6 +140,12 @@ class Monitor:
         finally:
             source.close()
         yield from self.finish()
+
+
+def _article(kind: str, ros_type: str) -> str:
+    if kind in ("message", "array"):
+        return "a sub-message" if kind == "message" else "an array"
+    return f"a{'n' if ros_type[0] in 'aeiou' else ''} {ros_type}"
 
 
 def in_seconds(v: Verdict) -> Verdict:

@@ -60,7 +60,19 @@ class Neg:
     arg: Expr
 
 
-Expr = Num | Ref | Arith | Neg
+@dataclass(frozen=True, slots=True)
+class Abs:
+    arg: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class Str:
+    """A string constant: compared with == or != to a string field."""
+
+    value: str
+
+
+Expr = Num | Str | Ref | Arith | Neg | Abs
 
 
 # ---- formulas --------------------------------------------------------------------------------
@@ -159,6 +171,16 @@ class _ToAst(Transformer[Token, Any]):
     def neg(self, children: list[Any]) -> Expr:
         return Neg(_expr(children[0]))
 
+    def abs_(self, children: list[Any]) -> Expr:
+        return Abs(_expr(children[1]))
+
+    def string(self, children: list[Token]) -> Str:
+        text = str(children[0])
+        if len(text) > MAX_NUMBER:
+            raise ParseError(f"string of {len(text)} characters (at most {MAX_NUMBER})",
+                             self._span(children[0]))
+        return Str(re.sub(r"\\(.)", r"\1", text[1:-1]))
+
     def expr(self, children: list[Any]) -> Arith:
         return Arith(str(children[1]), _expr(children[0]), _expr(children[2]))
 
@@ -224,7 +246,7 @@ def _nest(op: str, bindings: list[tuple[str, str, Span]], body: Formula) -> Form
 
 
 def _expr(node: Any) -> Expr:
-    if isinstance(node, Num | Ref | Arith | Neg):
+    if isinstance(node, Num | Str | Ref | Arith | Neg | Abs):
         return node
     if isinstance(node, BoolConst):
         return Num(int(node.value))
@@ -339,7 +361,7 @@ def children(node: Any) -> tuple[Any, ...]:
     """The subformulas and subexpressions of a node, left to right."""
     if isinstance(node, Compare | Connective | Arith | Until):
         return node.left, node.right
-    if isinstance(node, Not | Temporal | Neg):
+    if isinstance(node, Not | Temporal | Neg | Abs):
         return (node.arg,)
     if isinstance(node, Quant):
         return (node.body,)

@@ -7,6 +7,7 @@ when all are known, and falls back to a three-valued interpreter otherwise.
 
 from __future__ import annotations
 
+import json
 import math
 import operator
 from collections.abc import Callable, Mapping
@@ -15,6 +16,7 @@ from typing import Any
 from ..errors import DkError
 from ..model import FeatureKey
 from ..parse.formula import (
+    Abs,
     Arith,
     Atom,
     BoolConst,
@@ -26,6 +28,7 @@ from ..parse.formula import (
     Not,
     Num,
     Ref,
+    Str,
     children,
 )
 
@@ -78,11 +81,37 @@ def render(f: Any) -> str:
         return f"{render(f.left)} {f.op} {render(f.right)}"
     if isinstance(f, Neg):
         return f"-{render(f.arg)}"
+    if isinstance(f, Abs):
+        return f"abs({render(f.arg)})"
+    if isinstance(f, Str):
+        return json.dumps(f.value, ensure_ascii=False)
     if isinstance(f, Not):
         return f"not ({render(f.arg)})"
     if isinstance(f, Connective):
         return f"({render(f.left)}) {f.op} ({render(f.right)})"
     raise TypeError(type(f).__name__)
+
+
+def uses(f: Any) -> dict[FeatureKey, str]:
+    """How a formula uses each feature: as a condition (bool), a number or a string."""
+    out: dict[FeatureKey, str] = {}
+
+    def walk(n: Any, as_: str) -> None:
+        if isinstance(n, Atom):
+            out.setdefault(key(n.feature), "bool")
+        elif isinstance(n, Ref):
+            out.setdefault(key(n.feature), as_)
+        elif isinstance(n, Compare):
+            if is_text(n) and n.op not in ("==", "!="):
+                raise DkError(f"strings compare only with == or !=, not {n.op}: {render(n)}")
+            for side in (n.left, n.right):
+                walk(side, "string" if is_text(n) else "number")
+        else:
+            for child in children(n):
+                walk(child, as_)
+
+    walk(f, "number")
+    return out
 
 
 # ---- three-valued interpreter (the slow path, and the reference for the fast one) ----------
@@ -97,7 +126,10 @@ def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) 
         raise DkError(f"feature {key(f.feature)} is used as a condition but has the value "
                       f"{v!r} at time {time}")
     if isinstance(f, Compare):
-        left, right = _number(f.left, values, time), _number(f.right, values, time)
+        if is_text(f):
+            left, right = _text(f.left, values, time), _text(f.right, values, time)
+        else:
+            left, right = _number(f.left, values, time), _number(f.right, values, time)
         return None if left is None or right is None else bool(_CMP[f.op](left, right))
     if isinstance(f, Not):
         v = evaluate(f.arg, values, time)
@@ -120,18 +152,37 @@ def kleene(op: str, a: Value, b: Value) -> Value:
     raise ValueError(op)
 
 
+def is_text(f: Compare) -> bool:
+    """A comparison of strings: one side is a quoted constant."""
+    return isinstance(f.left, Str) or isinstance(f.right, Str)
+
+
+def _text(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> str | None:
+    if isinstance(e, Str):
+        return e.value
+    if isinstance(e, Ref):
+        v = values[key(e.feature)]
+        if v is not None and not isinstance(v, str):
+            raise DkError(f"feature {key(e.feature)} is compared with a string but has the "
+                          f"value {v!r} at time {time}")
+        return v
+    raise DkError(f"only a feature compares with a string, not {render(e)}")
+
+
 def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
     if isinstance(e, Num):
         return e.value
+    if isinstance(e, Str):
+        raise DkError(f"the string {render(e)} is used as a number")
     if isinstance(e, Ref):
         v = values[key(e.feature)]
         if v is not None and not isinstance(v, int | float) and not hasattr(v, "__truediv__"):
             raise DkError(f"feature {key(e.feature)} is compared as a number but has the "
                           f"value {v!r} at time {time}")
         return v
-    if isinstance(e, Neg):
+    if isinstance(e, Neg | Abs):
         v = _number(e.arg, values, time)
-        return None if v is None else -v
+        return None if v is None else -v if isinstance(e, Neg) else abs(v)
     if isinstance(e, Arith):
         a, b = _number(e.left, values, time), _number(e.right, values, time)
         if a is None or b is None:
@@ -190,6 +241,10 @@ def _py(n: Any, names: dict[FeatureKey, str]) -> str:
         return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
     if isinstance(n, Neg):
         return f"(-{_py(n.arg, names)})"
+    if isinstance(n, Abs):
+        return f"abs({_py(n.arg, names)})"
+    if isinstance(n, Str):
+        return repr(n.value)
     if isinstance(n, Not):
         return f"(not {_py(n.arg, names)})"
     if isinstance(n, Connective):

@@ -123,6 +123,13 @@ class Recordings:
                 return r.source.check_field(own, field)
         return None
 
+    def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
+        for r in self.parts:
+            own = self._own(r, topic)
+            if own is not None and own in r.source.types():
+                return r.source.field_kind(own, field)
+        return None
+
     def count(self, topics: set[str] | None) -> int | None:
         counts = [r.source.count(None if topics is None else
                                  {o for t in topics if (o := self._own(r, t)) is not None})

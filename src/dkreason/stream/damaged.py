@@ -92,6 +92,12 @@ class SequentialSource:
     def types(self) -> dict[str, str]:
         return dict(self.channels.values())
 
+    def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
+        msgtype = self.types().get(topic)
+        if msgtype is None or msgtype not in self.store.fielddefs:
+            return None
+        return fields.kind(self.store.fielddefs, msgtype, field)
+
     def check_field(self, topic: str, field: str) -> str | None:
         msgtype = self.types().get(topic)
         if msgtype is None:

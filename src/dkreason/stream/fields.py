@@ -59,6 +59,24 @@ def check(fielddefs: dict[str, Any], msgtype: str, field: str) -> str | None:
     return None
 
 
+def kind(fielddefs: dict[str, Any], msgtype: str, field: str) -> tuple[str, str] | None:
+    """(number, bool, string, message or array; the ROS type) of `field`, None if unknown."""
+    if check(fielddefs, msgtype, field) is not None:
+        return None
+    current: Any = ("name", msgtype)
+    for p in path(field):  # `check` walked it already: every step exists
+        current = current[1] if isinstance(p, int) else \
+            _desc(dict(fielddefs[current[1]][1])[p])
+    category, what = current
+    if category == "name":
+        return "message", str(what)
+    if category == "array":
+        return "array", "an array"
+    name = str(what[0] if isinstance(what, tuple) else what)
+    return ("bool" if name == "bool" else "string" if name in ("string", "wstring")
+            else "number"), name
+
+
 def _desc(desc: Any) -> tuple[str, Any]:
     nodetype, spec = desc
     value = int(nodetype)

@@ -90,10 +90,11 @@ def _ns_given(value: Fraction) -> int:
 class _Route:
     """One topic entry of one feature: a source stream, with its latest valid time."""
 
-    __slots__ = ("q", "get", "prio", "stream", "last")
+    __slots__ = ("q", "get", "prio", "stream", "last", "text")
 
-    def __init__(self, q: int, get: Callable[[Any], Any], prio: int, stream: str) -> None:
-        self.q, self.get, self.prio, self.stream = q, get, prio, stream
+    def __init__(self, q: int, get: Callable[[Any], Any], prio: int, stream: str,
+                 text: bool) -> None:
+        self.q, self.get, self.prio, self.stream, self.text = q, get, prio, stream, text
         self.last: int | None = None
 
 
@@ -125,7 +126,11 @@ class _Group:
 class StreamProcessor:
     def __init__(self, request: StreamRequest, policy: StreamPolicy, source: Source,
                  on_state: Callable[[int, dict[FeatureKey, Any]], None],
-                 on_violation: Callable[[Violation], None]) -> None:
+                 on_violation: Callable[[Violation], None],
+                 texts: frozenset[FeatureKey] = frozenset()) -> None:
+        """`texts`: the features the formulas compare with strings (their values are kept as
+        strings; any other feature's value must be a number or boolean)."""
+        self.texts = texts
         self.policy = policy
         self.on_state, self.on_violation = on_state, on_violation
         self.period = _ns(policy.sample_period)
@@ -140,6 +145,8 @@ class StreamProcessor:
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
         self.groups: dict[str, list[_Group]] = {}
         self.absent: dict[str, list[str]] = {}  # spec topic in no recording → its features
+        # feature → (recording topic, field, kind, ROS type) of each topic that feeds it
+        self.kinds: dict[FeatureKey, list[tuple[str, str, str, str]]] = {}
         # on every change: state times to make, in order (samples in valid-time order), as a
         # heap (the others), and when each feature's latest sample grows stale (rescheduled
         # lazily: `due` holds the newest time, the heap at most one entry per feature)
@@ -196,10 +203,15 @@ class StreamProcessor:
                         if why is not None:
                             raise DkError(f"{source.name}: topic {present[0]} ({msgtype}) has no "
                                           f"field {field}: {why}")
+                    kind = source.field_kind(present[0], m.field)
+                    if kind is not None:
+                        self.kinds.setdefault(f.feature.key, []).append(
+                            (present[0], m.field, *kind))
                 stream = f"{m.platform}/{m.topic}"
                 ids = tuple(k for k, _ in m.filter)
                 for name in present[:1] if types else present:
-                    route = _Route(q, itemgetter(self._position(name, m.field)), prio, stream)
+                    route = _Route(q, itemgetter(self._position(name, m.field)), prio, stream,
+                                   f.feature.key in self.texts)
                     groups = self.groups.setdefault(name, [])
                     group = next((g for g in groups if g.id_fields == ids), None)
                     if group is None:
@@ -227,23 +239,28 @@ class StreamProcessor:
             for route in group.routes(values):
                 value = route.get(values)
                 cls = value.__class__
-                if cls is float:
+                if route.text:  # compared with strings: a string or nothing
+                    if cls is not str and value is not None:
+                        self._odd(route, valid, value, "a string")
+                elif cls is float:
                     if value - value:  # NaN or an infinity: unknown, never compared
                         value = None
                 elif cls is not int and cls is not bool:
                     value = self._odd(route, valid, value)
                 self._sample(route, available, valid, value)
 
-    def _odd(self, route: _Route, valid: int, value: Any) -> Any:
+    def _odd(self, route: _Route, valid: int, value: Any,
+             wanted: str = "a number or boolean") -> Any:
         """A value that is not a plain number or boolean: a numeric subclass as it is, else an
         error naming the feature, the stream and the value's type."""
-        if isinstance(value, float | Decimal):
-            return datum(float(value))
-        if isinstance(value, numbers.Real):
-            return value
+        if wanted != "a string":
+            if isinstance(value, float | Decimal):
+                return datum(float(value))
+            if isinstance(value, numbers.Real):
+                return value
         shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "…"
         raise DkError(f"{self.keys[route.q]} from {route.stream} at {seconds(valid)} s: "
-                      f"{type(value).__name__} {shown} is not a number or boolean")
+                      f"{type(value).__name__} {shown} is not {wanted}")
 
     def advance(self, available: int) -> None:
         """Every source has passed `available`: make the states due by then."""

@@ -59,10 +59,11 @@ def _build(store: Any, msgtype: str, fields: Mapping[str, Any]) -> Any:
         value = fields.get(name)
         if int(nodetype) == 2:  # a nested message
             if spec.endswith("Header"):
-                stamp = float((value or {}).get("stamp", 0))
+                given = value or {}
+                stamp = float(given.get("stamp", 0))
                 sec = int(stamp)
                 value = {"stamp": {"sec": sec, "nanosec": round((stamp - sec) * 1e9)},
-                         "frame_id": "", **({"seq": 0} if "seq" in dict(
+                         "frame_id": given.get("frame_id", ""), **({"seq": 0} if "seq" in dict(
                              store.fielddefs[spec][1]) else {})}
             value = _build(store, spec, value or {})
         elif value is None:

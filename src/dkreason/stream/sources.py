@@ -45,6 +45,10 @@ class Source(Protocol):
 
     def messages(self, wanted: Wanted) -> Iterator[Message]: ...
 
+    def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
+        """(number, bool, string, message or array; the ROS type) of a field, when known."""
+        ...
+
     def count(self, topics: set[str] | None) -> int | None:
         """Messages on `topics` (None: all), when the source knows."""
         ...
@@ -95,6 +99,11 @@ class RosbagSource:
         if msgtype is None:
             return None
         return fields.check(self.reader.typestore.fielddefs, msgtype, field)
+
+    def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
+        msgtype = self.types().get(topic)
+        return None if msgtype is None else fields.kind(self.reader.typestore.fielddefs,
+                                                         msgtype, field)
 
     def count(self, topics: set[str] | None) -> int | None:
         return sum(c.msgcount for c in self.reader.connections
@@ -240,6 +249,9 @@ class JsonlSource:
     def check_field(self, topic: str, field: str) -> str | None:
         return None  # JSON carries no definitions: a missing field is found at its message
 
+    def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
+        return None  # nor types: a value of the wrong kind is found at its message
+
     def count(self, topics: set[str] | None) -> int | None:
         return None
 
@@ -313,6 +325,9 @@ class PushSource:
         return {}
 
     def check_field(self, topic: str, field: str) -> str | None:
+        return None
+
+    def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
         return None
 
     def count(self, topics: set[str] | None) -> int | None:
