@@ -137,6 +137,7 @@ class LiveMonitor:
         self.events: queue.Queue[tuple[Any, ...]] = queue.Queue()
         self.present: set[str] = set()
         self.clocks: dict[tuple[str, str], int] = {}  # (platform, topic) → sent up to
+        self.ended: dict[tuple[str, str], int] = {}  # (platform, topic) → its replay's end
         self.since: dict[tuple[str, str], float] = {}  # (platform, topic) → subscribed at
         self.seen_strangers: set[str] = set()  # the first few, named in the log
         self.strangers = 0
@@ -249,6 +250,8 @@ class LiveMonitor:
             while not self.stop.is_set() and not monitor.done:
                 if stop_at is not None and time.monotonic() >= stop_at:
                     break
+                if self.subs and all(pt in self.ended for pt in self.subs):
+                    break  # every replay is over: the stream ends, as a recording does
                 mark = self.watermark()
                 if end is not None and mark is not None and mark > end:
                     break
@@ -268,7 +271,11 @@ class LiveMonitor:
     def watermark(self) -> int | None:
         """Up to when every subscribed topic has been sent (None: not known yet)."""
         clocks = []
+        if self.subs and all(pt in self.ended for pt in self.subs):
+            return max(self.ended.values())
         for pt in self.subs:
+            if pt in self.ended:  # nothing follows: it holds nobody back
+                continue
             if pt in self.clocks:
                 clocks.append(self.clocks[pt])
             elif time.monotonic() - self.since[pt] < HOLD:
@@ -341,7 +348,9 @@ class LiveMonitor:
             wire.verify(self.trust[p], wire.key(p, "topic", topic), payload, signature)
         name = f"{p}/{topic}"
         available, valid, msg = wire.topic_message(payload, name)
-        if msg is not None and (self.end is None or valid <= self.end):
+        if msg is wire.END:
+            self.ended[(p, topic)] = available
+        elif msg is not None and (self.end is None or valid <= self.end):
             try:
                 values = self.read(name, valid, msg)
             except DkError as exc:

@@ -159,26 +159,32 @@ class PlatformNode:
             key_expr = wire.key(self.name, "topic", topic)
             self._publisher(topic).put(payload, attachment=self.sign(key_expr, payload))
 
-    def _clock(self, now: int) -> None:
-        """Tell every topic (specified or published) that all of it up to `now` is sent."""
-        tick = wire.encode({"clock": now})
+    def _clock(self, now: int, end: bool = False) -> None:
+        """Tell every topic (specified or published) that all of it up to `now` is sent (and
+        with `end`, that nothing follows: the replay is over)."""
+        tick = wire.encode({"clock": now, "end": True} if end else {"clock": now})
         for topic in {*self.km.list_topics(), *self.publishers}:
             self._send(topic, tick)
 
     def feed(self, records: Iterator[Record], watch: float = 0.5) -> None:
         """Publish `records` as they come (a JSON-lines pipe): their times are the clock."""
         next_watch = next_tick = time.monotonic()
+        last = None
         for topic, available, valid, msg in _own(records, self.name):
             if self.closed.is_set():
                 return
             with self.lock:
                 self._put(topic, available, valid, msg)
+                last = available
                 if time.monotonic() >= next_tick:  # the others have nothing before it
                     self._clock(available)
                     next_tick = time.monotonic() + self.heartbeat
             if time.monotonic() >= next_watch:
                 self._reload_specs()
                 next_watch = time.monotonic() + watch
+        if last is not None and not self.closed.is_set():
+            with self.lock:
+                self._clock(last, end=True)  # the input is over: so is its stream
         self.closed.wait()
 
     def serve(self, records: Iterator[Record] | None = None, origin: float | None = None,
@@ -205,12 +211,18 @@ class PlatformNode:
             log.info("%s: replay resumes at %.3f s, %d earlier messages skipped", self.name,
                      start / NS, skipped)
         next_watch = time.monotonic() + watch
+        last = start
         while not self.closed.is_set():
             now = stream_now()
             with self.lock:
                 while head is not None and head[1] <= now:
+                    last = head[1]
                     self._put(*head)
                     head = next(pending, None)
+                if replaying and head is None:  # the recording is over: so is its stream
+                    self._clock(last, end=True)
+                    log.info("%s: replay ended at %.3f s", self.name, last / NS)
+                    break
                 self._clock(now if head is None else min(now, head[1] - 1))
             if time.monotonic() >= next_watch:
                 self._reload_specs()
@@ -219,6 +231,7 @@ class PlatformNode:
             if head is not None:
                 wait = min(wait, max(0.0, (head[1] - stream_now()) / speed / NS))
             self.closed.wait(wait)
+        self.closed.wait()  # knowledge is still answered until the node is stopped
 
     def close(self) -> None:
         self.closed.set()

@@ -9,7 +9,8 @@ Key expressions, for platform P (every payload is UTF-8 JSON):
     dkreason/P/objects        query → {"<object IRI>": {"sorts": ["<sort IRI>", …], "id": 12}}
     dkreason/P/changed        put {"version": n}: P's specs or objects changed; ask again
     dkreason/P/topic/T        put {"valid": ns, "available": ns, "msg": {…}}: a message of T,
-                              or {"clock": ns}: every message of T up to this time is sent
+                              or {"clock": ns}: every message of T up to this time is sent,
+                              or {"clock": ns, "end": true}: T's replay ended, nothing follows
 
 Times are integer nanoseconds on the stream's clock (a replay keeps its recording's times).
 The clock travels on each topic's own key because Zenoh keeps the order of one key's puts,
@@ -66,12 +67,16 @@ def decode(payload: bytes, limit: int, what: str) -> Any:
         raise WireError(f"{what}: {exc.message}", "json") from None
 
 
+END = object()  # the msg of an end-of-replay tick
+
+
 def topic_message(payload: bytes, what: str) -> tuple[int, int, Any]:
-    """(available, valid, msg) of a topic's put; a clock tick has msg None."""
+    """(available, valid, msg) of a topic's put; a clock tick has msg None, the tick that ends
+    a replay msg END."""
     data = decode(payload, MAX_SAMPLE, what)
     if isinstance(data, dict) and "clock" in data:
         t = _time(data["clock"], what)
-        return t, t, None
+        return t, t, END if data.get("end") is True else None
     if not isinstance(data, dict) or not isinstance(data.get("msg"), dict):
         raise WireError(f"{what}: expected {{\"valid\": ns, \"msg\": {{…}}}} or "
                         f"{{\"clock\": ns}}", "shape")
