@@ -421,3 +421,29 @@ def test_type_errors_are_one_line_before_any_message(
         capsys: pytest.CaptureFixture[str], tmp_path: Path, formula: str, says: str) -> None:
     code, got, err = verdicts(capsys, *typed_setup(tmp_path), formula)
     assert code == 2 and got == [] and err.count("\n") == 1 and says in err, err
+
+
+def test_a_wrong_embedded_definition_is_refused_not_decoded_into_garbage(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """The bag says x/msg/T is `uint8 level` but its messages hold two float64s (rosbag2's
+    own `talker` test bag has such a mismatch): one line, never values read at wrong offsets."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    right, wrong = get_typestore(Stores.EMPTY), get_typestore(Stores.EMPTY)
+    right.register(get_types_from_msg("float64 a\nfloat64 b\n", "x/msg/T"))
+    wrong.register(get_types_from_msg("uint8 level\n", "x/msg/T"))
+    folder = tmp_path / "talker"
+    with Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection("/robot1/level", "x/msg/T", typestore=wrong)
+        for i in range(5):
+            writer.write(conn, i * S, right.serialize_cdr(
+                right.types["x/msg/T"](a=float(i), b=2.0), "x/msg/T"))
+    (tmp_path / "l.sslt").write_text("topic level:x/T contains X(me) = msg.level\n")
+    config = tmp_path / "l.toml"
+    config.write_text(f'[platforms.robot1]\nontology = "{TURTLES}/turtle.ttl"\n'
+                      f'specs = "l.sslt"\nnamespace = "/robot1"\n')
+    code, got, err = verdicts(capsys, "--config", str(config), "--source", str(folder),
+                              "always (X[me] < 100)")
+    assert code == 2 and got == [] and err.count("\n") == 1
+    assert "/robot1/level: its messages do not match the definition of x/msg/T" in err

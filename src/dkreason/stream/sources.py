@@ -117,13 +117,19 @@ class RosbagSource:
         readers = {id(c): _ros_reader(fielddefs, c.msgtype, wanted[c.topic], not self.reader.is2,
                                       self.reader.deserialize) for c in connections}
         n = 0
+        unchecked = {id(c) for c in connections}
         try:
             for connection, t_ns, raw in self.reader.messages(connections=connections):
                 read, stamped = readers[id(connection)]
+                if unchecked and id(connection) in unchecked:  # once a topic: the reference
+                    unchecked.discard(id(connection))
+                    _decodes(self.reader.deserialize, raw, connection)
                 values = read(raw)
                 valid = values[-2] * NS + values[-1] if stamped else t_ns
                 n += 1
                 yield connection.topic, t_ns, valid, values
+        except DkError:
+            raise
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
             from .damaged import DamagedRecording
 
@@ -146,6 +152,17 @@ class RosbagSource:
     def close(self) -> None:
         if self.reader.stack is not None:
             self.reader.close()
+
+
+def _decodes(deserialize: Any, raw: Any, connection: Any) -> None:
+    """A topic's first message must decode to its definition exactly (rosbags checks the
+    size): a wrong definition would otherwise read garbage at the offsets it implies."""
+    try:
+        deserialize(raw, connection.msgtype)
+    except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds
+        raise DkError(f"{connection.topic}: its messages do not match the definition of "
+                      f"{connection.msgtype} ({_why(exc)}); give the right one with --msg") \
+            from None
 
 
 def plain(value: Any) -> Any:
