@@ -447,3 +447,15 @@ def test_a_wrong_embedded_definition_is_refused_not_decoded_into_garbage(
                               "always (X[me] < 100)")
     assert code == 2 and got == [] and err.count("\n") == 1
     assert "/robot1/level: its messages do not match the definition of x/msg/T" in err
+
+
+def test_times_on_an_epoch_clock_read_relative_and_as_dates(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    rec = stamped_bag(tmp_path / "real.mcap", 1_780_000_000.0, 1_780_000_000 * S)
+    args = ["--config", str(stamped_config(tmp_path)), "--source", str(rec),
+            "always (X[me] < 15 and eventually[0, 0.25] Theta[me] > 5)"]
+    assert main(["monitor", "--json", *args]) == 1
+    (verdict,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert verdict["time"] == 1780000000.3 and verdict["t"] == 0.3
+    assert main(["monitor", *args]) == 1
+    assert "at t+0.3 s (2026-05-28T20:26:40.300Z): VIOLATED" in capsys.readouterr().out

@@ -397,7 +397,7 @@ def _monitor(args: argparse.Namespace) -> int:
         try:
             for event in monitor.run(source, tick):
                 events.append(event)
-                _print_event(event, args.json)
+                _print_event(event, args.json, processor.first)
         except DkError as exc:
             error = exc
     verdicts = [e for e in events if isinstance(e, Verdict)]
@@ -503,19 +503,44 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_event(event: Any, as_json: bool) -> None:
+def _print_event(event: Any, as_json: bool, origin: int | None = None) -> None:
+    """A verdict or violation; with the recording's first time (ns), times also as `t+…`
+    since then (and, on an epoch clock, as ISO 8601 UTC)."""
     from .progress import Verdict
 
+    out = event.to_json()
     if as_json:
-        print(json.dumps(event.to_json(), ensure_ascii=False, default=str), flush=True)
-    elif isinstance(event, Verdict):
+        if origin is not None and out.get("time") is not None:
+            out["t"] = _since(out["time"], origin)
+        print(json.dumps(out, ensure_ascii=False, default=str), flush=True)
+        return
+    when = _when(out.get("time"), origin)
+    if isinstance(event, Verdict):
         value = {True: "held", False: "VIOLATED", None: "unknown"}[event.verdict]
-        when = "at end" if event.at_end else f"at {event.time} s"
-        print(f"{when}: {value}  {event.formula}" +
+        print(f"{'at end' if event.at_end else f'at {when}'}: {value}  {event.formula}" +
               (f"\n    {event.witness}" if event.witness else ""), flush=True)
     else:
-        print(f"violation at {event.to_json()['time']} s: {event.constraint} on {event.feature} "
-              f"({event.topic}): {event.detail}", flush=True)
+        print(f"violation at {when}: {event.constraint} on {event.feature} ({event.topic}): "
+              f"{event.detail}", flush=True)
+
+
+def _when(time: Any, origin: int | None) -> str:
+    if time is None or not origin:  # a clock that starts at 0 needs no second reading
+        return f"{time} s"
+    import datetime
+
+    stamp = f"{time} s"
+    if time > 10**9:  # an epoch clock: the date says more than a ten-digit number
+        stamp = datetime.datetime.fromtimestamp(time, datetime.UTC).isoformat(
+            timespec="milliseconds").replace("+00:00", "Z")
+    return f"t+{_since(time, origin)} s ({stamp})"
+
+
+def _since(time: float, origin: int) -> float:
+    """Seconds from `origin` (ns) to `time` (s, as printed), exact to the nanosecond."""
+    from decimal import Decimal
+
+    return float(Decimal(repr(time)) - Decimal(origin) / 10**9)
 
 
 def _summary(verdicts: list[Any], violations: int) -> None:

@@ -156,6 +156,7 @@ class StreamProcessor:
         self.due: list[int] = []
         self.queued: list[bool] = []
         self.max_valid = -1
+        self.first = 0  # the earliest valid time seen (ns): where "t+" times count from
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
         self.guarded = self.start is not None or self.end is not None or \
@@ -285,7 +286,11 @@ class StreamProcessor:
         if last is None or valid > last:
             route.last = valid
             if valid > self.max_valid:
+                if self.max_valid < 0 or valid < self.first:
+                    self.first = valid if self.max_valid < 0 else min(self.first, valid)
                 self.max_valid = valid
+        elif valid < self.first:
+            self.first = valid
         made = self.made
         if made is not None and valid <= made:
             self._violation("late", available, route,
