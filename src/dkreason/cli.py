@@ -435,7 +435,8 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
                 verdicts.append(event)
             else:
                 violations += 1
-            _print_event(event, args.json)
+            processor = getattr(monitor, "processor", None)
+            _print_event(event, args.json, processor.first if processor else None)
     finally:
         session.close()
     if not args.json:
