@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 from .errors import Span
 
@@ -118,20 +118,13 @@ class Mapping_:
 
 # ---- formulas: the features they need -------------------------------------------------------
 
-@dataclass(frozen=True, slots=True, order=True)
-class FeatureKey:
+class FeatureKey(NamedTuple):
     """A ground feature as the state stream names it (`Close[uav1, uav2]`): made from typed
-    parts, never parsed from text, and hashed once (states are dicts keyed by it)."""
+    parts, never parsed from text.  A named tuple, so states (dicts keyed by it) hash it in C
+    from its strings' cached hashes."""
 
     name: str
     args: tuple[str, ...] = ()
-    _hash: int = dataclasses.field(init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "_hash", hash((self.name, self.args)))
-
-    def __hash__(self) -> int:
-        return self._hash
 
     def __str__(self) -> str:
         return f"{self.name}[{', '.join(self.args)}]" if self.args else self.name

@@ -147,8 +147,14 @@ class Recordings:
             name = self._own(r, topic)
             if name is not None and name not in own:
                 own[name], shown[name] = fields, topic
+        messages = r.source.messages(own)
+        if self.clock != "record" and all(a == b for a, b in shown.items()):
+            return messages  # nothing to rename or retime: no layer per message
+        return self._renamed(messages, shown)
+
+    def _renamed(self, messages: Iterator[Message], shown: dict[str, str]) -> Iterator[Message]:
         record = self.clock == "record"
-        for topic, available, valid, values in r.source.messages(own):
+        for topic, available, valid, values in messages:
             yield shown[topic], available, available if record else valid, values
 
     def close(self) -> None:
