@@ -20,11 +20,11 @@ from dkreason.parse.formula import (
     Expr,
     Formula,
     Interval,
-    Neg,
     Not,
     Num,
     Ref,
     Temporal,
+    Unary,
     Until,
 )
 
@@ -54,9 +54,9 @@ def num(e: Expr, values: dict[str, Any]) -> Any:
         return e.value
     if isinstance(e, Ref):
         return values[key(e.feature)]
-    if isinstance(e, Neg):
+    if isinstance(e, Unary):
         v = num(e.arg, values)
-        return None if v is None else -v
+        return None if v is None else -v if e.op == "-" else abs(v)
     if isinstance(e, Arith):
         a, b = num(e.left, values), num(e.right, values)
         if a is None or b is None or (e.op == "/" and b == 0):

@@ -56,12 +56,10 @@ class Arith:
 
 
 @dataclass(frozen=True, slots=True)
-class Neg:
-    arg: Expr
+class Unary:
+    """-x or abs(x)."""
 
-
-@dataclass(frozen=True, slots=True)
-class Abs:
+    op: str  # - abs
     arg: Expr
 
 
@@ -72,7 +70,7 @@ class Str:
     value: str
 
 
-Expr = Num | Str | Ref | Arith | Neg | Abs
+Expr = Num | Str | Ref | Arith | Unary
 
 
 # ---- formulas --------------------------------------------------------------------------------
@@ -169,10 +167,10 @@ class _ToAst(Transformer[Token, Any]):
         return BoolConst(str(children[0]) == "true")
 
     def neg(self, children: list[Any]) -> Expr:
-        return Neg(_expr(children[0]))
+        return Unary("-", _expr(children[0]))
 
     def abs_(self, children: list[Any]) -> Expr:
-        return Abs(_expr(children[1]))
+        return Unary("abs", _expr(children[1]))
 
     def string(self, children: list[Token]) -> Str:
         text = str(children[0])
@@ -246,7 +244,7 @@ def _nest(op: str, bindings: list[tuple[str, str, Span]], body: Formula) -> Form
 
 
 def _expr(node: Any) -> Expr:
-    if isinstance(node, Num | Str | Ref | Arith | Neg | Abs):
+    if isinstance(node, Num | Str | Ref | Arith | Unary):
         return node
     if isinstance(node, BoolConst):
         return Num(int(node.value))
@@ -256,7 +254,7 @@ def _expr(node: Any) -> Expr:
 def _formula(node: Any) -> Formula:
     if isinstance(node, Ref):
         return Atom(node.feature)
-    if isinstance(node, Num | Arith | Neg):
+    if isinstance(node, Num | Str | Arith | Unary):
         raise ParseError("a number is not a formula: compare it with something",
                          _where(node))
     return node  # type: ignore[no-any-return]
@@ -311,7 +309,7 @@ def _balanced(node: Any, depth: int) -> Any:
     if isinstance(node, Compare | Connective | Arith | Until):
         return replace(node, left=_balanced(node.left, depth + 1),
                        right=_balanced(node.right, depth + 1))
-    if isinstance(node, Not | Temporal | Neg):
+    if isinstance(node, Not | Temporal | Unary):
         return replace(node, arg=_balanced(node.arg, depth + 1))
     if isinstance(node, Quant):
         return replace(node, body=_balanced(node.body, depth + 1))
@@ -361,7 +359,7 @@ def children(node: Any) -> tuple[Any, ...]:
     """The subformulas and subexpressions of a node, left to right."""
     if isinstance(node, Compare | Connective | Arith | Until):
         return node.left, node.right
-    if isinstance(node, Not | Temporal | Neg | Abs):
+    if isinstance(node, Not | Temporal | Unary):
         return (node.arg,)
     if isinstance(node, Quant):
         return (node.body,)

@@ -16,7 +16,6 @@ from typing import Any
 from ..errors import DkError
 from ..model import FeatureKey
 from ..parse.formula import (
-    Abs,
     Arith,
     Atom,
     BoolConst,
@@ -24,11 +23,11 @@ from ..parse.formula import (
     Connective,
     Expr,
     Formula,
-    Neg,
     Not,
     Num,
     Ref,
     Str,
+    Unary,
     children,
 )
 
@@ -79,10 +78,8 @@ def render(f: Any) -> str:
         return repr(f.value)
     if isinstance(f, Compare | Arith):
         return f"{render(f.left)} {f.op} {render(f.right)}"
-    if isinstance(f, Neg):
-        return f"-{render(f.arg)}"
-    if isinstance(f, Abs):
-        return f"abs({render(f.arg)})"
+    if isinstance(f, Unary):
+        return f"-{render(f.arg)}" if f.op == "-" else f"abs({render(f.arg)})"
     if isinstance(f, Str):
         return json.dumps(f.value, ensure_ascii=False)
     if isinstance(f, Not):
@@ -180,9 +177,9 @@ def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
             raise DkError(f"feature {key(e.feature)} is compared as a number but has the "
                           f"value {v!r} at time {time}")
         return v
-    if isinstance(e, Neg | Abs):
+    if isinstance(e, Unary):
         v = _number(e.arg, values, time)
-        return None if v is None else -v if isinstance(e, Neg) else abs(v)
+        return None if v is None else -v if e.op == "-" else abs(v)
     if isinstance(e, Arith):
         a, b = _number(e.left, values, time), _number(e.right, values, time)
         if a is None or b is None:
@@ -239,10 +236,8 @@ def _py(n: Any, names: dict[FeatureKey, str]) -> str:
         return repr(n.value) if math.isfinite(n.value) else "1e999" if n.value > 0 else "-1e999"
     if isinstance(n, Compare | Arith):
         return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
-    if isinstance(n, Neg):
-        return f"(-{_py(n.arg, names)})"
-    if isinstance(n, Abs):
-        return f"abs({_py(n.arg, names)})"
+    if isinstance(n, Unary):
+        return f"(-{_py(n.arg, names)})" if n.op == "-" else f"abs({_py(n.arg, names)})"
     if isinstance(n, Str):
         return repr(n.value)
     if isinstance(n, Not):
