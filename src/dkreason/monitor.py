@@ -24,9 +24,29 @@ from .stream.sources import NS, Source
 
 if TYPE_CHECKING:
     from .manager import KnowledgeManager
-    from .plan import Parsed
+    from .plan import FormulaPlan, Parsed
 
 Event = Verdict | Violation
+
+
+class _Group:
+    """The formulas over one set of features, and the state stream they are judged on."""
+
+    def __init__(self, keys: frozenset[FeatureKey]) -> None:
+        self.keys = keys
+        self.last: tuple[Any, ...] | None = None  # the values of its last state
+        self.ordered = sorted(keys)
+        self.progressor = Progressor(unit=Fraction(1, NS))
+
+    def due(self, values: dict[FeatureKey, Any], fresh: list[FeatureKey] | None) -> bool:
+        """Whether this state is one of the group's own: one of its features was sampled at
+        it, or its values changed (a value went stale)."""
+        now = tuple(values[k] for k in self.ordered)
+        if fresh is None or self.last is None or now != self.last or \
+                any(k in self.keys for k in fresh) or not self.keys:
+            self.last = now
+            return True
+        return False
 
 
 class Monitor:
@@ -37,13 +57,15 @@ class Monitor:
         self.km, self.policy, self.keep_states = km, policy, keep_states
         self.plan = km.plan(formulas)
         self.request = km.request(self.plan)
-        self.progressor = Progressor(unit=Fraction(1, NS))
-        # Each formula is judged from the first state in which every feature it reads has a
-        # value (a recording's warm-up is not "unknown", and no formula's start depends on
-        # the others'); with a start time, from the first state on.
-        self.waiting = [] if policy.start_time is not None else list(self.plan.formulas)
-        for f in self.plan.formulas if policy.start_time is not None else ():
-            self.progressor.add(f.text, f.tree)
+        # A formula is judged on its own state stream: from the first state in which every
+        # feature it reads has a value (a recording's warm-up is not "unknown"; with a start
+        # time, from the first state on), at the instants its own features are sampled or
+        # change.  Formulas over the same features share one progressor.
+        self.order = {f.text: n for n, f in enumerate(self.plan.formulas)}
+        self.groups: dict[frozenset[FeatureKey], _Group] = {}
+        self.waiting = list(self.plan.formulas)
+        if policy.start_time is not None:
+            self._begin(self.waiting)
         self.states: list[tuple[int, dict[FeatureKey, Any]]] = []
         self.pending: list[Event] = []
         self.decided = 0
@@ -71,16 +93,29 @@ class Monitor:
                                       f"{what}")
         return self.processor
 
-    def _on_state(self, time: int, values: dict[FeatureKey, Any]) -> None:
+    def _begin(self, formulas: list[FormulaPlan]) -> None:
+        for f in formulas:
+            keys = frozenset(f.keys)
+            group = self.groups.get(keys)
+            if group is None:
+                group = self.groups[keys] = _Group(keys)
+            group.progressor.add(f.text, f.tree)
+            self.waiting.remove(f)
+
+    def _on_state(self, time: int, values: dict[FeatureKey, Any],
+                  fresh: list[FeatureKey] | None = None) -> None:
         if self.keep_states:
             self.states.append((time, dict(values)))
         if self.waiting:
-            for f in [f for f in self.waiting if all(values[k] is not None for k in f.keys)]:
-                self.progressor.add(f.text, f.tree)
-                self.waiting.remove(f)
-        for v in self.progressor.step(time, values):
-            self.decided += 1
-            self.pending.append(in_seconds(v))
+            self._begin([f for f in self.waiting if all(values[k] is not None for k in f.keys)])
+        decided: list[Verdict] = []
+        for group in self.groups.values():
+            if group.due(values, fresh):
+                decided += group.progressor.step(time, values)
+        if decided:
+            decided.sort(key=lambda v: self.order[v.formula])
+            self.decided += len(decided)
+            self.pending.extend(in_seconds(v) for v in decided)
 
     @property
     def done(self) -> bool:
@@ -98,18 +133,18 @@ class Monitor:
         self.processor.reroute(self.request, source)
         return self.request
 
-    def finish(self) -> list[Event]:
-        """End of stream: every formula settled."""
+    def finish(self, end: int | None = None) -> list[Event]:
+        """End of stream (at `end`, ns, when known): every formula settled."""
         assert self.processor is not None
-        self.processor.finish()
-        self.pending.extend(in_seconds(v) for v in self.progressor.finish())
-        last = self.progressor.last_input
+        self.processor.finish(end)
+        settled = [v for g in self.groups.values() for v in g.progressor.finish()]
+        self.pending.extend(in_seconds(v) for v in sorted(settled,
+                                                          key=lambda v: self.order[v.formula]))
         for f in self.waiting:  # never judged: some feature never had a value
             missing = ", ".join(str(g.key) for g in f.ground
                                 if not any(s.get(g.key) is not None for _, s in self.states))
             self.pending.append(Verdict(
-                f.text, None, None if last is None else seconds(last), True,
-                "no state had a value for every feature it reads"
+                f.text, None, None, True, "no state had a value for every feature it reads"
                 + (f" (never seen: {missing})" if missing and self.keep_states else "")))
         self.waiting = []
         return self.events()
@@ -138,8 +173,9 @@ class Monitor:
             yield from self.events()
             raise
         finally:
+            end = source.last_record()
             source.close()
-        yield from self.finish()
+        yield from self.finish(end)
 
 
 def _article(kind: str, ros_type: str) -> str:

@@ -101,6 +101,9 @@ class _Live:
     def check_field(self, topic: str, field: str) -> str | None:
         return None
 
+    def last_record(self) -> int | None:
+        return None
+
     def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
         return None
 

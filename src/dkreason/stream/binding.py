@@ -130,6 +130,10 @@ class Recordings:
                 return r.source.field_kind(own, field)
         return None
 
+    def last_record(self) -> int | None:
+        ends = [r.source.last_record() for r in self.parts]
+        return None if None in ends else max(e for e in ends if e is not None)
+
     def count(self, topics: set[str] | None) -> int | None:
         counts = [r.source.count(None if topics is None else
                                  {o for t in topics if (o := self._own(r, t)) is not None})

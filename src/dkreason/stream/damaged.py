@@ -92,6 +92,9 @@ class SequentialSource:
     def types(self) -> dict[str, str]:
         return dict(self.channels.values())
 
+    def last_record(self) -> int | None:
+        return None
+
     def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
         msgtype = self.types().get(topic)
         if msgtype is None or msgtype not in self.store.fielddefs:

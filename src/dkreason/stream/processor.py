@@ -125,7 +125,8 @@ class _Group:
 
 class StreamProcessor:
     def __init__(self, request: StreamRequest, policy: StreamPolicy, source: Source,
-                 on_state: Callable[[int, dict[FeatureKey, Any]], None],
+                 on_state: Callable[[int, dict[FeatureKey, Any], list[FeatureKey] | None],
+                                    None],
                  on_violation: Callable[[Violation], None],
                  texts: frozenset[FeatureKey] = frozenset()) -> None:
         """`texts`: the features the formulas compare with strings (their values are kept as
@@ -270,7 +271,12 @@ class StreamProcessor:
             return  # nothing is due yet
         self._emit(available, final=False)
 
-    def finish(self) -> None:
+    def finish(self, end: int | None = None) -> None:
+        """End of stream at `end` (the recording's last record time, of any topic: a value
+        that went stale before it is unknown, however few topics were asked for)."""
+        if end is not None and self.last_seen is not None:
+            self.max_valid = max(self.max_valid, end)
+            self.last_seen = max(self.last_seen, end)
         if self.last_seen is not None:
             self._emit(self.last_seen, final=True)
 
@@ -421,7 +427,11 @@ class StreamProcessor:
         return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
 
     def _state(self, s: int) -> None:
+        """The state at s; with it, the features sampled at exactly s (None with a sample
+        period: every feature is on the period's grid), so each formula can be judged at its
+        own features' instants."""
         values: dict[FeatureKey, Any] = {}
+        fresh: list[FeatureKey] | None = [] if self.period is None else None
         recent = self.policy.approximation == "recent"
         max_age, deviation = self.max_age, self.deviation
         for q, hist in enumerate(self.hist):
@@ -432,6 +442,8 @@ class StreamProcessor:
             value = None
             if i >= 0:
                 valid, _, v = hist[i]
+                if valid == s and fresh is not None:
+                    fresh.append(self.keys[q])
                 if recent:
                     if max_age is None or s - valid <= max_age:
                         value = v
@@ -441,4 +453,4 @@ class StreamProcessor:
                     del hist[:i]
             values[self.keys[q]] = value
         self.made = s
-        self.on_state(s, values)
+        self.on_state(s, values, fresh)

@@ -53,6 +53,11 @@ class Source(Protocol):
         """Messages on `topics` (None: all), when the source knows."""
         ...
 
+    def last_record(self) -> int | None:
+        """The record time (ns) of the recording's last message, of any topic, once it has
+        been read (None: not known): where the stream ends, whatever was asked of it."""
+        ...
+
     def close(self) -> None:
         """Release the file (the monitor calls it however the replay ends)."""
         ...
@@ -104,6 +109,9 @@ class RosbagSource:
         msgtype = self.types().get(topic)
         return None if msgtype is None else fields.kind(self.reader.typestore.fielddefs,
                                                          msgtype, field)
+
+    def last_record(self) -> int | None:
+        return int(self.reader.end_time) - 1 if self.reader.connections else None
 
     def count(self, topics: set[str] | None) -> int | None:
         return sum(c.msgcount for c in self.reader.connections
@@ -257,6 +265,7 @@ class JsonlSource:
     def __init__(self, path: Path) -> None:
         """`-` reads standard input (a live feed)."""
         self.name, self.path = ("<stdin>" if str(path) == "-" else str(path)), path
+        self.last: int | None = None  # the latest record time read, of any topic
         if str(path) != "-":
             files.regular(path)
 
@@ -275,8 +284,12 @@ class JsonlSource:
     def messages(self, wanted: Wanted) -> Iterator[Message]:
         read = dict_reader(self.name, wanted)
         for topic, available, valid, msg in self.records():
+            self.last = available if self.last is None else max(self.last, available)
             if topic in wanted:
                 yield topic, available, valid, read(topic, valid, msg)
+
+    def last_record(self) -> int | None:
+        return self.last
 
     def records(self) -> Iterator[Record]:
         for n, line in files.lines(self.path, self.name):
@@ -348,6 +361,9 @@ class PushSource:
         return None
 
     def count(self, topics: set[str] | None) -> int | None:
+        return None
+
+    def last_record(self) -> int | None:
         return None
 
     def messages(self, wanted: Wanted) -> Iterator[Message]:
