@@ -34,19 +34,12 @@ class _Group:
 
     def __init__(self, keys: frozenset[FeatureKey]) -> None:
         self.keys = keys
-        self.last: tuple[Any, ...] | None = None  # the values of its last state
-        self.ordered = sorted(keys)
         self.progressor = Progressor(unit=Fraction(1, NS))
 
-    def due(self, values: dict[FeatureKey, Any], fresh: list[FeatureKey] | None) -> bool:
-        """Whether this state is one of the group's own: one of its features was sampled at
-        it, or its values changed (a value went stale)."""
-        now = tuple(values[k] for k in self.ordered)
-        if fresh is None or self.last is None or now != self.last or \
-                any(k in self.keys for k in fresh) or not self.keys:
-            self.last = now
-            return True
-        return False
+    def due(self, fresh: list[FeatureKey] | None) -> bool:
+        """Whether a state is one of the group's own: one of its features was sampled at it
+        or went stale at it (every state, with a sample period)."""
+        return fresh is None or not self.keys or not self.keys.isdisjoint(fresh)
 
 
 class Monitor:
@@ -110,8 +103,8 @@ class Monitor:
             self._begin([f for f in self.waiting if all(values[k] is not None for k in f.keys)])
         decided: list[Verdict] = []
         for group in self.groups.values():
-            if group.due(values, fresh):
-                decided += group.progressor.step(time, values)
+            if group.due(fresh):
+                decided += group.progressor.step_state(time, values)
         if decided:
             decided.sort(key=lambda v: self.order[v.formula])
             self.decided += len(decided)

@@ -169,8 +169,14 @@ class Progressor:
                           f"{self.last_input} (times must increase strictly)")
         if not self.keys <= values.keys():
             values = _typed(values, self.keys, time)
+        return self.step_state(t, values, time)  # type: ignore[arg-type]
+
+    def step_state(self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
+                   ) -> list[Verdict]:
+        """`step` for the stream processor's states, checked already: exact times that
+        increase, every feature a value (`given`: the time as the caller wrote it)."""
         self.pos += 1
-        self.last, self.last_input = t, time
+        self.last, self.last_input = t, t if given is None else given
         if self.unstarted:
             for m in self.unstarted:
                 m.started, m.first = True, t

@@ -157,6 +157,7 @@ class StreamProcessor:
         self.due: list[int] = []
         self.queued: list[bool] = []
         self.max_valid = -1
+        self.fresh: list[FeatureKey] | None = None  # the changed features of the last state
         self.first = 0  # the earliest valid time seen (ns): where "t+" times count from
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
@@ -399,6 +400,7 @@ class StreamProcessor:
                 s = expiries[0][0]
             if s is None or (limit is not None and s >= limit):
                 return
+            stale: list[FeatureKey] = []
             if times and times[0] == s:
                 times.popleft()
             elif late and late[0] == s:
@@ -412,8 +414,11 @@ class StreamProcessor:
                     self.queued[q] = False
                 if (final and s > self.max_valid) or not self._stale(q, s):
                     continue
+                stale.append(self.keys[q])
             if self.made is None or s > self.made:
-                self._state(s)
+                self._state(s, stale)
+            elif s == self.made and stale and self.fresh is not None:
+                self.fresh += stale  # another expiry at the instant just made
 
     def newest(self, key: FeatureKey) -> int | None:
         """The valid time (ns) of the feature's newest sample; None before its first."""
@@ -426,12 +431,12 @@ class StreamProcessor:
         i = bisect.bisect_right(hist, (s, 1)) - 1
         return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
 
-    def _state(self, s: int) -> None:
-        """The state at s; with it, the features sampled at exactly s (None with a sample
-        period: every feature is on the period's grid), so each formula can be judged at its
-        own features' instants."""
+    def _state(self, s: int, stale: list[FeatureKey] | None = None) -> None:
+        """The state at s; with it, the features sampled at exactly s or gone stale at it
+        (None with a sample period: every feature is on the period's grid), so each formula
+        can be judged at its own features' instants."""
         values: dict[FeatureKey, Any] = {}
-        fresh: list[FeatureKey] | None = [] if self.period is None else None
+        fresh: list[FeatureKey] | None = (stale or []) if self.period is None else None
         recent = self.policy.approximation == "recent"
         max_age, deviation = self.max_age, self.deviation
         for q, hist in enumerate(self.hist):
@@ -453,4 +458,5 @@ class StreamProcessor:
                     del hist[:i]
             values[self.keys[q]] = value
         self.made = s
+        self.fresh = fresh
         self.on_state(s, values, fresh)
