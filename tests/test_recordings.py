@@ -459,3 +459,17 @@ def test_times_on_an_epoch_clock_read_relative_and_as_dates(
     assert verdict["time"] == 1780000000.3 and verdict["t"] == 0.3
     assert main(["monitor", *args]) == 1
     assert "at t+0.3 s (2026-05-28T20:26:40.300Z): VIOLATED" in capsys.readouterr().out
+
+
+def test_start_and_end_may_count_from_the_recordings_first_sample(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """On an epoch clock `--start 50` would drop everything; `+0.25` means 0.25 s in."""
+    rec = stamped_bag(tmp_path / "real.mcap", 1_780_000_000.0, 1_780_000_000 * S)
+    args = ["--config", str(stamped_config(tmp_path)), "--source", str(rec), "--json",
+            "always (X[me] > 0)"]
+    assert main(["monitor", "--start", "+0.25", "--end", "+1", *args]) == 0
+    (verdict,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()
+                  if '"verdict"' in line]
+    assert verdict["time"] == 1780000001 and verdict["t"] == 1
+    assert main(["monitor", "--start", "+0.25", "--end", "2", *args]) == 2
+    assert "both relative (+SECONDS) or both absolute" in capsys.readouterr().err

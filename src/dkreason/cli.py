@@ -131,8 +131,11 @@ def _build() -> _Parser:
     p.add_argument("--delay", type=_seconds, default=Fraction(1, 10),
                    help="how long after a state's time its samples may still arrive (transport "
                         "latency) before it is made (default 100ms)")
-    p.add_argument("--start", type=_seconds, help="start time (s)")
-    p.add_argument("--end", type=_seconds, help="end time (s)")
+    p.add_argument("--start", type=_bound, metavar="[+]TIME",
+                   help="judge from this time on (s on the recording's clock; +TIME: after "
+                        "its first sample)")
+    p.add_argument("--end", type=_bound, metavar="[+]TIME",
+                   help="ignore samples after this time (+TIME: after the first sample)")
     p.add_argument("--max-delay", type=_seconds, help="largest allowed sample delay (s)")
     p.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
     p.add_argument("--unique", action="store_true", help="valid times must be unique")
@@ -278,6 +281,11 @@ def _seconds(text: str) -> Fraction:
     return value
 
 
+def _bound(text: str) -> tuple[Fraction, bool]:
+    """A start or end time: seconds on the recording's clock, or +SECONDS after its start."""
+    return (_seconds(text[1:]), True) if text.startswith("+") else (_seconds(text), False)
+
+
 def _finite(text: str) -> float:
     import math
 
@@ -362,12 +370,17 @@ def _monitor(args: argparse.Namespace) -> int:
     from .progress import Verdict
     from .stream.processor import StreamPolicy
 
+    relative = {bound[1] for bound in (args.start, args.end) if bound is not None}
+    if len(relative) > 1:
+        raise DkError("--start and --end must be both relative (+SECONDS) or both absolute")
     policy = StreamPolicy(
         sample_period=args.period, sample_period_deviation=args.deviation,
         approximation=args.approximation, max_age=args.max_age,
-        delay_before_approximation=args.delay, start_time=args.start, end_time=args.end,
+        delay_before_approximation=args.delay,
+        start_time=None if args.start is None else args.start[0],
+        end_time=None if args.end is None else args.end[0],
         max_delay=args.max_delay, ordered_on_valid_time=args.ordered,
-        unique_valid_time=args.unique)
+        unique_valid_time=args.unique, span_from_first=relative == {True})
     if args.plot is not None and not args.plot.parent.is_dir():
         raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
     if args.plot is not None and args.plot.suffix.lower() not in (".png", ".svg", ".pdf"):

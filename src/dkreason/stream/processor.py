@@ -61,6 +61,7 @@ class StreamPolicy:
     max_delay: Fraction | None = None
     ordered_on_valid_time: bool = False
     unique_valid_time: bool = False
+    span_from_first: bool = False  # start_time and end_time count from the first sample
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,8 +158,9 @@ class StreamProcessor:
         self.due: list[int] = []
         self.queued: list[bool] = []
         self.max_valid = -1
+        self._anchored = False  # span_from_first: the span was placed at the first sample
         self.fresh: list[FeatureKey] | None = None  # the changed features of the last state
-        self.first = 0  # the earliest valid time seen (ns): where "t+" times count from
+        self.first: int | None = None  # the earliest valid time seen (ns): "t+" counts from it
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
         self.guarded = self.start is not None or self.end is not None or \
@@ -285,6 +287,9 @@ class StreamProcessor:
         self.on_violation(Violation(kind, available, self.keys[route.q], route.stream, detail))
 
     def _sample(self, route: _Route, available: int, valid: int, value: Any) -> None:
+        first = self.first
+        if first is None or valid < first:
+            self.first = valid
         if self.guarded and not self._guards(route, available, valid):
             return
         last = route.last
@@ -293,11 +298,7 @@ class StreamProcessor:
         if last is None or valid > last:
             route.last = valid
             if valid > self.max_valid:
-                if self.max_valid < 0 or valid < self.first:
-                    self.first = valid if self.max_valid < 0 else min(self.first, valid)
                 self.max_valid = valid
-        elif valid < self.first:
-            self.first = valid
         made = self.made
         if made is not None and valid <= made:
             self._violation("late", available, route,
@@ -340,6 +341,12 @@ class StreamProcessor:
 
     def _guards(self, route: _Route, available: int, valid: int) -> bool:
         """Start/end time and maximum delay; False drops the sample."""
+        if self.policy.span_from_first and not self._anchored:  # the span counts from the
+            self._anchored = True  # first sample
+            self.start = None if self.start is None else valid + self.start
+            self.end = None if self.end is None else valid + self.end
+            if self.period is not None:
+                self.next_state = self.start
         if (self.start is not None and valid < self.start) or \
                 (self.end is not None and valid > self.end):
             self._violation("start_end_time", available, route,
