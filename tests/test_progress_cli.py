@@ -78,3 +78,17 @@ def test_quantifiers_need_a_knowledge_base(
     states.write_text('{"time": 0, "values": {}}\n')
     code = main(["progress", "--states", str(states), "forall x in UAV: Speed[x] > 1"])
     assert code == 2 and "needs a knowledge base" in capsys.readouterr().err
+
+
+def test_states_may_hold_strings_and_types_are_checked_against_their_use(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    states = tmp_path / "s.jsonl"
+    states.write_text("".join(json.dumps({"time": t, "values": {"Mode[a]": m, "Alt[a]": 5}})
+                              + "\n" for t, m in enumerate(["AUTO", "AUTO", "MANUAL"])))
+    code, lines = run(capsys, "progress", "--states", str(states), "--json",
+                      'always (Mode[a] == "AUTO")', "always (abs(Alt[a] - 6) < 2)")
+    assert code == 1 and [(v["verdict"], v["time"]) for v in lines] == [(False, 2), (True, 2)]
+    code = main(["progress", "--states", str(states), "always (Mode[a] > 3)"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "s.jsonl:1: Mode[a] is a string ('AUTO'), but a formula uses it as a number" in err

@@ -236,16 +236,21 @@ def _explain(args: argparse.Namespace) -> int:
 
 
 def _progress(args: argparse.Namespace) -> int:
+    from .parse.formula import parse_formula
     from .progress import Progressor
+    from .progress.state import uses
     from .progress.states import read_states
 
     progressor = Progressor()
-    if args.config:
-        for f in _km(args).plan(args.formulas).formulas:
-            progressor.add(f.text, f.tree)
-    else:
-        for formula in args.formulas:
-            progressor.add(formula)
+    trees = ([(f.text, f.tree) for f in _km(args).plan(args.formulas).formulas]
+             if args.config else [(f, parse_formula(f)) for f in args.formulas])
+    for text, tree in trees:
+        progressor.add(text, tree if args.config else None)
+    used: dict[Any, str] = {}
+    for _, tree in trees:
+        for k, use in uses(tree).items():
+            if used.setdefault(k, use) != use:
+                raise DkError(f"{k} is used as {_article(used[k])} and as {_article(use)}")
     verdicts = []
 
     def emit(batch: list[Any]) -> None:
@@ -259,10 +264,14 @@ def _progress(args: argparse.Namespace) -> int:
                 print(f"{when} {v.time}: {value}  {v.formula}" +
                       (f"\n    {v.witness}" if v.witness else ""), flush=True)
 
-    for time, values in read_states(args.states):
+    for time, values in read_states(args.states, used):
         emit(progressor.step(time, values))
     emit(progressor.finish())
     return exit_status([v.verdict for v in verdicts])
+
+
+def _article(kind: str) -> str:
+    return {"bool": "a condition (boolean)", "number": "a number", "string": "a string"}[kind]
 
 
 def _seconds(text: str) -> Fraction:

@@ -1,10 +1,10 @@
-"""State files: JSON lines `{"time": 0.0, "values": {"P[a]": true, "X[a]": 3.5}}`.
+"""State files: JSON lines `{"time": 0.0, "values": {"P[a]": true, "X[a]": 3.5, "M[a]": "AUTO"}}`.
 
 Numbers are read as decimals, so times compare exactly (0.1 is one tenth, as written)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from decimal import Decimal
 from pathlib import Path
 from typing import Any
@@ -16,10 +16,14 @@ from ..parse import files
 from ..parse.formula import feature_key
 from .progressor import exact_time
 
+_KIND = {"bool": "a condition (boolean)", "number": "a number", "string": "a string"}
 
-def read_states(path: Path) -> Iterator[tuple[Any, dict[FeatureKey, Any]]]:
-    """(time, values) per line; a value is a boolean, a number or null (unknown); NaN and
-    infinities are unknown too."""
+
+def read_states(path: Path, uses: Mapping[FeatureKey, str] | None = None
+                ) -> Iterator[tuple[Any, dict[FeatureKey, Any]]]:
+    """(time, values) per line; a value is a boolean, a number, a string or null (unknown);
+    NaN and infinities are unknown too.  `uses`: how the formulas use each feature (bool,
+    number, string); a value of another kind is an error naming the file and line."""
     for n, line in files.lines(path, str(path)):
         if not line.strip():
             continue
@@ -39,8 +43,15 @@ def read_states(path: Path) -> Iterator[tuple[Any, dict[FeatureKey, Any]]]:
                 raise ParseError(f"{text!r} is not a feature (Name or Name[arg, …])", where)
             if isinstance(value, Decimal):
                 value = float(value)
-            elif value is not None and not isinstance(value, bool | int | float):
-                raise ParseError(f"value of {text} must be a boolean, a number or null, not "
-                                 f"{type(value).__name__}", where)
+            elif value is not None and not isinstance(value, bool | int | float | str):
+                raise ParseError(f"value of {text} must be a boolean, a number, a string or "
+                                 f"null, not {type(value).__name__}", where)
             values[key] = datum(value)
+            use = (uses or {}).get(key)
+            if use is not None and value is not None:
+                kind = "bool" if isinstance(value, bool) else \
+                    "string" if isinstance(value, str) else "number"
+                if kind != use:
+                    raise ParseError(f"{text} is {_KIND[kind]} ({value!r}), but a formula uses "
+                                     f"it as {_KIND[use]}", where)
         yield row["time"], values
