@@ -238,7 +238,7 @@ def _explain(args: argparse.Namespace) -> int:
 def _progress(args: argparse.Namespace) -> int:
     from .parse.formula import parse_formula
     from .progress import Progressor
-    from .progress.state import uses
+    from .progress.state import feature_uses
     from .progress.states import read_states
 
     progressor = Progressor()
@@ -246,11 +246,7 @@ def _progress(args: argparse.Namespace) -> int:
              if args.config else [(f, parse_formula(f)) for f in args.formulas])
     for text, tree in trees:
         progressor.add(text, tree if args.config else None)
-    used: dict[Any, str] = {}
-    for _, tree in trees:
-        for k, use in uses(tree).items():
-            if used.setdefault(k, use) != use:
-                raise DkError(f"{k} is used as {_article(used[k])} and as {_article(use)}")
+    used = {k: use for k, (use, _) in feature_uses(trees).items()}
     verdicts = []
 
     def emit(batch: list[Any]) -> None:
@@ -270,8 +266,6 @@ def _progress(args: argparse.Namespace) -> int:
     return exit_status([v.verdict for v in verdicts])
 
 
-def _article(kind: str) -> str:
-    return {"bool": "a condition (boolean)", "number": "a number", "string": "a string"}[kind]
 
 
 def _seconds(text: str) -> Fraction:

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 from .errors import DkError
 from .model import FeatureKey, StreamRequest
 from .progress import Progressor, Verdict
-from .progress.state import uses
+from .progress.state import USE, feature_uses
 from .stream.processor import StreamPolicy, StreamProcessor, Violation, seconds
 from .stream.sources import NS, Source
 
@@ -67,23 +67,16 @@ class Monitor:
     def start(self, source: Source) -> StreamProcessor:
         """The stream processor over `source`, states going to the progressor; each feature's
         use in the formulas is checked against its fields' types before any message."""
-        used: dict[FeatureKey, str] = {}
-        for f in self.plan.formulas:
-            for k, use in uses(f.tree).items():
-                if used.setdefault(k, use) != use:
-                    raise DkError(f"{k} is used as a {used[k]} and as a {use}")
+        used = feature_uses((f.text, f.tree) for f in self.plan.formulas)
         self.processor = StreamProcessor(
             self.request, self.policy, source, self._on_state, self.pending.append,
-            frozenset(k for k, use in used.items() if use == "string"))
-        for f in self.plan.formulas:
-            for k, use in uses(f.tree).items():
-                for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
-                    if kind != use:
-                        what = {"bool": "a condition", "number": "a number",
-                                "string": "a string"}[use]
-                        raise DkError(f"{f.text}: {k} is read from {topic} {field}, "
-                                      f"{_article(kind, ros_type)}, but the formula uses it as "
-                                      f"{what}")
+            frozenset(k for k, (use, _) in used.items() if use == "string"))
+        for k, (use, text) in used.items():
+            for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
+                if kind != use:
+                    raise DkError(f"{text}: {k} is read from {topic} {field}, "
+                                  f"{_article(kind, ros_type)}, but the formula uses it as "
+                                  f"{USE[use]}")
         return self.processor
 
     def _begin(self, formulas: list[FormulaPlan]) -> None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import math
 import operator
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 from ..errors import DkError
@@ -108,6 +108,21 @@ def uses(f: Any) -> dict[FeatureKey, str]:
                 walk(child, as_)
 
     walk(f, "number")
+    return out
+
+
+USE = {"bool": "a condition (boolean)", "number": "a number", "string": "a string"}
+
+
+def feature_uses(formulas: Iterable[tuple[str, Any]]) -> dict[FeatureKey, tuple[str, str]]:
+    """How a set of formulas (text, tree) uses each feature, and the first formula that does;
+    a feature used two ways is an error."""
+    out: dict[FeatureKey, tuple[str, str]] = {}
+    for text, tree in formulas:
+        for k, use in uses(tree).items():
+            first = out.setdefault(k, (use, text))
+            if first[0] != use:
+                raise DkError(f"{k} is used as {USE[first[0]]} and as {USE[use]}")
     return out
 
 

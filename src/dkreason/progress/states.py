@@ -15,8 +15,7 @@ from ..numbers import datum
 from ..parse import files
 from ..parse.formula import feature_key
 from .progressor import exact_time
-
-_KIND = {"bool": "a condition (boolean)", "number": "a number", "string": "a string"}
+from .state import USE
 
 
 def read_states(path: Path, uses: Mapping[FeatureKey, str] | None = None
@@ -52,6 +51,6 @@ def read_states(path: Path, uses: Mapping[FeatureKey, str] | None = None
                 kind = "bool" if isinstance(value, bool) else \
                     "string" if isinstance(value, str) else "number"
                 if kind != use:
-                    raise ParseError(f"{text} is {_KIND[kind]} ({value!r}), but a formula uses "
-                                     f"it as {_KIND[use]}", where)
+                    raise ParseError(f"{text} is {USE[kind]} ({value!r}), but a formula uses "
+                                     f"it as {USE[use]}", where)
         yield row["time"], values
