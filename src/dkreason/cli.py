@@ -197,7 +197,7 @@ def _build() -> _Parser:
     p.add_argument("--typestore", choices=TYPESTORES,
                    help="standard definitions for recordings that store none")
     p.add_argument("source", nargs="+", metavar="[PLATFORM=]PATH")
-    p.set_defaults(run=_info, remap=[], clock="auto")
+    p.set_defaults(run=_info, remap=[], clock="header")  # each recording's clock: describe()
 
     p = sub.add_parser("sort", help="the objects of a sort")
     config(p)

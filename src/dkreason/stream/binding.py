@@ -71,13 +71,14 @@ class Recordings:
         self.note = "; ".join(notes)
 
     _offset = 0.0
+    stamped = False  # whether the first messages looked at carry header stamps
     SAMPLE = 200  # messages looked at to choose the clock
     APART = 60 * 10**9  # stamps further than this from the record time: another clock
 
     def _clock(self) -> str:
         """'header' unless the first stamped messages are on another clock than the record
         time (a simulator's, or a robot whose clock was never set), then 'record'."""
-        offsets = []
+        offsets: list[int] = []
         for r in self.parts:
             topics = r.source.types()  # none known (JSON lines): times are written, not stamped
             messages = r.source.messages({t: [] for t in topics}) if topics else iter(())
@@ -90,9 +91,10 @@ class Recordings:
                 pass
         if not offsets:
             return "header"
-        offsets.sort()
-        self._offset = offsets[len(offsets) // 2] / 10**9
-        return "record" if abs(offsets[len(offsets) // 2]) > self.APART else "header"
+        self.stamped = True
+        median = sorted(offsets)[len(offsets) // 2]
+        self._offset = median / 10**9
+        return "record" if abs(median) > self.APART else "header"
 
     def _shown(self, r: Recording, own: str) -> str:
         name = self.remap.get(_slash(own), own)
@@ -116,19 +118,21 @@ class Recordings:
             out |= {self._shown(r, own): t for own, t in types.items()}
         return out
 
-    def check_field(self, topic: str, field: str) -> str | None:
+    def _holder(self, topic: str) -> tuple[Source, str] | None:
+        """The recording holding a presented topic, and its own name for it."""
         for r in self.parts:
             own = self._own(r, topic)
             if own is not None and own in r.source.types():
-                return r.source.check_field(own, field)
+                return r.source, own
         return None
 
+    def check_field(self, topic: str, field: str) -> str | None:
+        held = self._holder(topic)
+        return None if held is None else held[0].check_field(held[1], field)
+
     def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
-        for r in self.parts:
-            own = self._own(r, topic)
-            if own is not None and own in r.source.types():
-                return r.source.field_kind(own, field)
-        return None
+        held = self._holder(topic)
+        return None if held is None else held[0].field_kind(held[1], field)
 
     def last_record(self) -> int | None:
         ends = [r.source.last_record() for r in self.parts]

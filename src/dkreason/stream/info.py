@@ -71,26 +71,15 @@ def describe(recording: Recording) -> RecordingInfo:
             end = available if end is None else max(end, available)
         types = types or found
     clock = Recordings([recording], clock="auto")
-    stamped = clock.clock == "record" or _stamped(recording)
     return RecordingInfo(source.name, tuple(TopicInfo(t, types[t], counts.get(t))
                                             for t in sorted(types)), start, end,
-                         clock.clock if stamped else "none")
+                         clock.clock if clock.stamped else "none")
 
 
 def _every(source: Any) -> Any:
     records = getattr(source, "records", None)
     return records() if records is not None else source.messages(
         {t: [] for t in source.types()})
-
-
-def _stamped(recording: Recording) -> bool:
-    source = recording.source
-    topics = source.types()
-    if not topics:
-        return False
-    messages = source.messages({t: [] for t in topics})
-    return any(valid != available for _, (_, available, valid, _) in zip(range(200), messages,
-                                                                          strict=False))
 
 
 def bindings(kb: Any, recordings: Recordings) -> list[Binding]:
