@@ -159,7 +159,6 @@ class StreamProcessor:
         self.queued: list[bool] = []
         self.max_valid = -1
         self._anchored = False  # span_from_first: the span was placed at the first sample
-        self.fresh: list[FeatureKey] | None = None  # the changed features of the last state
         self.first: int | None = None  # the earliest valid time seen (ns): "t+" counts from it
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
@@ -407,25 +406,31 @@ class StreamProcessor:
                 s = expiries[0][0]
             if s is None or (limit is not None and s >= limit):
                 return
-            stale: list[FeatureKey] = []
-            if times and times[0] == s:
+            sampled = False  # everything due at s goes into one state
+            while times and times[0] == s:
                 times.popleft()
-            elif late and late[0] == s:
+                sampled = True
+            while late and late[0] == s:
                 heapq.heappop(late)
-            else:
-                _, q, fixed = heapq.heappop(expiries)
-                if not fixed:
-                    if self.due[q] > s:  # newer samples moved the deadline: look again then
-                        heapq.heappush(expiries, (self.due[q], q, False))
-                        continue
-                    self.queued[q] = False
-                if (final and s > self.max_valid) or not self._stale(q, s):
-                    continue
-                stale.append(self.keys[q])
-            if self.made is None or s > self.made:
+                sampled = True
+            stale = self._expired(s, final)
+            if (sampled or stale) and (self.made is None or s > self.made):
                 self._state(s, stale)
-            elif s == self.made and stale and self.fresh is not None:
-                self.fresh += stale  # another expiry at the instant just made
+
+    def _expired(self, s: int, final: bool) -> list[FeatureKey]:
+        """The features whose newest sample grows stale at s (their expiries are taken)."""
+        out = []
+        expiries = self.expiries
+        while expiries and expiries[0][0] == s:
+            _, q, fixed = heapq.heappop(expiries)
+            if not fixed:
+                if self.due[q] > s:  # newer samples moved the deadline: look again then
+                    heapq.heappush(expiries, (self.due[q], q, False))
+                    continue
+                self.queued[q] = False
+            if not (final and s > self.max_valid) and self._stale(q, s):
+                out.append(self.keys[q])
+        return out
 
     def newest(self, key: FeatureKey) -> int | None:
         """The valid time (ns) of the feature's newest sample; None before its first."""
@@ -465,5 +470,4 @@ class StreamProcessor:
                     del hist[:i]
             values[self.keys[q]] = value
         self.made = s
-        self.fresh = fresh
         self.on_state(s, values, fresh)
