@@ -39,35 +39,16 @@ def accessor(field: str, dicts: bool) -> Callable[[Any], Any]:
 
 def check(fielddefs: dict[str, Any], msgtype: str, field: str) -> str | None:
     """Why `field` cannot be read from messages of `msgtype`, or None if it can."""
-    current: Any = ("name", msgtype)
-    walked = "msg"
-    for p in path(field):
-        kind, what = current
-        if isinstance(p, int):
-            if kind != "array":
-                return f"{walked} is not an array"
-            current = what
-        else:
-            if kind != "name" or what not in fielddefs:
-                return f"{walked} has no fields"
-            fields = dict(fielddefs[what][1])
-            if p not in fields:
-                known = ", ".join(fields) or "none"
-                return f"{what} has no field {p!r} (fields: {known})"
-            current = _desc(fields[p])
-        walked += f"[{p}]" if isinstance(p, int) else f".{p}"
-    return None
+    found = _resolve(fielddefs, msgtype, field)
+    return found if isinstance(found, str) else None
 
 
 def kind(fielddefs: dict[str, Any], msgtype: str, field: str) -> tuple[str, str] | None:
     """(number, bool, string, message or array; the ROS type) of `field`, None if unknown."""
-    if check(fielddefs, msgtype, field) is not None:
+    found = _resolve(fielddefs, msgtype, field)
+    if isinstance(found, str):
         return None
-    current: Any = ("name", msgtype)
-    for p in path(field):  # `check` walked it already: every step exists
-        current = current[1] if isinstance(p, int) else \
-            _desc(dict(fielddefs[current[1]][1])[p])
-    category, what = current
+    category, what = found
     if category == "name":
         return "message", str(what)
     if category == "array":
@@ -75,6 +56,28 @@ def kind(fielddefs: dict[str, Any], msgtype: str, field: str) -> tuple[str, str]
     name = str(what[0] if isinstance(what, tuple) else what)
     return ("bool" if name == "bool" else "string" if name in ("string", "wstring")
             else "number"), name
+
+
+def _resolve(fielddefs: dict[str, Any], msgtype: str, field: str) -> tuple[str, Any] | str:
+    """The descriptor `field` reaches in messages of `msgtype`, or why it reaches none."""
+    current: Any = ("name", msgtype)
+    walked = "msg"
+    for p in path(field):
+        kind_, what = current
+        if isinstance(p, int):
+            if kind_ != "array":
+                return f"{walked} is not an array"
+            current = what
+        else:
+            if kind_ != "name" or what not in fielddefs:
+                return f"{walked} has no fields"
+            fields = dict(fielddefs[what][1])
+            if p not in fields:
+                known = ", ".join(fields) or "none"
+                return f"{what} has no field {p!r} (fields: {known})"
+            current = _desc(fields[p])
+        walked += f"[{p}]" if isinstance(p, int) else f".{p}"
+    return current  # type: ignore[no-any-return]
 
 
 def _desc(desc: Any) -> tuple[str, Any]:

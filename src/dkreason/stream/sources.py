@@ -77,24 +77,19 @@ class RosbagSource:
         self.note = ""
         if not path.exists():
             raise DkError(f"{path}: no such recording")
-        from rosbags.highlevel import AnyReader, AnyReaderError
+        from rosbags.highlevel import AnyReader
 
         ros1 = path.suffix == ".bag"
         default = _typestore(msg_files, ros1, typestore)
         try:
             self.reader = AnyReader([path], default_typestore=default)
             self.reader.open()
-            if not msg_files and typestore is None:  # say so when the bag stores no types
-                probe = AnyReader([path])
-                try:
-                    probe.open()
-                    probe.close()
-                except AnyReaderError as exc:
-                    if "no type definitions" in str(exc):
-                        self.note = (f"{path} stores no message definitions: using rosbags' "
-                                     f"{_store_name(ros1, None)} ones (--typestore, --msg)")
         except Exception as exc:  # rosbags raises several kinds for unreadable files
             raise DkError(f"{path}: not a readable ROS recording ({_why(exc)})") from None
+        if not msg_files and typestore is None and \
+                any(not c.msgdef.data for c in self.reader.connections):
+            self.note = (f"{path} stores no message definitions: using rosbags' "
+                         f"{_store_name(ros1, None)} ones (--typestore, --msg)")
 
     def types(self) -> dict[str, str]:
         return {c.topic: c.msgtype for c in self.reader.connections}
