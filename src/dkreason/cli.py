@@ -62,6 +62,14 @@ def _build() -> _Parser:
     def config(p: argparse.ArgumentParser) -> None:
         p.add_argument("--config", required=True, type=Path, help="TOML config file")
 
+    def definitions(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
+                       help="a pkg/msg/Name.msg definition for recordings that carry none "
+                            "(repeatable)")
+        p.add_argument("--typestore", choices=TYPESTORES,
+                       help="rosbags' standard message definitions for recordings that store "
+                            "none (default ros1_noetic for .bag, else ros2_humble)")
+
     def network(p: argparse.ArgumentParser) -> None:
         p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                        help="Zenoh endpoint to connect to, e.g. tcp/10.0.0.2:7447 (repeatable)")
@@ -101,9 +109,7 @@ def _build() -> _Parser:
                    help="valid time from header.stamp or the record time; auto: the stamps, "
                         "unless they run on another clock (simulated time), said in one line "
                         "(default auto)")
-    p.add_argument("--typestore", choices=TYPESTORES,
-                   help="rosbags' standard message definitions for recordings that store none "
-                        "(default ros1_noetic for .bag, else ros2_humble)")
+    definitions(p)
     p.add_argument("--live", action="store_true",
                    help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
     network(p)
@@ -114,9 +120,6 @@ def _build() -> _Parser:
                    help="live: TOML of platform = Ed25519 public key (PEM); their samples "
                         "must be signed (`serve --sign`)")
     p.add_argument("--duration", type=_positive, help="live: stop after this many wall seconds")
-    p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
-                   help="a pkg/msg/Name.msg definition for recordings that carry none "
-                        "(repeatable)")
     p.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
     p.add_argument("--plot", type=Path, help="draw features, verdicts and violations (.png, "
                                              ".svg or .pdf, as the name says)")
@@ -150,9 +153,7 @@ def _build() -> _Parser:
     p.add_argument("--source", type=Path,
                    help="replay this recording's topics of the platform (- : JSON lines on "
                         "stdin, published as they come)")
-    p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
-                   help="a pkg/msg/Name.msg definition for recordings that carry none "
-                        "(repeatable)")
+    definitions(p)
     p.add_argument("--origin", type=_finite,
                    help="wall time (Unix s) the replay starts at; nodes given the same one "
                         "replay in step (default: now)")
@@ -192,10 +193,7 @@ def _build() -> _Parser:
     p = sub.add_parser("info", help="what recordings hold, and which spec topics they bind")
     p.add_argument("--config", type=Path, help="TOML config: show which spec topics bind")
     p.add_argument("--json", action="store_true", help="one JSON document")
-    p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
-                   help="a pkg/msg/Name.msg definition (repeatable)")
-    p.add_argument("--typestore", choices=TYPESTORES,
-                   help="standard definitions for recordings that store none")
+    definitions(p)
     p.add_argument("source", nargs="+", metavar="[PLATFORM=]PATH")
     p.set_defaults(run=_info, remap=[], clock="header")  # each recording's clock: describe()
 
@@ -342,7 +340,8 @@ def _serve(args: argparse.Namespace) -> int:
 
     _logging()
     km = _km(args)
-    source = open_source(args.source, args.msg) if args.source is not None else None
+    source = open_source(args.source, args.msg, args.typestore) \
+        if args.source is not None else None
     records = getattr(source, "records", None)
     if source is not None and records is None:
         raise DkError(f"{source.name}: a damaged recording cannot be replayed live")

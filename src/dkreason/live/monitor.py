@@ -253,8 +253,8 @@ class LiveMonitor:
             while not self.stop.is_set() and not monitor.done:
                 if stop_at is not None and time.monotonic() >= stop_at:
                     break
-                if self.subs and all(pt in self.ended for pt in self.subs):
-                    break  # every replay is over: the stream ends, as a recording does
+                if self._replays_over():
+                    break  # the stream ends, as a recording does
                 mark = self.watermark()
                 if end is not None and mark is not None and mark > end:
                     break
@@ -271,10 +271,14 @@ class LiveMonitor:
             self.close()
         yield from monitor.finish()
 
+    def _replays_over(self) -> bool:
+        """Every subscribed topic's replay has ended: nothing more will come."""
+        return bool(self.subs) and all(pt in self.ended for pt in self.subs)
+
     def watermark(self) -> int | None:
         """Up to when every subscribed topic has been sent (None: not known yet)."""
         clocks = []
-        if self.subs and all(pt in self.ended for pt in self.subs):
+        if self._replays_over():
             return max(self.ended.values())
         for pt in self.subs:
             if pt in self.ended:  # nothing follows: it holds nobody back

@@ -144,8 +144,8 @@ def read_config(path: Path) -> Config:
     if replace and not rules:
         raise fail("replace_rules = true needs the rule files that replace the shipped policy")
     own = tuple(dict.fromkeys(_rule_path(base, r, fail) for r in rules))
-    policy = own if replace else (*shipped_policy(), *(p for p in own
-                                                        if p not in shipped_policy()))
+    shipped = () if replace else shipped_policy()
+    policy = (*shipped, *(p for p in own if p not in shipped))
     return Config(path, local, tuple(platforms), tuple(mappings), policy)
 
 
