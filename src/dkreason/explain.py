@@ -141,26 +141,25 @@ class Reader:
         relation = self.kb.engine.schema.get(str(fact[0]))
         if relation is None or relation.arity != len(fact) - 1:
             return {}
-        return dict(zip(relation.columns, fact[1:], strict=True))
+        return relation.row(fact[1:])  # type: ignore[arg-type]
 
     def text(self, fact: Pattern) -> str:
         pred, *args = fact
-        a = [self.name(x) for x in args]
         c = self.columns(fact)
-        if pred == "wanted" and isinstance(c["Query"], int) and c["Query"] < len(self.ground):
-            return f"the formula needs {self.ground[c['Query']].key}"
+        named = {k: self.name(v) for k, v in c.items()}
+        query = c.get("Query")
+        if pred == "wanted" and isinstance(query, int) and query < len(self.ground):
+            return f"the formula needs {self.ground[query].key}"
         if pred == "topic_arg" and None not in args:
-            named = {k: self.name(v) for k, v in c.items()}
             if c["Entity"] == "":
                 return "{Topic} has no argument {Position}".format(**named)
             return ("{Topic} argument {Position}: {Kind} {Entity}".format(**named)
                     + (f" = {named['IdField']}" if c["IdField"] else " (implicit)"))
         if pred in _GLOSSES and None not in args:
-            named = {k: self.name(v) for k, v in c.items()}
             if pred == "bridge":
                 named["Type"] = _BRIDGE.get(str(c["Type"]), str(c["Type"]))
             return _GLOSSES[str(pred)].format(**named)
-        return f"{pred}({', '.join(a)})"
+        return f"{pred}({', '.join(self.name(x) for x in args)})"
 
     def told_path(self, fact: Row) -> list[tuple[str, str, str, str]]:
         """same_rep(P, X, R) or sort_rep(P, X, R) as the told sameAs, subClassOf or
