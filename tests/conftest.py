@@ -2,13 +2,25 @@
 
 from __future__ import annotations
 
+import os
 import shutil
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Parsed knowledge is cached in a folder of this session's (dkreason.cache), never in
+    the user's own ~/.cache; CLI subprocesses inherit it."""
+    os.environ["DKREASON_CACHE"] = tempfile.mkdtemp(prefix="dkreason-cache-")
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    shutil.rmtree(os.environ.pop("DKREASON_CACHE", ""), ignore_errors=True)
 
 
 SCENARIOS = REPO / "tests" / "data" / "thesis"

@@ -4,6 +4,8 @@ expanding to the same features as their written-out twins."""
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -66,3 +68,27 @@ def test_the_runner_rejects_bad_options_with_exit_2(
     except SystemExit as exc:  # argparse's own errors
         code = int(exc.code or 0)
     assert code == 2 and says in capsys.readouterr().err
+
+
+ANSWERS = Path(__file__).parent / "data" / "chapter7" / "answers.json"
+
+
+def _points() -> list[tuple[str, int, float]]:
+    return [(case.name, i, share) for case in CASES for i in (0, len(case.xs) - 1)
+            for share in (0.0, 0.8)]
+
+
+@pytest.mark.parametrize(("case", "point", "share"), _points())
+def test_symbolic_sorts_give_the_answers_of_materialized_ones(
+        tmp_path: Path, case: str, point: int, share: float) -> None:
+    """Differential: every seeded chapter 7 workload, as the thesis writes it (share 0) and
+    with 80% of the further relevant specs over `some B`, matches exactly the topics and
+    filters the matcher gave when sort arguments were materialized per object
+    (tests/data/chapter7/answers.json, recorded with that matcher)."""
+    setup = next(c for c in CASES if c.name == case).point
+    w, text = setup(point, 1)
+    w = replace(w, sort_share=share, relevant_specs=max(w.relevant_specs, 20))
+    request = KnowledgeManager.from_config(write(w, tmp_path)).check_formula(text)
+    got = {str(f.feature.key): sorted([t.topic, sorted(map(list, t.filter))]
+                                      for t in f.topics) for f in request.features}
+    assert got == json.loads(ANSWERS.read_text(encoding="utf-8"))[f"{case}/{point}/{share}"]

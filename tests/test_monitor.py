@@ -314,7 +314,7 @@ def test_each_formula_is_parsed_once_and_expanded_once_from_the_cli_to_its_verdi
     from dkreason.parse import formula
 
     counts: Counter[str] = Counter()
-    parser, members = formula._parser(), expand.members
+    parser, members = formula._PARSER, expand.members
 
     def parse(text: str, *args: Any, **kwargs: Any) -> Any:
         counts["parse"] += 1

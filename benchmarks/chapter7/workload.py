@@ -33,6 +33,7 @@ class Workload:
     irrelevant_specs: int
     features: list[str]  # ground features the relevant specs are made for
     seed: int = 7
+    sort_share: float = 0.0  # of the further relevant specs, the share that read sorts
 
 
 def nine() -> list[str]:
@@ -90,8 +91,10 @@ def write(w: Workload, folder: Path) -> Path:
         k = rnd.randrange(len(args))
         args[k] = rnd.choice([x for x in names if x != args[k]])
         specs.append(_spec(f"irr{n}", f"{name}[{', '.join(args)}]"))
+    sorted_specs = round(w.relevant_specs * w.sort_share)
     for n in range(w.relevant_specs):  # further topics for the formula's features
-        specs.append(_spec(f"extra{n}", w.features[n % len(w.features)]))
+        specs.append(_spec(f"extra{n}", w.features[n % len(w.features)],
+                           over_sort=n < sorted_specs))
     (folder / "ch7.sslt").write_text("\n".join(specs) + "\n", encoding="utf-8")
     config = folder / "ch7.toml"
     config.write_text('local = "ch7"\n[platforms.ch7]\nontology = "ch7.owl"\n'
@@ -113,11 +116,16 @@ def _parse(feature: str) -> tuple[str, list[str]]:
     return name, [a.strip() for a in rest.rstrip("]").split(",")]
 
 
-def _spec(topic: str, feature: str) -> str:
+def _spec(topic: str, feature: str, over_sort: bool = False) -> str:
+    """A topic carrying `feature`; `over_sort`: its b-arguments read `some B` instead (every
+    object of B, the formula's among them)."""
     name, args = _parse(feature)
     labels = [f"a{i}" for i in range(len(args))]
-    aliased = ", ".join(f"{a} as {lab}" for a, lab in zip(args, labels, strict=True))
-    ids = ", ".join(f"{lab} = msg.id{i + 1}" for i, lab in enumerate(labels))
+    sort_arg = [over_sort and a.startswith("b") for a in args]
+    aliased = ", ".join(f"{'B' if s else a} as {lab}"
+                        for a, lab, s in zip(args, labels, sort_arg, strict=True))
+    ids = ", ".join(f"{'some ' if s else ''}{lab} = msg.id{i + 1}"
+                    for i, (lab, s) in enumerate(zip(labels, sort_arg, strict=True)))
     return f"topic {topic}:M contains {name}({aliased}) = msg.v for {ids}"
 
 

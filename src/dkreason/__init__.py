@@ -7,32 +7,35 @@
                             StreamPolicy(delay_before_approximation=Fraction(1, 10))):
         print(event)            # a Verdict or a Violation, as it happens
 
-The monitoring names (`Monitor`, `StreamPolicy`, `Verdict`, `Violation`, `Plan`) load on
-first use, so importing dkreason stays cheap.
+Every name but the errors loads on first use, so importing dkreason (and so starting the
+CLI, whose module lives in this package) stays cheap.
 """
 
 from typing import TYPE_CHECKING, Any
 
 from .errors import DkError, ParseError, SourceError, Span
-from .manager import KnowledgeManager
-from .model import (
-    FeatureKey,
-    FeatureRequest,
-    GroundFeature,
-    StreamRequest,
-    TopicArg,
-    TopicFeature,
-    TopicMatch,
-    TopicSpec,
-)
 
 if TYPE_CHECKING:
+    from .manager import KnowledgeManager
+    from .model import (
+        FeatureKey,
+        FeatureRequest,
+        GroundFeature,
+        StreamRequest,
+        TopicArg,
+        TopicFeature,
+        TopicMatch,
+        TopicSpec,
+    )
     from .monitor import Monitor
     from .plan import FormulaPlan, Plan
     from .progress import Verdict
     from .stream.processor import StreamPolicy, Violation
 
-_LAZY = {"Monitor": "monitor", "Plan": "plan", "FormulaPlan": "plan", "Verdict": "progress",
+_LAZY = {"KnowledgeManager": "manager",
+         **dict.fromkeys(("FeatureKey", "FeatureRequest", "GroundFeature", "StreamRequest",
+                          "TopicArg", "TopicFeature", "TopicMatch", "TopicSpec"), "model"),
+         "Monitor": "monitor", "Plan": "plan", "FormulaPlan": "plan", "Verdict": "progress",
          "StreamPolicy": "stream.processor", "Violation": "stream.processor"}
 
 

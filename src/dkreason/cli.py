@@ -50,13 +50,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 141
 
 
-def _build() -> _Parser:
-    from importlib.metadata import version
+class _Version(argparse.Action):
+    """--version, reading the installed version only when asked (importlib.metadata costs
+    more than the rest of `dkreason --help`)."""
 
-    from .stream.sources import TYPESTORES
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="show the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: Any) -> NoReturn:
+        from importlib.metadata import version
+
+        print(f"dkreason {version('dkreason')}")
+        parser.exit(0)
+
+
+def _build() -> _Parser:
+    from .stream import TYPESTORES
 
     parser = _Parser(prog="dkreason", description=__doc__.split("\n")[0] if __doc__ else None)
-    parser.add_argument("--version", action="version", version=f"dkreason {version('dkreason')}")
+    parser.add_argument("--version", action=_Version)
     sub = parser.add_subparsers(required=True, metavar="COMMAND", parser_class=_Parser)
 
     def config(p: argparse.ArgumentParser) -> None:
@@ -81,6 +93,9 @@ def _build() -> _Parser:
     p = sub.add_parser("match", help="the topics each feature of a formula is read from")
     config(p)
     p.add_argument("--json", action="store_true", help="print the stream request as JSON")
+    p.add_argument("--stats", action="store_true",
+                   help="on stderr: load and match times, and the rows of every stored "
+                        "relation (told facts and materialized views)")
     p.add_argument("formula")
     p.set_defaults(run=_match)
 
@@ -212,7 +227,17 @@ def _km(args: argparse.Namespace) -> KnowledgeManager:
 
 
 def _match(args: argparse.Namespace) -> int:
-    request = _km(args).check_formula(args.formula)
+    import time
+
+    start = time.perf_counter()
+    km = _km(args)
+    loaded = time.perf_counter()
+    request = km.check_formula(args.formula)
+    if args.stats:
+        print(f"stats: load {(loaded - start) * 1e3:.1f} ms, match "
+              f"{(time.perf_counter() - loaded) * 1e3:.1f} ms", file=sys.stderr)
+        for name, (kind, rows) in sorted(km.kb.engine.sizes().items()):
+            print(f"stats: {kind:<5} {name:<20} {rows:>9}", file=sys.stderr)
     if args.json:
         print(json.dumps(request.to_json(), ensure_ascii=False))
     else:

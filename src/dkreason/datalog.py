@@ -255,6 +255,19 @@ class Datalog:
         """Rows each materialized view holds: what a knowledge base costs in memory."""
         return {name: len(rows) for name, (_, rows) in self._frozen.items()}
 
+    def sizes(self) -> dict[str, tuple[str, int]]:
+        """Each stored relation (input facts and materialized views): its kind and rows."""
+        from pyDatalog import Logic
+
+        self._activate()
+        db = Logic.tl.logic.Db
+        out: dict[str, tuple[str, int]] = {}
+        for r in self.schema.values():
+            pred = db.get(f"{r.name}/{r.arity}")
+            if r.kind in ("input", "view") and pred is not None:
+                out[r.name] = (r.kind, len(pred.db) - len(pred.clauses))
+        return out
+
     def _reads(self) -> dict[str, set[str]]:
         """Each derived predicate and the predicates its rules' bodies name."""
         reads: dict[str, set[str]] = {}

@@ -7,6 +7,7 @@ rules against both ontologies they join, so a bad file fails at load time with i
 
 from __future__ import annotations
 
+import gc
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -28,6 +29,7 @@ from .facts import (
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
 from .parse.config import SCHEMA, Config, read_config, shipped_policy
+from .parse.files import read_bytes
 from .parse.sslt import without_spans
 
 
@@ -46,16 +48,28 @@ class Platform:
 
 def load_platforms(config: Config) -> dict[str, Platform]:
     """The platforms whose files the config names (a live federation fetches the others)."""
-    from .parse.owl import read_ontology
-    from .parse.sslt import read_specs
+    return {files.name: read_platform(files.name, files.ontology, files.specs)
+            for files in config.platforms if files.ontology is not None}
 
-    out: dict[str, Platform] = {}
-    for files in config.platforms:
-        if files.ontology is not None:
-            specs = read_specs(files.specs).specs if files.specs is not None else ()
-            out[files.name] = make_platform(read_ontology(files.ontology, files.name), specs,
-                                            files.specs)
-    return out
+
+def read_platform(name: str, ontology: Path, specs: Path | None) -> Platform:
+    """A platform's knowledge from its files: parsed and resolved once, then from the cache
+    (dkreason.cache) for as long as the files' bytes stay the same."""
+    from . import cache
+    from .parse.owl import parse_ontology
+    from .parse.sslt import is_xml, parse_specs
+
+    xml = specs is not None and is_xml(specs)
+    onto_data, spec_data = read_bytes(ontology), read_bytes(specs) if specs else b""
+    base = ontology.resolve().as_uri()
+
+    def build() -> Platform:
+        parsed = parse_specs(spec_data, str(specs), xml=xml).specs if specs else ()
+        return make_platform(parse_ontology(onto_data, str(ontology), name, base), parsed,
+                             specs)
+
+    return cache.cached("platform", (name, str(ontology), base, onto_data, str(specs),
+                                     spec_data), build)
 
 
 def load_mappings(config: Config) -> tuple[Mapping_, ...]:
@@ -127,7 +141,12 @@ class KnowledgeBase:
     @classmethod
     def from_config(cls, path: Path) -> KnowledgeBase:
         with gc_paused():
-            return cls._load(path)
+            kb = cls._load(path)
+        # The load's heap lives as long as the knowledge base: collect its garbage now and
+        # set the rest aside, so no collection during the first formulas walks it again.
+        gc.collect()
+        gc.freeze()
+        return kb
 
     @classmethod
     def _load(cls, path: Path) -> KnowledgeBase:
@@ -300,8 +319,8 @@ class KnowledgeBase:
         """The most specific told sorts of an object, for messages."""
         ont = self.platform(platform).ontology
         told = sorted({c for o, c in ont.types if o == iri})
-        return told or sorted({str(s) for (_, _, s) in self.engine.query("instance_of", platform,
-                                                                           iri, None)})
+        return told or sorted({str(s) for (_, _, s) in self.engine.query("is_a", platform, iri,
+                                                                           None)})
 
     # ---- mappings ----------------------------------------------------------------------
 

@@ -9,11 +9,12 @@ from typing import TYPE_CHECKING
 from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform
 from .model import StreamRequest, TopicSpec
+from .plan import Parsed, Plan, plan
+from .request import request
 
 if TYPE_CHECKING:
     from .explain import Explanation
     from .monitor import Event
-    from .plan import Parsed, Plan
     from .stream.processor import StreamPolicy
     from .stream.sources import Source
 
@@ -32,15 +33,11 @@ class KnowledgeManager:
 
     def plan(self, formulas: str | Sequence[str | Parsed]) -> Plan:
         """Formulas parsed, checked against the local ontology and expanded, once each."""
-        from .plan import plan
-
         return plan(self.kb, [formulas] if isinstance(formulas, str) else formulas)
 
     def request(self, plan: Plan) -> StreamRequest:
         """The stream request of a plan: every ground feature and the topics to merge (matched
         again whenever it is asked, so it follows the knowledge base as it changes)."""
-        from .request import request
-
         return request(self.kb, plan)
 
     def check_formula(self, formula: str) -> StreamRequest:

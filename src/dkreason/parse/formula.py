@@ -10,12 +10,13 @@ import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from fractions import Fraction
-from functools import cache, lru_cache
+from functools import lru_cache
 from typing import Any
 
 from lark import Lark, Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
+from ..cache import lark_file
 from ..errors import ParseError, Span
 from ..model import Arg, FeatureKey, FeatureRef
 
@@ -135,14 +136,6 @@ _WORD = {"U": "until", "¬": "not", "∧": "and", "∨": "or", "→": "->", "↔
          "∀": "forall", "∃": "exists", "=": "=="}
 
 
-@cache
-def _parser() -> Lark:
-    # The transformer runs inside the LALR parser: the AST is built without a parse tree.
-    return Lark.open_from_package("dkreason.parse", "mtl.lark", parser="lalr",
-                                  maybe_placeholders=False,
-                                  transformer=_ToAst())
-
-
 class _ToAst(Transformer[Token, Any]):
     @staticmethod
     def _span(token: Token) -> Span:
@@ -237,6 +230,14 @@ class _ToAst(Transformer[Token, Any]):
         return _nest("forall", children[:-1], _formula(children[-1]))
 
 
+# Built at import, from lark's cache when the grammar is unchanged (a few ms, not the 40 ms
+# of an LALR analysis), so the first formula costs what later ones do.  The transformer runs
+# inside the LALR parser: the AST is built without a parse tree.
+_PARSER = Lark.open_from_package("dkreason.parse", "mtl.lark", parser="lalr",
+                                 maybe_placeholders=False, transformer=_ToAst(),
+                                 cache=lark_file("mtl"))
+
+
 def _nest(op: str, bindings: list[tuple[str, str, Span]], body: Formula) -> Formula:
     for var, sort, span in reversed(bindings):
         body = Quant(op, var, sort, body, span)
@@ -268,7 +269,7 @@ def _where(node: Any) -> Span:
 
 def parse_formula(text: str) -> Formula:
     try:
-        return _balanced(_formula(_parser().parse(text)), 0)  # type: ignore[no-any-return]
+        return _balanced(_formula(_PARSER.parse(text)), 0)  # type: ignore[no-any-return]
     except UnexpectedInput as exc:
         raise _syntax_error(exc, text) from None
 

@@ -18,6 +18,7 @@ from xml.sax.saxutils import quoteattr
 from lark import Lark, Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
+from ..cache import lark_file
 from ..errors import DkError, ParseError, Span
 from ..model import ArgKind, TopicArg, TopicFeature, TopicSpec
 from .files import decode, read_bytes
@@ -26,8 +27,10 @@ from .files import decode, read_bytes
 @cache
 def _parser() -> Lark:
     # The transformer runs inside the LALR parser (no parse tree): spans come from tokens.
+    # Built on first use (a specs file the cache does not hold), its tables from lark's cache.
     return Lark.open_from_package("dkreason.parse", "sslt.lark", parser="lalr",
-                                  maybe_placeholders=False, transformer=_ToModel())
+                                  maybe_placeholders=False, transformer=_ToModel(),
+                                  cache=lark_file("sslt"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -323,9 +326,14 @@ def format_xml(specs: tuple[TopicSpec, ...]) -> str:
 # ---- files -------------------------------------------------------------------------------------
 
 def read_specs(path: Path) -> SpecFile:
+    return parse_specs(read_bytes(path), str(path), xml=is_xml(path))
+
+
+def is_xml(path: Path) -> bool:
+    """Whether a specs file is XML (else SSL_T text), by its suffix."""
     if path.suffix.lower() not in (".xml", ".sslt"):
         raise DkError(f"{path}: topic specifications must be .sslt (SSL_T text) or .xml")
-    return parse_specs(read_bytes(path), str(path), xml=path.suffix.lower() == ".xml")
+    return path.suffix.lower() == ".xml"
 
 
 def parse_specs(data: bytes, file: str, *, xml: bool) -> SpecFile:

@@ -220,10 +220,6 @@ def dict_reader(name: str, wanted: Wanted) -> Any:
     return read
 
 
-TYPESTORES = ("ros1_noetic", "ros2_foxy", "ros2_galactic", "ros2_humble", "ros2_iron",
-              "ros2_jazzy", "ros2_kilted", "latest")
-
-
 def _store_name(ros1: bool, name: str | None) -> str:
     return name or ("ros1_noetic" if ros1 else "ros2_humble")
 

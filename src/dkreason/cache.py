@@ -1,0 +1,102 @@
+"""Parsed knowledge kept between runs, keyed by the content it came from.
+
+Parsing dominates a cold load (rdflib for the ontology, lark for the specs: ~80% at 10k
+objects), and most runs read the very files the previous run read.  A platform's parsed model
+is pickled under a key that hashes everything it depends on: the files' paths and bytes, and
+the source of the code that turned them into the model (so a changed parser never serves a
+stale model).  A changed file is a new key; an unreadable entry is ignored and rebuilt.
+
+Where: `$DKREASON_CACHE`, else `$XDG_CACHE_HOME/dkreason`, else `~/.cache/dkreason`;
+`DKREASON_CACHE=off` disables it.  The cache is the user's own, like `__pycache__`: whoever
+can write there can run code as that user, so it is created private (0700).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import pickle
+import tempfile
+from collections.abc import Callable, Iterable
+from functools import cache
+from pathlib import Path
+from typing import TypeVar
+
+T = TypeVar("T")
+
+# The modules whose code shapes a cached value: a change to any of them is a new key.
+_SHAPERS = ("model.py", "names.py", "facts.py", "kb.py", "errors.py", "parse/owl.py",
+            "parse/sslt.py", "parse/sslt.lark", "parse/files.py", "xmlsafe.py")
+
+
+def folder() -> Path | None:
+    """Where entries live, or None when caching is off."""
+    setting = os.environ.get("DKREASON_CACHE", "")
+    if setting.lower() in ("off", "0", "no", "false"):
+        return None
+    if setting:
+        return Path(setting)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "dkreason"
+
+
+@cache
+def _code_stamp() -> bytes:
+    here = Path(__file__).parent
+    digest = hashlib.sha256()
+    for name in _SHAPERS:
+        with contextlib.suppress(OSError):
+            digest.update(name.encode() + b"\0" + (here / name).read_bytes())
+    return digest.digest()
+
+
+def lark_file(grammar: str) -> str | bool:
+    """Where lark keeps the analysed `grammar` (lark checks the grammar's hash itself), or
+    False when caching is off: building the LALR tables costs 30-40 ms a grammar."""
+    where = folder()
+    if where is None:
+        return False
+    with contextlib.suppress(OSError):
+        where.mkdir(mode=0o700, parents=True, exist_ok=True)
+        return str(where / f"{grammar}.lark-cache")
+    return False
+
+
+def key(kind: str, parts: Iterable[bytes | str]) -> str:
+    """The entry name for a value of `kind` built from `parts` (paths, file contents)."""
+    digest = hashlib.sha256(_code_stamp() + kind.encode())
+    for part in parts:
+        data = part.encode() if isinstance(part, str) else part
+        digest.update(len(data).to_bytes(8, "little") + data)
+    return f"{kind}-{digest.hexdigest()}"
+
+
+def cached(kind: str, parts: Iterable[bytes | str], build: Callable[[], T]) -> T:
+    """The value built from `parts`: from the cache when an entry exists, else `build()`,
+    stored for the next run.  Errors from `build` pass through and nothing is stored."""
+    where = folder()
+    if where is None:
+        return build()
+    entry = where / key(kind, parts)
+    # missing, truncated, from another Python: rebuild
+    with contextlib.suppress(Exception), open(entry, "rb") as handle:
+        return pickle.load(handle)  # type: ignore[no-any-return]
+    value = build()
+    _store(entry, value)
+    return value
+
+
+def _store(entry: Path, value: object) -> None:
+    """Write atomically (a reader sees the old entry or the whole new one); a cache that
+    cannot be written (read-only home, full disk) only costs the next run its parse."""
+    with contextlib.suppress(OSError, pickle.PicklingError, RecursionError):
+        entry.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=entry.parent, prefix=".tmp-")
+        try:
+            with os.fdopen(fd, "wb") as handle:
+                pickle.dump(value, handle, protocol=pickle.HIGHEST_PROTOCOL)
+            os.replace(tmp, entry)
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
