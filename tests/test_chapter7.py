@@ -58,7 +58,7 @@ def test_the_runner_rejects_an_unknown_test_case(capsys: pytest.CaptureFixture[s
 
 
 @pytest.mark.parametrize(("argv", "says"), [
-    (["--loads", "0"], "expected a whole number of at least 1, got '0'"),
+    (["--processes", "0"], "expected a whole number of at least 1, got '0'"),
     (["--growth", "--scales", "10,10"], "needs two different scales"),
 ])
 def test_the_runner_rejects_bad_options_with_exit_2(

@@ -9,26 +9,33 @@ times, through the public API a user calls:
 - matching: expanding quantifiers and asking the rules for every feature's topics at once;
 - building: the stream request.
 
-Each figure is the median of several runs (after one untimed call).  Tables print in the
-thesis' layout with its figures beside ours; the target is per-formula work (extracting +
-checking + matching + building) at most 0.1% of the thesis' same phases.  `--growth` times
-the 9-feature workload at scales 1, 10 and 100 and prints each phase's fitted growth exponent
-(1 = linear in the grown sizes).
+Every point runs in fresh processes (`--processes`, default 3; the median of them is shown),
+as a user's command does: the load is timed cold (no cache), then the first formula after
+it, then `--runs` more (their median is "later").  Wall and CPU time both.  Tables print in
+the thesis' layout with its figures beside ours; the target is per-formula work (extracting +
+checking + matching + building), first formula included, at most 0.1% of the thesis' same
+phases.  `--sorts` is the second reading of the workloads: the further relevant specs
+(2.2, 3) read `some B` instead of naming objects.  `--growth` times the 9-feature workload at
+scales 1, 10 and 100 and prints each phase's fitted growth exponent (1 = linear).
 
-    python -m benchmarks.chapter7 [--runs 7] [--loads 3] [--cases 1.1,4] [--growth] [--out DIR]
+    python -m benchmarks.chapter7 [--runs 7] [--processes 3] [--cases 1.1,4] [--sorts]
+                                  [--growth] [--out DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
 import tomllib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from dkreason import KnowledgeManager
@@ -134,23 +141,44 @@ def time_formula(km: KnowledgeManager, text: str) -> dict[str, float]:
                                      (t4 - t3) * 1e3), strict=True))
 
 
-def measure(w: Workload, text: str, runs: int, loads: int, folder: Path) -> dict[str, float]:
-    """Median ms of every phase for one workload and formula."""
-    config = write(w, folder)
-    load_times = []
-    km: KnowledgeManager | None = None
-    for _ in range(loads):
-        km = None  # the previous knowledge base is freed before the next load is timed
-        t0 = time.perf_counter()
-        km = KnowledgeManager.from_config(config)
-        load_times.append((time.perf_counter() - t0) * 1e3)
-    assert km is not None
-    time_formula(km, text)  # untimed: the first call in a process builds the formula grammar
-    samples = [time_formula(km, text) for _ in range(runs)]
-    out = {_PRE: statistics.median(load_times)}
+FIRST, FIRST_CPU, LATER_CPU, PRE_CPU = ("First formula", "First formula CPU",
+                                        "Later formula CPU", "Preprocessing CPU")
+
+
+def one_process(config: Path, text: str, runs: int) -> dict[str, float]:
+    """What one fresh process sees (`--point`): a cold load, the first formula after it, and
+    the median phases of `runs` later ones; ms, wall unless named CPU."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    km = KnowledgeManager.from_config(config)
+    out = {_PRE: (time.perf_counter() - t0) * 1e3, PRE_CPU: (time.process_time() - c0) * 1e3}
+    c0 = time.process_time()
+    out[FIRST] = per_formula(time_formula(km, text))
+    out[FIRST_CPU] = (time.process_time() - c0) * 1e3
+    samples, cpu = [], []
+    for _ in range(runs):
+        c0 = time.process_time()
+        samples.append(time_formula(km, text))
+        cpu.append((time.process_time() - c0) * 1e3)
     for phase in FORMULA_PHASES:
         out[phase] = statistics.median(s[phase] for s in samples)
+    out[LATER_CPU] = statistics.median(cpu)
     return out
+
+
+def measure(w: Workload, text: str, runs: int, processes: int,
+            folder: Path) -> dict[str, float]:
+    """Median over `processes` fresh processes of every figure of `one_process`."""
+    config = write(w, folder)
+    env = os.environ | {"DKREASON_CACHE": "off"}  # preprocessing is timed cold
+    seen = []
+    for _ in range(processes):
+        done = subprocess.run([sys.executable, "-m", "benchmarks.chapter7", "--point",
+                               str(config), "--formula", text, "--runs", str(runs)],
+                              capture_output=True, text=True, env=env, check=False)
+        if done.returncode:
+            raise SystemExit(f"chapter7: a point failed: {done.stderr.strip()[-500:]}")
+        seen.append(json.loads(done.stdout))
+    return {k: statistics.median(s[k] for s in seen) for k in seen[0]}
 
 
 def per_formula(figures: dict[str, float]) -> float:
@@ -161,12 +189,14 @@ def thesis_per_formula(case: Case, i: int) -> float:
     return sum(case.thesis[p][i] for p in FORMULA_PHASES if p in case.thesis)
 
 
-def run_case(case: Case, scale: int, runs: int, loads: int,
-             root: Path) -> list[dict[str, float]]:
+def run_case(case: Case, scale: int, runs: int, processes: int, root: Path,
+             sorts: bool) -> list[dict[str, float]]:
     results = []
     for i in range(len(case.xs)):
         w, text = case.point(i, scale)
-        results.append(measure(w, text, runs, loads, root / f"case{case.name}-{i}"))
+        if sorts:
+            w = replace(w, sort_share=1.0)
+        results.append(measure(w, text, runs, processes, root / f"case{case.name}-{i}"))
     return results
 
 
@@ -183,9 +213,15 @@ def table(case: Case, results: list[dict[str, float]]) -> list[list[str]]:
         rows.append([f"{phase} (ours)", *(_fmt(r[phase]) for r in results)])
     rows.append(["Per formula (thesis)",
                  *(str(round(thesis_per_formula(case, i))) for i in range(len(case.xs)))])
-    rows.append(["Per formula (ours)", *(_fmt(per_formula(r)) for r in results)])
-    rows.append(["Ours / thesis, per formula",
+    rows.append(["Per formula, later (ours)", *(_fmt(per_formula(r)) for r in results)])
+    rows.append(["Per formula, first (ours)", *(_fmt(r[FIRST]) for r in results)])
+    rows.append(["CPU: later / first (ours)",
+                 *(f"{_fmt(r[LATER_CPU])}/{_fmt(r[FIRST_CPU])}" for r in results)])
+    rows.append(["Ours / thesis, later",
                  *(f"{per_formula(r) / thesis_per_formula(case, i):.3%}"
+                   for i, r in enumerate(results))])
+    rows.append(["Ours / thesis, first",
+                 *(f"{r[FIRST] / thesis_per_formula(case, i):.3%}"
                    for i, r in enumerate(results))])
     rows.append(["Ours / thesis, preprocessing",
                  *(f"{r[_PRE] / case.thesis[_PRE][i]:.0%}" for i, r in enumerate(results))])
@@ -236,13 +272,14 @@ def plot(case: Case, results: list[dict[str, float]], path: Path) -> None:
     plt.close(fig)
 
 
-def growth(scales: list[int], runs: int, loads: int, root: Path) -> list[list[str]]:
+def growth(scales: list[int], runs: int, processes: int, root: Path) -> list[list[str]]:
     """The 9-feature workload (table 7.1's last point) grown by each scale; fitted exponents."""
-    figures = {s: measure(*_case_1_1(7, s), runs, loads, root / f"growth-{s}") for s in scales}
+    figures = {s: measure(*_case_1_1(7, s), runs, processes, root / f"growth-{s}")
+               for s in scales}
     header = ["Phase (ms)", *(f"scale {s}" for s in scales), "exponent"]
     rows = [header]
     first, last = scales[0], scales[-1]
-    for phase in (*PHASES, "Per formula"):
+    for phase in (*PHASES, "Per formula", FIRST):
         values = [per_formula(figures[s]) if phase == "Per formula" else figures[s][phase]
                   for s in scales]
         k = math.log(values[-1] / values[0]) / math.log(last / first)
@@ -264,13 +301,21 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.chapter7",
                                      description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=_positive, default=7, help="runs per formula (median)")
-    parser.add_argument("--loads", type=_positive, default=3, help="loads per workload (median)")
+    parser.add_argument("--processes", type=_positive, default=3,
+                        help="fresh processes per point (median)")
+    parser.add_argument("--sorts", action="store_true",
+                        help="the further relevant specs read `some B` (second reading)")
+    parser.add_argument("--point", type=Path, help=argparse.SUPPRESS)  # one process's figures
+    parser.add_argument("--formula", help=argparse.SUPPRESS)
     parser.add_argument("--cases", default=",".join(c.name for c in CASES))
     parser.add_argument("--scale", type=_positive, default=1)
     parser.add_argument("--growth", action="store_true", help="also time scales 1, 10, 100")
     parser.add_argument("--scales", type=_scales, default=[1, 10, 100])
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args(argv)
+    if args.point is not None:
+        print(json.dumps(one_process(args.point, args.formula, args.runs)))
+        return 0
     wanted = args.cases.split(",")
     unknown = [c for c in wanted if c not in {case.name for case in CASES}]
     if unknown:
@@ -280,25 +325,28 @@ def main(argv: list[str] | None = None) -> int:
         print("chapter7: --scales needs two different scales to fit a growth", file=sys.stderr)
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
-    report = [f"# Thesis chapter 7 reproduced (scale {args.scale}, median of {args.runs} runs"
-              f" and {args.loads} loads)\n"]
+    reading = "further relevant specs over sorts" if args.sorts else "specs name objects"
+    report = [f"# Thesis chapter 7 reproduced (scale {args.scale}, {reading}; median of "
+              f"{args.processes} fresh processes, later formulas the median of {args.runs})\n"]
     worst = 0.0
     with tempfile.TemporaryDirectory(prefix="dkreason-ch7-") as tmp:
         for case in (c for c in CASES if c.name in wanted):
-            results = run_case(case, args.scale, args.runs, args.loads, Path(tmp))
+            results = run_case(case, args.scale, args.runs, args.processes, Path(tmp),
+                               args.sorts)
             rows = table(case, results)
             print(f"\nTest case {case.name}: {case.title} (scale {args.scale}; ms)")
             print(plain(rows))
             report += [f"## Test case {case.name}: {case.title}\n", markdown(rows),
                        f"\n![test case {case.name}](case{case.name}.png)\n"]
             plot(case, results, args.out / f"case{case.name}.png")
-            worst = max(worst, *(per_formula(r) / thesis_per_formula(case, i)
+            worst = max(worst, *(max(per_formula(r), r[FIRST]) / thesis_per_formula(case, i)
                                  for i, r in enumerate(results)))
-        summary = f"Worst per-formula share of the thesis: {worst:.3%} (target 0.1%)"
+        summary = (f"Worst per-formula share of the thesis, first formula included: "
+                   f"{worst:.3%} (target 0.1%)")
         print(f"\n{summary}")
         report.append(summary + "\n")
         if args.growth:
-            rows = growth(args.scales, args.runs, args.loads, Path(tmp))
+            rows = growth(args.scales, args.runs, args.processes, Path(tmp))
             print("\nGrowth of the 9-feature workload (200 concepts, 200 individuals, "
                   "20 specs at scale 1)")
             print(plain(rows))

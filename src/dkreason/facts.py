@@ -167,8 +167,6 @@ def spec_facts(platform: str, spec: ResolvedSpec) -> Facts:
         out["topic_feature"].append((platform, spec.name, k, f.iri, f.field))
         out["topic_arg"] += [(platform, spec.name, k, i, a.kind, a.iri, a.id_field)
                              for i, a in enumerate(f.args, 1)]
-        out["topic_arg"] += [(platform, spec.name, k, i, "object", "", "")  # padding
-                             for i in range(len(f.args) + 1, 4)]
     if spec.entity is not None:
         e = spec.entity
         out["topic_entity"] = [(platform, spec.name, e.kind, e.iri, e.id_field)]

@@ -287,18 +287,22 @@ class KnowledgeBase:
         return self.platforms[name]
 
     def _check_specs(self, p: Platform, names: list[str]) -> None:
-        """Every argument of the named specs fits its feature's signature (rules/signature.dl)."""
-        if not names:
+        """Every argument of the named specs fits its feature's signature (rules/signature.dl),
+        each distinct use of an object or sort asked once: 100k specs naming a few objects
+        cost a few checks."""
+        uses: list[Row] = list(dict.fromkeys((p.name, f.iri, i, a.kind, a.iri) for name in names
+                                  for f in p.resolved[name].features
+                                  for i, a in enumerate(f.args, 1)))
+        if not uses:
             return
-        topic = names[0] if len(names) == 1 else None
-        fitting = set(self.engine.query("spec_arg_fits", p.name, topic, None, None))
+        fitting = set(self.engine.ask("spec_arg_fits", {"spec_arg": uses}, p.name, None, None,
+                                      None, None))
         for name in names:
             spec, resolved = p.specs[name], p.resolved[name]
-            for k, (feature, rfeature) in enumerate(zip(spec.features, resolved.features,
-                                                        strict=True), 1):
+            for feature, rfeature in zip(spec.features, resolved.features, strict=True):
                 for i, (arg, rarg) in enumerate(zip(feature.args, rfeature.args,
                                                     strict=True), 1):
-                    if (p.name, name, k, i) not in fitting:
+                    if (p.name, rfeature.iri, i, rarg.kind, rarg.iri) not in fitting:
                         raise SortError(f"topic {name}: argument {i} of {feature.name} "
                                         f"does not fit: {self.misfit(p, rfeature.iri, i, rarg)}",
                                         arg.span)
