@@ -406,6 +406,40 @@ def test_cyclic_subclass_and_same_as_chains_stay_linear(tmp_path: Path) -> None:
     assert len(km.list_sort("C2999")) == n
 
 
+def test_a_large_specs_file_costs_a_few_stored_rows_a_topic_and_one_check_a_use(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Defect 13: a 10 MB SSL_T file (86,000 topics) took 53 s and 2 GB.  A topic costs what it
+    says and no more: its own facts (no padding rows), one keyed row per topic feature, and
+    the signature check asks each distinct argument once, however many topics repeat it (the
+    10 MB file now loads in about 26 s, 1.3 GB; from the cache, parsing is skipped)."""
+    from dkreason.datalog import Datalog
+
+    n = 5000
+    shutil.copy(REPO / "ontologies" / "platform1.owl", tmp_path / "p1.owl")
+    (tmp_path / "s.sslt").write_text("".join(
+        f"topic t{i}:UavMsg contains Altitude(uav1) = msg.alt for uav1 = msg.id, "
+        f"Speed(UAV) = msg.spd for some UAV = msg.id\n" for i in range(n)))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "p1.owl"\nspecs = "s.sslt"\n')
+    asked: list[int] = []
+    ask = Datalog.ask
+
+    def counted(self: Datalog, predicate: str, inputs: dict[str, Any], *args: Any) -> Any:
+        if predicate == "spec_arg_fits":
+            asked.append(len(inputs["spec_arg"]))
+        return ask(self, predicate, inputs, *args)
+
+    monkeypatch.setattr(Datalog, "ask", counted)
+    km = KnowledgeManager.from_config(tmp_path / "c.toml")
+    assert asked == [2]  # uav1 for Altitude, UAV for Speed
+    sizes = {name: rows for name, (_, rows) in km.kb.engine.sizes().items()}
+    per_topic = {"topic": 1, "topic_feature": 2, "topic_arg": 2, "topic_objects": 1,
+                 "sort_arg_at": 1}
+    for name, rows in per_topic.items():
+        assert n * rows <= sizes[name] <= n * rows + 50, (name, sizes[name])
+    request = km.check_formula("always (Speed[uav2] > 3)")
+    assert len(request.features[0].topics) == n
+
+
 def test_no_traceback_from_the_installed_command(tmp_path: Path) -> None:
     """The console script itself: one line on stderr, exit 2."""
     done = subprocess.run([sys.executable, "-m", "dkreason.cli", "match", "--config",

@@ -289,11 +289,11 @@ def test_custom_message_definitions_are_read_from_msg_files(tmp_path: Path) -> N
     msg.mkdir(parents=True)
     shutil.copy(REPO / "examples" / "traffic" / "msg" / "dkreason_msgs" / "msg" / "CarMsg.msg",
                 msg / "CarMsg.msg")
-    from dkreason.stream.sources import _typestore
-    store = _typestore([msg / "CarMsg.msg"], ros1=False)
+    from dkreason.stream.sources import _msg_types, _typestore
+    store = _typestore(_msg_types([msg / "CarMsg.msg"]), ros1=False)
     assert "dkreason_msgs/msg/CarMsg" in store.fielddefs
     with pytest.raises(DkError, match="expected a message definition pkg/msg/Name.msg"):
-        _typestore([tmp_path / "CarMsg.txt"], ros1=False)
+        _msg_types([tmp_path / "CarMsg.txt"])
 
 
 def test_a_recording_without_the_features_leaves_every_verdict_unknown(

@@ -448,6 +448,16 @@ def test_a_wrong_embedded_definition_is_refused_not_decoded_into_garbage(
     assert code == 2 and got == [] and err.count("\n") == 1
     assert "/robot1/level: its messages do not match the definition of x/msg/T" in err
 
+    # --msg gives the right definition, and it overrides the embedded one
+    (tmp_path / "x" / "msg").mkdir(parents=True)
+    (tmp_path / "x" / "msg" / "T.msg").write_text("float64 a\nfloat64 b\n")
+    (tmp_path / "l.sslt").write_text("topic level:x/T contains X(me) = msg.a\n")
+    code, got, err = verdicts(capsys, "--config", str(config), "--source", str(folder),
+                              "--msg", str(tmp_path / "x" / "msg" / "T.msg"),
+                              "always (X[me] < 4)", "always (X[me] < 5)")
+    assert code == 1 and sorted(v for v, _ in got) == [False, True], err
+    assert "x/msg/T: the definition of --msg" in err  # said once, on stderr
+
 
 def test_times_on_an_epoch_clock_read_relative_and_as_dates(
         capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

@@ -76,7 +76,8 @@ def _build() -> _Parser:
 
     def definitions(p: argparse.ArgumentParser) -> None:
         p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
-                       help="a pkg/msg/Name.msg definition for recordings that carry none "
+                       help="a pkg/msg/Name.msg definition, for recordings that store none or to "
+                            "replace a wrong one they store "
                             "(repeatable)")
         p.add_argument("--typestore", choices=TYPESTORES,
                        help="rosbags' standard message definitions for recordings that store "

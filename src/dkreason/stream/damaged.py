@@ -61,13 +61,14 @@ class SequentialSource:
 
     def __init__(self, path: Path, kind: Kind, msg_files: Sequence[Path], why: str,
                  typestore: str | None = None) -> None:
-        from .sources import _typestore
+        from .sources import _msg_types, _typestore
 
         self.name, self.path, self.kind = str(path), path, kind
         self.note = f"{path}: {why}; reading it sequentially up to the damage"
-        self.store = _typestore(msg_files, kind == "ros1", typestore)
+        given = _msg_types(msg_files)
+        self.store = _typestore(given, kind == "ros1", typestore)
         self.channels: dict[Any, tuple[str, str]] = {}  # id → topic, msgtype
-        self._known: set[str] = set()
+        self._known: set[str] = set(given)  # --msg replaces the recording's definition
         try:
             for item in _READERS[kind](path):
                 if item[0] != "message":

@@ -68,7 +68,8 @@ class RosbagSource:
 
     Message definitions come from the recording; one that stores none (a Humble-era `.db3`)
     is read with rosbags' standard definitions of `typestore` (default: ros1_noetic for a
-    `.bag`, else ros2_humble), extended by `msg_files` (`pkg/msg/Name.msg`)."""
+    `.bag`, else ros2_humble).  `msg_files` (`pkg/msg/Name.msg`) add to those and replace a
+    recording's own definition of the same type (a bag recorded with a wrong one)."""
 
     def __init__(self, path: Path, msg_files: Sequence[Path] = (),
                  typestore: str | None = None) -> None:
@@ -80,7 +81,8 @@ class RosbagSource:
         from rosbags.highlevel import AnyReader
 
         ros1 = path.suffix == ".bag"
-        default = _typestore(msg_files, ros1, typestore)
+        given = _msg_types(msg_files)
+        default = _typestore(given, ros1, typestore)
         try:
             self.reader = AnyReader([path], default_typestore=default)
             self.reader.open()
@@ -90,6 +92,12 @@ class RosbagSource:
                 any(not c.msgdef.data for c in self.reader.connections):
             self.note = (f"{path} stores no message definitions: using rosbags' "
                          f"{_store_name(ros1, None)} ones (--typestore, --msg)")
+        replaced = sorted(name for name, definition in given.items()
+                          if self.reader.typestore.fielddefs.get(name, definition) != definition)
+        if replaced:
+            self.reader.typestore = _replaced(self.reader.typestore.fielddefs, given)
+            self.note = "; ".join(f"{name}: the definition of --msg replaces the one {path} "
+                                  f"stores" for name in replaced)
 
     def types(self) -> dict[str, str]:
         return {c.topic: c.msgtype for c in self.reader.connections}
@@ -224,12 +232,30 @@ def _store_name(ros1: bool, name: str | None) -> str:
     return name or ("ros1_noetic" if ros1 else "ros2_humble")
 
 
-def _typestore(msg_files: Sequence[Path], ros1: bool, name: str | None = None) -> Any:
+def _typestore(given: dict[str, Any], ros1: bool, name: str | None = None) -> Any:
     """rosbags' standard definitions of `name` (default by the recording's kind), with the
-    types of `msg_files` added."""
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    `given` types added."""
+    from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores(_store_name(ros1, name)))
+    store.register(given)
+    return store
+
+
+def _replaced(types: dict[str, Any], given: dict[str, Any]) -> Any:
+    """A typestore of `types` with the `given` definitions in place of their namesakes
+    (rosbags' own register refuses a second definition of a type)."""
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.EMPTY)
+    store.register(types | given)
+    return store
+
+
+def _msg_types(msg_files: Sequence[Path]) -> dict[str, Any]:
+    """The types `pkg/msg/Name.msg` files define, in rosbags' form."""
+    from rosbags.typesys import get_types_from_msg
+
     types: dict[str, Any] = {}
     for path in msg_files:
         if path.suffix != ".msg" or path.parent.name != "msg":
@@ -239,8 +265,7 @@ def _typestore(msg_files: Sequence[Path], ros1: bool, name: str | None = None) -
             types.update(get_types_from_msg(path.read_text(encoding="utf-8"), name))
         except Exception as exc:
             raise DkError(f"{path}: not a message definition ({_why(exc)})") from None
-    store.register(types)
-    return store
+    return types
 
 
 def _why(exc: BaseException) -> str:
