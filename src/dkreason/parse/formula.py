@@ -396,3 +396,8 @@ def feature_key(text: str) -> FeatureKey | None:
         return None
     args = tuple(a.strip() for a in found.group(2).split(",")) if found.group(2) else ()
     return FeatureKey(found.group(1), args) if all(args) else None
+
+# lark compiles its lexers' expressions on first use (~9 ms): one formula using every kind of
+# token pays that here too.
+_PARSER.parse('forall x in S: always[0, 1ms] (A[x] > -1.5 * abs(B[x]) + 2 and not C[x] or '
+              'eventually D[x] == "s" -> E[x] until[0, 2] F[x] <-> true)')
