@@ -85,3 +85,64 @@ def test_malformed_rdf_names_file_and_line(tmp_path: Path, name: str, text: str,
         read_ontology(path, "p")
     assert str(err.value).startswith(str(tmp_path / says.split(":")[0])) and \
         says.split(": ", 1)[1] in str(err.value)
+
+
+# ---- OWL 2 declarations (issue 15, item 3) ----------------------------------------------------
+
+DECLARED = """@prefix : <http://x.org/d#> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+@prefix xsd: <http://www.w3.org/2001/XMLSchema#> .
+@prefix voaf: <http://purl.org/vocommons/voaf#> .
+<http://x.org/d> a owl:Ontology, voaf:Vocabulary .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:hasPart a owl:ObjectProperty, owl:TransitiveProperty .
+:near a owl:ObjectProperty, owl:SymmetricProperty .
+:serial a owl:DatatypeProperty, owl:FunctionalProperty, owl:InverseFunctionalProperty .
+:note a owl:AnnotationProperty .
+:Celsius a rdfs:Datatype .
+:UAV a owl:Class, owl:NamedIndividual .
+:Höhe a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf (
+    :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :UAV ] ) ] .
+:drohne1 a owl:NamedIndividual, :UAV ; :id 1 .
+"""
+
+
+def declared(tmp_path: Path) -> Path:
+    (tmp_path / "d.ttl").write_text(DECLARED, encoding="utf-8")
+    (tmp_path / "d.sslt").write_text("topic /hoehe:M contains Höhe(drohne1) = msg.h "
+                                     "for drohne1 = msg.id\n"
+                                     "topic /alle:M contains Höhe(UAV) = msg.h "
+                                     "for some UAV = msg.id\n", encoding="utf-8")
+    (tmp_path / "d.toml").write_text('local = "d"\n[platforms.d]\nontology = "d.ttl"\n'
+                                     'specs = "d.sslt"\n', encoding="utf-8")
+    return tmp_path / "d.toml"
+
+
+def test_properties_datatypes_and_the_ontology_are_never_objects(tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    km = KnowledgeManager.from_config(declared(tmp_path))
+    assert km.list_sort("Thing") == ["UAV", "drohne1"]  # UAV is punned: also an object
+    assert "Vocabulary" not in {local_name(s) for s in km.kb.platform("d").ontology.sorts}
+
+
+def test_a_punned_name_is_a_sort_where_a_sort_is_expected_and_an_object_elsewhere(
+        tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    km = KnowledgeManager.from_config(declared(tmp_path))
+    request = km.check_formula("forall x in UAV: always (Höhe[x] > 10)")
+    assert [f.feature.key for f in request.features] == [("Höhe", ("drohne1",))]
+    assert sorted(t.topic for t in request.features[0].topics) == ["/alle", "/hoehe"]
+    ont = km.kb.platform("d").ontology
+    assert "http://x.org/d#UAV" in ont.sorts and "http://x.org/d#UAV" in ont.individuals
+
+
+def test_non_ascii_local_names_need_no_quoting(tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    km = KnowledgeManager.from_config(declared(tmp_path))
+    (feature,) = km.check_formula("always (Höhe[drohne1] > 10)").features
+    assert {t.topic for t in feature.topics} == {"/hoehe", "/alle"}

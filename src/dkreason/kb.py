@@ -255,8 +255,9 @@ class KnowledgeBase:
         sort_iri = p.names.resolve(sort, ("sort",), Span("<api>"))
         ns = sort_iri[:len(sort_iri) - len(local_name(sort_iri))]
         iri = name[1:-1] if name.startswith("<") else ns + name
-        if p.names.kind(iri) not in (None, "object"):
-            raise NameError_(f"{name!r} is {article(str(p.names.kind(iri)))} on {platform}, "
+        kinds = p.names.kinds(iri)
+        if kinds and "object" not in kinds:
+            raise NameError_(f"{name!r} is {article(min(kinds))} on {platform}, "
                              f"not an object", Span("<api>"))
         if (iri, sort_iri) in p.ontology.types:
             return iri

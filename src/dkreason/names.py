@@ -2,7 +2,8 @@
 
 A name may be written three ways wherever one may stand: `Heading` (local name, must be unique
 among the platform's entities of the expected kind), `hr:Heading` (prefix declared in that
-platform's ontology file) or `<http://…#Heading>`.
+platform's ontology file) or `<http://…#Heading>`.  An IRI may be of several kinds (OWL 2
+punning: `UAV` a class and an individual); it stands for the kind the place expects.
 """
 
 from __future__ import annotations
@@ -31,15 +32,16 @@ class NameIndex:
                  entities: Mapping[Kind, Iterable[str]]) -> None:
         self.platform = platform
         self.prefixes = dict(prefixes)
-        self._kind_of: dict[str, Kind] = {}
+        self._kinds: dict[str, set[Kind]] = defaultdict(set)
         self._by_local: dict[str, list[str]] = defaultdict(list)
         for kind, iris in entities.items():
             for iri in iris:
-                self._kind_of[iri] = kind
-                self._by_local[local_name(iri)].append(iri)
+                if iri not in self._kinds:
+                    self._by_local[local_name(iri)].append(iri)
+                self._kinds[iri].add(kind)
 
-    def kind(self, iri: str) -> Kind | None:
-        return self._kind_of.get(iri)
+    def kinds(self, iri: str) -> frozenset[Kind]:
+        return frozenset(self._kinds.get(iri, ()))
 
     def resolve(self, written: str, kinds: tuple[Kind, ...], span: Span) -> str:
         """The IRI `written` names among entities of `kinds`, or a NameError_ saying why not."""
@@ -54,19 +56,19 @@ class NameIndex:
             candidates = [self.prefixes[prefix] + rest]
         else:
             candidates = self._by_local.get(written, [])
-        fitting = [iri for iri in candidates if self._kind_of.get(iri) in kinds]
+        fitting = [iri for iri in candidates if self.kinds(iri) & set(kinds)]
         if len(fitting) == 1:
             return fitting[0]
         if len(fitting) > 1:
             both = " and ".join(f"<{iri}>" for iri in sorted(fitting))
             raise NameError_(f"ambiguous {wanted} {written!r} on {self.platform}: {both}; "
                              f"write a prefixed name or a full <IRI>", span)
-        other = [self._kind_of[iri] for iri in candidates if iri in self._kind_of]
+        other = sorted(k for iri in candidates for k in self.kinds(iri))
         if other:
             raise NameError_(f"{written!r} is {article(other[0])} on {self.platform}, "
                              f"not {article(wanted)}", span)
         known = [n for n, iris in self._by_local.items()
-                 if any(self._kind_of[i] in kinds for i in iris)]
+                 if any(self.kinds(i) & set(kinds) for i in iris)]
         close = difflib.get_close_matches(written, known, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise NameError_(f"unknown {wanted} {written!r} on {self.platform}{hint}", span)

@@ -109,16 +109,28 @@ def parse_ontology(data: bytes, file: str, platform: str, base: str | None = Non
     def members(node: object) -> list[object]:
         return list(Collection(graph, node)) if isinstance(node, BNode) else []
 
-    meta = {OWL.Class, RDFS.Class, OWL.NamedIndividual, OWL.ObjectProperty,
-            OWL.DatatypeProperty, OWL.AnnotationProperty, OWL.Ontology, OWL.Restriction,
-            RDF.Property}
+    # OWL 2 declarations of what is not an object: properties (whatever their other
+    # characteristics), datatypes, ontologies; their subjects are never objects (unless also
+    # declared individuals: punning) and their types never sorts.
+    declared_not_objects = {
+        OWL.ObjectProperty, OWL.DatatypeProperty, OWL.AnnotationProperty, RDF.Property,
+        OWL.OntologyProperty, OWL.TransitiveProperty, OWL.SymmetricProperty,
+        OWL.AsymmetricProperty, OWL.ReflexiveProperty, OWL.IrreflexiveProperty,
+        OWL.FunctionalProperty, OWL.InverseFunctionalProperty, OWL.DeprecatedProperty,
+        RDFS.Datatype, OWL.DataRange, OWL.Ontology}
+    meta = {OWL.Class, RDFS.Class, OWL.NamedIndividual, OWL.Restriction, OWL.DeprecatedClass,
+            OWL.AllDisjointClasses, OWL.AllDifferent, OWL.AllDisjointProperties, OWL.Axiom,
+            OWL.NegativePropertyAssertion, *declared_not_objects}
+    not_objects = {s for t in declared_not_objects for s in graph.subjects(RDF.type, t)}
     classes = {s for s in graph.subjects(RDF.type, OWL.Class) if named(s)}
     classes |= {s for s in graph.subjects(RDF.type, RDFS.Class) if named(s)}
     for pred in (RDFS.subClassOf, OWL.equivalentClass):
         for s, o in graph.subject_objects(pred):
             classes |= {n for n in (s, o) if named(n)}
+    declared = {s for s in graph.subjects(RDF.type, OWL.NamedIndividual) if named(s)}
     typed = [(s, o) for s, o in graph.subject_objects(RDF.type)
-             if named(s) and named(o) and o not in meta]
+             if named(s) and named(o) and o not in meta
+             and (s not in not_objects or s in declared)]
     classes |= {o for _, o in typed}
     classes.add(URIRef(THING))
 
@@ -150,8 +162,7 @@ def parse_ontology(data: bytes, file: str, platform: str, base: str | None = Non
         features[str(cls)] = Signature(
             str(cls), tuple(sorts.get(i, (THING,)) for i in range(1, arity + 1)))
 
-    individuals = {s for s in graph.subjects(RDF.type, OWL.NamedIndividual) if named(s)}
-    individuals |= {s for s, _ in typed if s not in classes}
+    individuals = declared | {s for s, _ in typed if s not in classes}
     same = [(str(a), str(b)) for a, b in graph.subject_objects(OWL.sameAs)
             if named(a) and named(b)]
     individuals |= {URIRef(x) for pair in same for x in pair}
