@@ -161,3 +161,53 @@ def test_bad_bridge_rules_name_the_file_and_the_rule(scenario: Path, bad_rule: s
     with pytest.raises(ParseError) as err:
         KnowledgeManager.from_config(scenario / "federation.toml")
     assert str(err.value).startswith(str(mapping)) and says in str(err.value)
+
+
+# ---- shared vocabularies (issue 15, item 5) ---------------------------------------------------
+
+TURTLE = Path(__file__).parent / "data" / "turtles" / "turtle.ttl"
+
+
+def fleet_of_two(tmp_path: Path, second_id: str = "") -> Path:
+    """Two robots whose ontologies use the same IRIs (robot2 holds its own copy, where `me`
+    may carry another id), each with its own specs, and no mapping file."""
+    text = TURTLE.read_text()
+    (tmp_path / "r1.ttl").write_text(text.replace(":me a owl:NamedIndividual, :Robot .",
+                                                  ":me a owl:NamedIndividual, :Robot ; :id 1 ."))
+    (tmp_path / "r2.ttl").write_text(text.replace(
+        ":me a owl:NamedIndividual, :Robot .",
+        f":me a owl:NamedIndividual, :Robot ; :id {second_id or 1} ."))
+    (tmp_path / "r1.sslt").write_text("topic pose:turtlesim/Pose contains X(me) = msg.x "
+                                      "for me = msg.id\n")
+    (tmp_path / "r2.sslt").write_text("topic odom:turtlesim/Pose contains X(Robot) = msg.x "
+                                      "for some Robot = msg.id\n")
+    (tmp_path / "f.toml").write_text(
+        'local = "robot1"\n[platforms.robot1]\nontology = "r1.ttl"\nspecs = "r1.sslt"\n'
+        '[platforms.robot2]\nontology = "r2.ttl"\nspecs = "r2.sslt"\n')
+    return tmp_path / "f.toml"
+
+
+def test_platforms_sharing_a_vocabulary_need_no_bridge_file(tmp_path: Path) -> None:
+    km = KnowledgeManager.from_config(fleet_of_two(tmp_path))
+    request = km.check_formula("always (X[me] < 15)")
+    assert {(t.platform, t.topic) for t in request.features[0].topics} == {
+        ("robot1", "pose"), ("robot2", "odom")}
+    assert request.warnings == () and km.kb.warnings == []
+
+
+def test_a_shared_object_is_filtered_by_each_platforms_own_id(tmp_path: Path) -> None:
+    km = KnowledgeManager.from_config(fleet_of_two(tmp_path, second_id="7"))
+    request = km.check_formula("always (X[me] < 15)")
+    assert {(t.platform, t.topic, t.filter) for t in request.features[0].topics} == {
+        ("robot1", "pose", (("msg.id", 1),)), ("robot2", "odom", (("msg.id", 7),))}
+
+
+def test_the_readmes_cowl_example_reads_every_bridge_type(tmp_path: Path) -> None:
+    from dkreason.model import BRIDGE_TYPES
+    from dkreason.parse.cowl import read_bridge_rules
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    (example,) = re.findall(r"```xml\n(<cowl:mapping.*?</cowl:mapping>)\n```", readme, re.S)
+    (tmp_path / "m.cowl.xml").write_text(example)
+    rules = read_bridge_rules(tmp_path / "m.cowl.xml")
+    assert sorted(r.type for r in rules) == sorted(BRIDGE_TYPES)

@@ -129,10 +129,13 @@ class KnowledgeBase:
                            for r in (self._checked(m) if check else m.rules)]}
 
     def _warn(self) -> None:
-        joined = {m.source for m in self.mappings if m.target == self.local} | \
-                 {m.target for m in self.mappings if m.source == self.local}
-        self.warnings = [f"platform {name} is joined to {self.local} by no mapping file: its "
-                         f"topics are not used" for name in self.platforms
+        # The platforms the policy searches besides the local one (rules/federation.dl's
+        # context); a policy of one's own that defines none is taken at its word.
+        joined = {str(r) for _, r in self.engine.query("context", self.local, None)} \
+            if any(r.head.predicate == "context" for r in self.engine.rules) \
+            else set(self.platforms)
+        self.warnings = [f"platform {name} is joined to {self.local} by no mapping file nor a "
+                         f"shared vocabulary: its topics are not used" for name in self.platforms
                          if name != self.local and name not in joined]
         self.warnings += [f"mapping {m.source}→{m.target} ({m.file}) does not involve the "
                           f"local platform {self.local}: unused" for m in self.mappings
