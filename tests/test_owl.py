@@ -146,3 +146,122 @@ def test_non_ascii_local_names_need_no_quoting(tmp_path: Path) -> None:
     km = KnowledgeManager.from_config(declared(tmp_path))
     (feature,) = km.check_formula("always (Höhe[drohne1] > 10)").features
     assert {t.topic for t in feature.topics} == {"/hoehe", "/alle"}
+
+
+# ---- several files and imports (issue 15, item 1) ---------------------------------------------
+
+SOSA = Path(__file__).parent / "data" / "sosa-ssn"
+
+
+def station(tmp_path: Path, config: str = "", platform: str = "",
+            ontology: str = '"weather.ttl"') -> Path:
+    """The weather station (tests/data/sosa-ssn) copied with its catalog, a spec that only
+    fits through SSN's axioms, and a config with `config` and `platform` lines added."""
+    for f in SOSA.iterdir():
+        (tmp_path / f.name).write_bytes(f.read_bytes())
+    (tmp_path / "w.sslt").write_text("topic /baro:M contains Reading(baro1) = msg.p "
+                                     "for baro1 = msg.id\n")
+    (tmp_path / "w.toml").write_text(f'{config}\n[platforms.w]\nontology = {ontology}\n'
+                                     f'specs = "w.sslt"\n{platform}\n')
+    return tmp_path / "w.toml"
+
+
+def test_owl_imports_are_followed_through_a_protege_catalog(tmp_path: Path) -> None:
+    """weather imports SSN, which imports SOSA: baro1, a sosa:Sensor, is an ssn:System only
+    by SSN's axiom, so the spec fits and the sort expands."""
+    from dkreason import KnowledgeManager
+
+    km = KnowledgeManager.from_config(station(tmp_path))
+    assert km.list_sort("System") == ["baro1", "baro2"]
+    request = km.check_formula("forall s in System: always (Reading[s] > 900)")
+    assert sorted(f.feature.key[1] for f in request.features) == [("baro1",), ("baro2",)]
+    sorts = {local_name(s) for s in km.kb.platform("w").ontology.sorts}
+    assert {"Sensor", "System", "Observation", "Deployment"} <= sorts  # SOSA's and SSN's
+
+
+def test_without_the_import_the_spec_does_not_fit(tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+    from dkreason.errors import SortError
+
+    config = station(tmp_path, platform='imports = "skip"')
+    (tmp_path / "catalog-v001.xml").unlink()
+    with pytest.raises(SortError, match="baro1 is a Sensor, Reading needs System"):
+        KnowledgeManager.from_config(config)
+
+
+def test_an_unresolved_import_names_the_importing_file_and_the_iri(tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    config = station(tmp_path)
+    (tmp_path / "catalog-v001.xml").unlink()
+    with pytest.raises(ParseError, match=r"weather.ttl: owl:imports <http://www.w3.org/ns/ssn/>"
+                                         r" is found neither"):
+        KnowledgeManager.from_config(config)
+
+
+def test_a_config_table_resolves_imports_and_several_files_make_one_ontology(
+        tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    config = station(tmp_path, config='[imports]\n"http://www.w3.org/ns/ssn/" = "ssn.ttl"\n'
+                                      '"http://www.w3.org/ns/sosa/" = "sosa.ttl"',
+                     ontology='["weather.ttl", "extra.ttl"]')
+    (tmp_path / "catalog-v001.xml").unlink()
+    (tmp_path / "extra.ttl").write_text(
+        "@prefix owl: <http://www.w3.org/2002/07/owl#> .\n@prefix sosa: "
+        "<http://www.w3.org/ns/sosa/> .\n<http://example.org/weather#baro3> a "
+        "owl:NamedIndividual, sosa:Sensor .\n")
+    km = KnowledgeManager.from_config(config)
+    assert km.list_sort("System") == ["baro1", "baro2", "baro3"]
+
+
+def test_an_import_cycle_loads_each_ontology_once(tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    config = station(tmp_path)
+    sosa = tmp_path / "sosa.ttl"  # SOSA imports the weather station back
+    sosa.write_text(sosa.read_text().replace(
+        "sosa: a owl:Ontology ,", "sosa: owl:imports <http://example.org/weather> .\n"
+                                  "sosa: a owl:Ontology ,"))
+    (tmp_path / "catalog-v001.xml").write_text((tmp_path / "catalog-v001.xml").read_text()
+                                               .replace("</group>", '<uri name="http://example'
+                                                        '.org/weather" uri="weather.ttl"/>'
+                                                        "</group>"))
+    assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
+
+
+def test_a_skipped_import_is_a_warning(tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    config = station(tmp_path, platform='imports = "skip"')
+    (tmp_path / "w.sslt").write_text("")
+    (tmp_path / "catalog-v001.xml").unlink()
+    km = KnowledgeManager.from_config(config)
+    (warning,) = km.kb.warnings
+    assert "owl:imports <http://www.w3.org/ns/ssn/>" in warning and "skipped" in warning
+
+
+def test_an_xxe_inside_an_imported_file_is_refused_naming_it(tmp_path: Path) -> None:
+    from dkreason import KnowledgeManager
+
+    config = station(tmp_path)
+    (tmp_path / "ssn.owl").write_text(
+        '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n'
+        '<rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">&x;</rdf:RDF>\n')
+    catalog = tmp_path / "catalog-v001.xml"
+    catalog.write_text(catalog.read_text().replace('uri="ssn.ttl"', 'uri="ssn.owl"'))
+    with pytest.raises(Exception, match="ssn.owl"):
+        KnowledgeManager.from_config(config)
+
+
+def test_a_changed_import_is_read_again_not_taken_from_the_cache(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from dkreason import KnowledgeManager
+
+    monkeypatch.setenv("DKREASON_CACHE", str(tmp_path / "cache"))
+    config = station(tmp_path)
+    assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
+    ssn = tmp_path / "ssn.ttl"
+    ssn.write_text(ssn.read_text() + "\n<http://example.org/weather#baro9> a sosa:Sensor .\n")
+    assert KnowledgeManager.from_config(config).list_sort("System") == [
+        "baro1", "baro2", "baro9"]

@@ -72,19 +72,39 @@ def key(kind: str, parts: Iterable[bytes | str]) -> str:
     return f"{kind}-{digest.hexdigest()}"
 
 
-def cached(kind: str, parts: Iterable[bytes | str], build: Callable[[], T]) -> T:
-    """The value built from `parts`: from the cache when an entry exists, else `build()`,
-    stored for the next run.  Errors from `build` pass through and nothing is stored."""
+def cached(kind: str, parts: Iterable[bytes | str], build: Callable[[], T],
+           fresh: Callable[[T], bool] = lambda _: True) -> T:
+    """The value built from `parts`: from the cache when an entry exists and is `fresh` (it
+    may depend on more than `parts`: the files an ontology imports), else `build()`, stored
+    for the next run.  Errors from `build` pass through and nothing is stored."""
     where = folder()
     if where is None:
         return build()
     entry = where / key(kind, parts)
     # missing, truncated, from another Python: rebuild
     with contextlib.suppress(Exception), open(entry, "rb") as handle:
-        return pickle.load(handle)  # type: ignore[no-any-return]
+        found: T = pickle.load(handle)
+        if fresh(found):
+            return found
     value = build()
     _store(entry, value)
     return value
+
+
+def digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def unchanged(files: Iterable[tuple[str, str]]) -> bool:
+    """Whether every (path, digest) still holds: the file is there with the same bytes."""
+    for path, known in files:
+        try:
+            with open(path, "rb") as handle:
+                if digest(handle.read()) != known:
+                    return False
+        except OSError:
+            return False
+    return True
 
 
 def _store(entry: Path, value: object) -> None:

@@ -28,7 +28,7 @@ from .facts import (
 )
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
-from .parse.config import SCHEMA, Config, read_config, shipped_policy
+from .parse.config import SCHEMA, Config, PlatformFiles, read_config, shipped_policy
 from .parse.files import read_bytes
 from .parse.sslt import without_spans
 
@@ -40,6 +40,7 @@ class Platform:
     specs: dict[str, TopicSpec] = field(default_factory=dict)
     resolved: dict[str, ResolvedSpec] = field(default_factory=dict)
     specs_path: Path | None = None
+    notes: tuple[str, ...] = ()  # warnings from reading its files (imports skipped)
 
     @property
     def name(self) -> str:
@@ -48,28 +49,34 @@ class Platform:
 
 def load_platforms(config: Config) -> dict[str, Platform]:
     """The platforms whose files the config names (a live federation fetches the others)."""
-    return {files.name: read_platform(files.name, files.ontology, files.specs)
-            for files in config.platforms if files.ontology is not None}
+    return {files.name: read_platform(files, config.imports)
+            for files in config.platforms if files.ontology}
 
 
-def read_platform(name: str, ontology: Path, specs: Path | None) -> Platform:
-    """A platform's knowledge from its files: parsed and resolved once, then from the cache
-    (dkreason.cache) for as long as the files' bytes stay the same."""
+def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
+    """A platform's knowledge from its files and what they import: parsed and resolved once,
+    then from the cache (dkreason.cache) for as long as every file read keeps its bytes."""
     from . import cache
-    from .parse.owl import parse_ontology
+    from .parse.owl import ontology_of, read_sources
     from .parse.sslt import is_xml, parse_specs
 
+    specs = files.specs
     xml = specs is not None and is_xml(specs)
-    onto_data, spec_data = read_bytes(ontology), read_bytes(specs) if specs else b""
-    base = ontology.resolve().as_uri()
+    spec_data = read_bytes(specs) if specs else b""
 
-    def build() -> Platform:
+    def build() -> tuple[Platform, tuple[tuple[str, str], ...]]:
+        sources = read_sources(files.ontology, imports, files.skip_imports)
         parsed = parse_specs(spec_data, str(specs), xml=xml).specs if specs else ()
-        return make_platform(parse_ontology(onto_data, str(ontology), name, base), parsed,
-                             specs)
+        platform = make_platform(ontology_of(sources.graph, str(files.ontology[0]),
+                                             files.name), parsed, specs)
+        platform.notes = sources.skipped
+        return platform, tuple((str(p), cache.digest(d)) for p, d in sources.read)
 
-    return cache.cached("platform", (name, str(ontology), base, onto_data, str(specs),
-                                     spec_data), build)
+    parts: list[bytes | str] = [
+        files.name, *(str(p.resolve()) for p in files.ontology), str(specs), spec_data,
+        str(files.skip_imports), *(f"{k}={v.resolve()}" for k, v in sorted(imports.items()))]
+    platform, _ = cache.cached("platform", parts, build, lambda found: cache.unchanged(found[1]))
+    return platform
 
 
 def load_mappings(config: Config) -> tuple[Mapping_, ...]:
@@ -137,6 +144,7 @@ class KnowledgeBase:
         self.warnings = [f"platform {name} is joined to {self.local} by no mapping file nor a "
                          f"shared vocabulary: its topics are not used" for name in self.platforms
                          if name != self.local and name not in joined]
+        self.warnings += [note for p in self.platforms.values() for note in p.notes]
         self.warnings += [f"mapping {m.source}→{m.target} ({m.file}) does not involve the "
                           f"local platform {self.local}: unused" for m in self.mappings
                           if self.local not in (m.source, m.target)]

@@ -3,8 +3,12 @@
     local = "platform1"
     rules = ["rules/extensions/subsumption.dl"]    # optional rule files, added to the shipped
     replace_rules = false                          # policy; true: they are the whole policy
+    [imports]                                       # optional: owl:imports IRI → file, for
+    "http://www.w3.org/ns/ssn/" = "ssn.ttl"         # imports no catalog-v001.xml resolves
     [platforms.platform1]
-    ontology = "ontologies/platform1.owl"
+    ontology = "ontologies/platform1.owl"           # a file, or a list of files
+    imports = "skip"                                # optional: an unresolved import is a
+                                                    # warning, not an error
     specs = "specs/platform1.sslt"                  # .sslt or .xml; optional
     namespace = "/robot1"                           # optional: relative topic names resolve
                                                     # under it, as ROS resolves them
@@ -27,7 +31,7 @@ import importlib.resources
 import os
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -47,9 +51,10 @@ def shipped_policy() -> tuple[Path, ...]:
 @dataclass(frozen=True, slots=True)
 class PlatformFiles:
     name: str
-    ontology: Path | None  # None: the knowledge comes from the platform's live node
+    ontology: tuple[Path, ...]  # empty: the knowledge comes from the platform's live node
     specs: Path | None
     namespace: str | None = None  # ROS namespace of the platform's relative topic names
+    skip_imports: bool = False  # an owl:imports found nowhere is a warning, not an error
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,6 +71,7 @@ class Config:
     platforms: tuple[PlatformFiles, ...]
     mappings: tuple[MappingFiles, ...]
     rules: tuple[Path, ...]
+    imports: dict[str, Path] = field(default_factory=dict)  # owl:imports IRI → file
 
 
 def read_config(path: Path) -> Config:
@@ -95,7 +101,12 @@ def read_config(path: Path) -> Config:
             raise fail(f"{where}: {key!r} holds a control character ({value!r})")
         return value
 
-    _only(data, {"local", "platforms", "mappings", "rules", "replace_rules"}, "top level", fail)
+    _only(data, {"local", "platforms", "mappings", "rules", "replace_rules", "imports"},
+          "top level", fail)
+    imports_raw = data.get("imports", {})
+    if not isinstance(imports_raw, dict):
+        raise fail("[imports] must be a table of ontology IRI = file")
+    imports = {iri: at(text(imports_raw, iri, "[imports]")) for iri in imports_raw}
     platforms_raw = data.get("platforms")
     if not isinstance(platforms_raw, dict) or not platforms_raw:
         raise fail("no [platforms.NAME] table")
@@ -103,7 +114,7 @@ def read_config(path: Path) -> Config:
     for name, table in platforms_raw.items():
         if not isinstance(table, dict):
             raise fail(f"platforms.{name} must be a table")
-        _only(table, {"ontology", "specs", "namespace"}, f"[platforms.{name}]", fail)
+        _only(table, {"ontology", "specs", "namespace", "imports"}, f"[platforms.{name}]", fail)
         section = f"[platforms.{name}]"
         if "specs" in table and "ontology" not in table:
             raise fail(f"{section}: specs without an ontology")
@@ -111,9 +122,15 @@ def read_config(path: Path) -> Config:
         if namespace is not None and not _NAMESPACE.fullmatch(namespace):
             raise fail(f"{section}: namespace {namespace!r} is not an absolute ROS namespace "
                        f"like /robot1")
-        ontology, specs = (at(text(table, key, section)) if key in table else None
-                           for key in ("ontology", "specs"))
-        platforms.append(PlatformFiles(name, ontology, specs, namespace))
+        written = table.get("ontology", [])
+        listed = written if isinstance(written, list) and written else [written]
+        ontology = tuple(at(text({"ontology": x}, "ontology", section))
+                         for x in listed) if "ontology" in table else ()
+        specs = at(text(table, "specs", section)) if "specs" in table else None
+        skip = table.get("imports", "follow")
+        if skip not in ("follow", "skip"):
+            raise fail(f'{section}: imports must be "follow" or "skip", not {skip!r}')
+        platforms.append(PlatformFiles(name, ontology, specs, namespace, skip == "skip"))
     names = [p.name for p in platforms]
     local = data.get("local", names[0] if len(names) == 1 else None)
     if local not in names:
@@ -146,7 +163,7 @@ def read_config(path: Path) -> Config:
     own = tuple(dict.fromkeys(_rule_path(base, r, fail) for r in rules))
     shipped = () if replace else shipped_policy()
     policy = (*shipped, *(p for p in own if p not in shipped))
-    return Config(path, local, tuple(platforms), tuple(mappings), policy)
+    return Config(path, local, tuple(platforms), tuple(mappings), policy, imports)
 
 
 def _only(table: dict[str, Any], allowed: set[str], where: str, fail: Any) -> None:

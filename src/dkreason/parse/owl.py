@@ -8,8 +8,11 @@ signatures (thesis 6.1).  The closures the matcher needs are Datalog rules (rule
 from __future__ import annotations
 
 import logging
+import os
 import re
 import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -27,16 +30,98 @@ def read_ontology(path: Path, platform: str) -> Ontology:
     return parse_ontology(read_bytes(path), str(path), platform, path.resolve().as_uri())
 
 
-def served(path: Path) -> tuple[str, str]:
-    """The ontology at `path` as a live platform serves it: as Turtle (a peer never chooses
-    the parser its monitor runs), and the SHA-256 of the file (what tells a returning
-    platform's ontology from the one it served before)."""
+@dataclass(frozen=True, slots=True)
+class Sources:
+    """An ontology's files with everything they import, merged into one graph: what was read
+    (every file and catalog, to tell when a cached model went stale) and what was skipped."""
+
+    graph: Any
+    read: tuple[tuple[Path, bytes], ...]
+    skipped: tuple[str, ...]  # one warning line per import left out (imports = "skip")
+
+
+def read_sources(files: Sequence[Path], imports: Mapping[str, Path] | None = None,
+                 skip: bool = False) -> Sources:
+    """The files, then what they import (`owl:imports`), each once however many import it
+    (cycles included).  An import is found in `imports` (IRI → file, the config's
+    `[imports]`), else in an OASIS XML catalog (`catalog-v001.xml`, as Protégé writes it)
+    beside the importing file; nothing is fetched.  One that is found nowhere is an error
+    naming the importing file and the IRI, or with `skip` a warning."""
+    from rdflib import Graph, URIRef
+    from rdflib.namespace import OWL, RDF
+
+    graph = Graph(bind_namespaces="none")
+    read: list[tuple[Path, bytes]] = []
+    skipped: list[str] = []
+    catalogs: dict[Path, dict[str, Path]] = {}
+    loaded: set[Path] = set()
+    names: set[str] = set()  # the IRIs of the ontologies loaded so far
+    todo: list[tuple[Path, str | None]] = [(Path(f), None) for f in files]
+    while todo:
+        path, iri = todo.pop(0)
+        if path.resolve() in loaded:
+            continue
+        loaded.add(path.resolve())
+        data = read_bytes(path)
+        read.append((path, data))
+        part = _graph(data, str(path), path.resolve().as_uri(), None)
+        names |= {str(o) for o in part.subjects(RDF.type, OWL.Ontology) if isinstance(o, URIRef)}
+        names |= {iri} if iri else set()
+        for _, _, wanted in sorted(part.triples((None, OWL.imports, None))):
+            target = str(wanted)
+            if target in names or target.rstrip("/#") in {n.rstrip("/#") for n in names}:
+                continue
+            found = (imports or {}).get(target) or _catalog(path.parent, catalogs, read).get(
+                target)
+            if found is None:
+                message = (f"{path}: owl:imports <{target}> is found neither in the config's "
+                           f"[imports] nor in a catalog-v001.xml beside it (nothing is fetched)")
+                if not skip:
+                    raise ParseError(message.split(": ", 1)[1], Span(str(path)))
+                skipped.append(message + "; skipped")
+                continue
+            todo.append((found, target))
+        for triple in part:
+            graph.add(triple)
+        for prefix, ns in part.namespaces():
+            if prefix and prefix not in dict(graph.namespaces()):
+                graph.bind(prefix, ns)
+    return Sources(graph, tuple(read), tuple(skipped))
+
+
+def _catalog(folder: Path, catalogs: dict[Path, dict[str, Path]],
+             read: list[tuple[Path, bytes]]) -> dict[str, Path]:
+    """IRI → file of the catalog-v001.xml in `folder` (none: empty), read once."""
+    if folder not in catalogs:
+        path = folder / "catalog-v001.xml"
+        catalogs[folder] = {}
+        if path.is_file():
+            from .. import xmlsafe
+
+            data = read_bytes(path)
+            read.append((path, data))
+            root, _ = xmlsafe.parse(data, str(path))
+            for element in root.iter():
+                if element.tag.rsplit("}", 1)[-1] == "uri" and element.get("name") and \
+                        element.get("uri"):
+                    catalogs[folder][str(element.get("name"))] = \
+                        Path(os.path.normpath(folder / str(element.get("uri"))))
+    return catalogs[folder]
+
+
+def served(files: Sequence[Path], imports: Mapping[str, Path] | None = None,
+           skip: bool = False) -> tuple[str, str]:
+    """A platform's ontology as its live node serves it: every file and import merged, as
+    Turtle (a peer never chooses the parser its monitor runs, nor follows imports), and the
+    SHA-256 of what was read (what tells a returning platform's ontology from the one it
+    served before)."""
     import hashlib
 
-    data = read_bytes(path)
-    text: str = _graph(data, str(path), path.resolve().as_uri(), None).serialize(
-        format="turtle")
-    return text, hashlib.sha256(data).hexdigest()
+    sources = read_sources(files, imports, skip)
+    digest = hashlib.sha256()
+    for path, data in sources.read:
+        digest.update(str(path).encode() + b"\0" + data)
+    return sources.graph.serialize(format="turtle"), digest.hexdigest()
 
 
 SYNTAXES = {"xml", "trix", "turtle", "nt", "nquads", "trig", "n3", "json-ld"}
@@ -96,12 +181,15 @@ def _local_contexts(doc: Any, file: str) -> None:
 def parse_ontology(data: bytes, file: str, platform: str, base: str | None = None,
                    fmt: str | None = None) -> Ontology:
     """`file` names the data in messages and, unless `fmt` is given, tells its RDF syntax
-    by its suffix."""
+    by its suffix.  Imports are not followed (a served ontology arrives merged)."""
+    return ontology_of(_graph(data, file, base, fmt), file, platform)
+
+
+def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
+    """The told axioms of an RDF graph; `file` names it in messages."""
     from rdflib import BNode, Literal, URIRef
     from rdflib.collection import Collection
     from rdflib.namespace import OWL, RDF, RDFS
-
-    graph = _graph(data, file, base, fmt)
 
     def named(node: object) -> bool:
         return isinstance(node, URIRef)
