@@ -265,3 +265,69 @@ def test_a_changed_import_is_read_again_not_taken_from_the_cache(
     ssn.write_text(ssn.read_text() + "\n<http://example.org/weather#baro9> a sosa:Sensor .\n")
     assert KnowledgeManager.from_config(config).list_sort("System") == [
         "baro1", "baro2", "baro9"]
+
+
+# ---- every common OWL syntax (issue 15, item 2) ----------------------------------------------
+
+FUNCTIONAL = """Prefix(:=<http://x.org/s#>)
+Ontology(<http://x.org/s>
+Declaration(Class(:UAV))
+Declaration(Class(:UnaryRelation))
+Declaration(ObjectProperty(:arg1))
+Declaration(Class(:Altitude))
+SubClassOf(:Altitude ObjectIntersectionOf(:UnaryRelation ObjectAllValuesFrom(:arg1 :UAV)))
+Declaration(NamedIndividual(:uav1))
+ClassAssertion(:UAV :uav1)
+)
+"""
+MANCHESTER = """Prefix: : <http://x.org/s#>
+Ontology: <http://x.org/s>
+Class: UAV
+Class: UnaryRelation
+ObjectProperty: arg1
+Class: Altitude
+    SubClassOf: UnaryRelation and (arg1 only UAV)
+Individual: uav1
+    Types: UAV
+"""
+OWL_XML = """<?xml version="1.0"?>
+<Ontology xmlns="http://www.w3.org/2002/07/owl#" ontologyIRI="http://x.org/s">
+  <Declaration><Class IRI="http://x.org/s#UAV"/></Declaration>
+  <Declaration><Class IRI="http://x.org/s#UnaryRelation"/></Declaration>
+  <Declaration><ObjectProperty IRI="http://x.org/s#arg1"/></Declaration>
+  <Declaration><Class IRI="http://x.org/s#Altitude"/></Declaration>
+  <SubClassOf><Class IRI="http://x.org/s#Altitude"/><ObjectIntersectionOf>
+    <Class IRI="http://x.org/s#UnaryRelation"/>
+    <ObjectAllValuesFrom><ObjectProperty IRI="http://x.org/s#arg1"/>
+      <Class IRI="http://x.org/s#UAV"/></ObjectAllValuesFrom>
+  </ObjectIntersectionOf></SubClassOf>
+  <Declaration><NamedIndividual IRI="http://x.org/s#uav1"/></Declaration>
+  <ClassAssertion><Class IRI="http://x.org/s#UAV"/><NamedIndividual IRI="http://x.org/s#uav1"/>
+  </ClassAssertion>
+</Ontology>
+"""
+
+
+@pytest.mark.parametrize("text", [FUNCTIONAL, MANCHESTER, OWL_XML],
+                         ids=["functional", "manchester", "owl-xml"])
+def test_owls_own_syntaxes_are_read_by_content_whatever_the_suffix(
+        tmp_path: Path, text: str) -> None:
+    (tmp_path / "s.owl").write_text(text)
+    ont = read_ontology(tmp_path / "s.owl", "s")
+    assert signature(ont, "Altitude") == [["UAV"]]
+    assert {local_name(o) for o in ont.individuals} == {"uav1"}
+
+
+@pytest.mark.parametrize(("text", "where", "says"), [
+    (FUNCTIONAL.replace("ClassAssertion(:UAV :uav1)", "ClassAssertion(:UAV"), ":10:1:",
+     "malformed OWL Functional Syntax"),
+    (MANCHESTER.replace("Types: UAV", "Types: and and"), ":9:19:", "malformed Manchester"),
+    (OWL_XML.replace("</Ontology>", ""), ":16:1:", "malformed XML"),  # the XML hardening's
+], ids=["functional", "manchester", "owl-xml"])
+def test_a_malformed_owl_file_is_one_line_with_its_place(
+        tmp_path: Path, text: str, where: str, says: str) -> None:
+    (tmp_path / "s.owl").write_text(text)
+    with pytest.raises(ParseError) as error:
+        read_ontology(tmp_path / "s.owl", "s")
+    message = str(error.value)
+    assert f"s.owl{where}" in message and says in message and "\n" not in message
