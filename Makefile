@@ -49,6 +49,9 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks.bench_progress
 	$(BIN)/python -m benchmarks.bench_live
 	$(BIN)/python -m benchmarks.chapter7 --growth
+	$(BIN)/python -m benchmarks.chapter7 --sorts
+	$(BIN)/python -m benchmarks.bench_fleet
+	$(BIN)/python -m benchmarks.bench_owlrl
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info

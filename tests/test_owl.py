@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -331,3 +332,137 @@ def test_a_malformed_owl_file_is_one_line_with_its_place(
         read_ontology(tmp_path / "s.owl", "s")
     message = str(error.value)
     assert f"s.owl{where}" in message and says in message and "\n" not in message
+
+
+# ---- entailed sort membership (issue 15, item 4) ----------------------------------------------
+
+ENTAILING = """@prefix : <http://x.org/e#> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:Robot a owl:Class .
+:Drone a owl:Class ; rdfs:subClassOf :Robot .
+:Payload a owl:Class .
+:Battery a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf (
+    :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Robot ] ) ] .
+:flies a owl:ObjectProperty ; rdfs:domain :Drone .
+:pilots a owl:ObjectProperty ; rdfs:range :Drone .
+:carries a owl:ObjectProperty .
+:Carrier a owl:Class ; rdfs:subClassOf :Robot ; owl:equivalentClass [ a owl:Restriction ;
+    owl:onProperty :carries ; owl:someValuesFrom :Payload ] .
+:colour a owl:ObjectProperty .
+:Blue a owl:Class ; rdfs:subClassOf :Robot ; owl:equivalentClass [ a owl:Restriction ;
+    owl:onProperty :colour ; owl:hasValue :blue ] .
+:BlueDrone a owl:Class ; owl:equivalentClass [ a owl:Class ; owl:intersectionOf ( :Blue :Drone ) ] .
+:memberOf a owl:ObjectProperty .
+:fleetOf a owl:ObjectProperty .
+:inFleet a owl:ObjectProperty ; owl:propertyChainAxiom ( :memberOf :fleetOf ) ;
+    rdfs:domain :FleetMember .
+:FleetMember a owl:Class ; rdfs:subClassOf :Robot .
+:tag a owl:ObjectProperty, owl:InverseFunctionalProperty .
+:d1 a owl:NamedIndividual ; :flies :sky .
+:alice a owl:NamedIndividual ; :pilots :d2 .
+:d2 a owl:NamedIndividual .
+:d3 a owl:NamedIndividual ; :carries :p1 .
+:p1 a owl:NamedIndividual, :Payload .
+:d4 a owl:NamedIndividual ; :colour :blue .
+:d5 a owl:NamedIndividual, :Drone ; :colour :blue .
+:d6 a owl:NamedIndividual ; :memberOf :squad1 .
+:squad1 a owl:NamedIndividual ; :fleetOf :f1 .
+:d7 a owl:NamedIndividual, :Robot ; :tag :t7 .
+:drone7 a owl:NamedIndividual ; :tag :t7 .
+:sky a owl:NamedIndividual . :blue a owl:NamedIndividual . :f1 a owl:NamedIndividual .
+:t7 a owl:NamedIndividual .
+"""
+
+
+def entailing(tmp_path: Path, reasoning: str = "owl-rl") -> Any:
+    from dkreason import KnowledgeManager
+
+    (tmp_path / "e.ttl").write_text(ENTAILING)
+    (tmp_path / "e.sslt").write_text("topic /battery:M contains Battery(Robot) = msg.b "
+                                     "for some Robot = msg.id\n")
+    (tmp_path / "e.toml").write_text(f'[platforms.e]\nontology = "e.ttl"\nspecs = "e.sslt"\n'
+                                     f'reasoning = "{reasoning}"\n')
+    return KnowledgeManager.from_config(tmp_path / "e.toml")
+
+
+@pytest.mark.parametrize(("sort", "members", "because"), [
+    ("Drone", ["d1", "d2", "d5"], "flies rdfs:domain Drone"),  # domain (d1), range (d2)
+    ("Carrier", ["d3"], "Carrier ≡ carries some Payload"),  # someValuesFrom
+    ("Blue", ["d4", "d5"], "Blue ≡ colour value blue"),  # hasValue
+    ("BlueDrone", ["d5"], "BlueDrone ≡ Blue ⊓ Drone"),  # intersection
+    ("FleetMember", ["d6"], "inFleet rdfs:domain FleetMember"),  # property chain, then domain
+], ids=["domain-range", "some", "value", "intersection", "chain"])
+def test_owl_rl_entails_memberships_and_says_from_which_axiom(
+        tmp_path: Path, sort: str, members: list[str], because: str) -> None:
+    km = entailing(tmp_path)
+    assert km.list_sort(sort) == members
+    reasons = km.kb.platform("e").ontology.entailed.values()
+    assert any(because in r for r in reasons), list(reasons)
+
+
+def test_owl_rl_entails_same_as(tmp_path: Path) -> None:
+    km = entailing(tmp_path)
+    ont = km.kb.platform("e").ontology
+    pair = next(p for p in ont.same_as if set(p) == {"http://x.org/e#d7", "http://x.org/e#drone7"})
+    assert "tag is inverse functional" in ont.entailed[pair]
+    reps = {str(r[2]) for o in pair for r in km.kb.engine.query("same_rep", "e", o, None)}
+    assert len(reps) == 1  # one sameAs class: drone7 reads d7's topics and back
+
+
+def test_without_reasoning_only_told_memberships_count(tmp_path: Path) -> None:
+    km = entailing(tmp_path, "none")
+    assert km.list_sort("Drone") == ["d5"] and km.list_sort("Carrier") == []
+
+
+def test_an_entailed_membership_is_explained_with_its_axiom(tmp_path: Path) -> None:
+    from dkreason import explain
+
+    km = entailing(tmp_path)
+    text = explain.to_text(km.explain("always (Battery[d1] > 20)"))
+    assert "entailed by OWL RL from flies rdfs:domain Drone" in text
+
+
+def test_signatures_stay_told_under_owl_rl(tmp_path: Path) -> None:
+    """Thesis listing 6.3: GroundSpeed ≡ Speed keeps its own signature with reasoning on."""
+    from dkreason import KnowledgeManager
+
+    (tmp_path / "p.toml").write_text(
+        f'[platforms.p1]\nontology = "{SCENARIOS}/ontologies/platform1.owl"\n'
+        'reasoning = "owl-rl"\n')
+    ont = KnowledgeManager.from_config(tmp_path / "p.toml").kb.platform("p1").ontology
+    assert signature(ont, "GroundSpeed") == [["UAV"]]
+    assert signature(ont, "Speed") == [["MovingObject"]]
+
+
+@pytest.mark.parametrize("name", ["entailing", "platform1", "weather"])
+def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
+    """owlrl is the oracle: every named object's sorts, told and entailed, closed under the
+    told hierarchy, are the sorts its OWL 2 RL closure types it with."""
+    import owlrl
+    from rdflib import URIRef
+    from rdflib.namespace import RDF
+
+    from dkreason.parse.owl import read_sources
+
+    if name == "entailing":
+        km = entailing(tmp_path)
+        files = [tmp_path / "e.ttl"]
+    else:
+        files = [SCENARIOS / "ontologies" / "platform1.owl"] if name == "platform1" else \
+            [SOSA / "weather.ttl"]
+        (tmp_path / "c.toml").write_text(f'[platforms.e]\nontology = "{files[0]}"\n'
+                                         'reasoning = "owl-rl"\n')
+        from dkreason import KnowledgeManager
+        km = KnowledgeManager.from_config(tmp_path / "c.toml")
+    ont = km.kb.platform("e").ontology
+    closure = read_sources(files).graph
+    owlrl.DeductiveClosure(owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False,
+                           datatype_axioms=False).expand(closure)
+    for sort in sorted(ont.sorts - {"http://www.w3.org/2002/07/owl#Thing"}):
+        ours = {o for o in km.kb.engine.query("instance_of", "e", None, sort)}
+        theirs = {str(s) for s in closure.subjects(RDF.type, URIRef(sort))
+                  if str(s) in ont.individuals}
+        assert {str(o[1]) for o in ours} >= theirs, local_name(sort)

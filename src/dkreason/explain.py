@@ -224,6 +224,10 @@ class Reader:
         if pred == "subclass_of" and c["Super"] == THING and \
                 (str(c["Sub"]), THING) not in set(owner.ontology.subclass_of):
             return f"implicit: every sort is a subclass of owl:Thing ({file})"
+        entailed = owner.ontology.entailed.get((str(args[1]), str(args[2]))) \
+            if pred in ("type_of", "same_as") and len(args) == 3 else None
+        if entailed:
+            return f"{entailed} ({file})"
         if pred == "type_of" and c["Sort"] == THING and \
                 (str(c["Object"]), THING) not in set(owner.ontology.types):
             return f"implicit: every object is a Thing ({file})"
@@ -551,15 +555,21 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
             continue
         seen.add((start, end))
         lines.append(f"object: {_chain(reader, node, str(start), str(end), ('same_as', 'bridge'))}")
-    for node in proof.find("accepts"):
-        _, _, topic, _, position, obj = node.fact
+    for node in (*proof.find("accepts"), *proof.find("carries")):
+        if node.fact[0] == "accepts":  # accepts(R, T, K, I, C)
+            _, _, topic, _, position, obj = node.fact
+        else:  # carries(R, G, I, C, T, K): a sort argument found through C's sorts
+            _, _, _, position, obj, topic, _ = node.fact
         sort_args = [leaf for leaf in node.leaves() if leaf.fact[0] == "topic_arg"
                      and leaf.fact[5] in ("some", "every")]
         for told in (leaf for leaf in node.leaves() if leaf.fact[0] == "type_of"):
             if sort_args:
                 chain = _chain(reader, node, str(told.fact[3]), str(sort_args[0].fact[6]),
                                ("subclass_of", "equivalent_class"))
-                lines.append(f"argument {position} of {topic}: {reader.name(obj)} : {chain}")
+                entailed = f" [{told.source}]" if told.source and \
+                    told.source.startswith("entailed") else ""
+                lines.append(f"argument {position} of {topic}: {reader.name(obj)} : {chain}"
+                             f"{entailed}")
     carried = (f"topic: {leaf.text} [{leaf.source}]" for leaf in proof.leaves()
                if leaf.fact[0] == "topic_feature")
     return tuple(lines) + tuple(dict.fromkeys(carried))

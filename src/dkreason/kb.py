@@ -67,14 +67,19 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
     def build() -> tuple[Platform, tuple[tuple[str, str], ...]]:
         sources = read_sources(files.ontology, imports, files.skip_imports)
         parsed = parse_specs(spec_data, str(specs), xml=xml).specs if specs else ()
-        platform = make_platform(ontology_of(sources.graph, str(files.ontology[0]),
-                                             files.name), parsed, specs)
+        ontology = ontology_of(sources.graph, str(files.ontology[0]), files.name)
+        if files.reasoning == "owl-rl":
+            from .parse.entail import entail
+
+            ontology = entail(sources.graph, ontology)
+        platform = make_platform(ontology, parsed, specs)
         platform.notes = sources.skipped
         return platform, tuple((str(p), cache.digest(d)) for p, d in sources.read)
 
     parts: list[bytes | str] = [
         files.name, *(str(p.resolve()) for p in files.ontology), str(specs), spec_data,
-        str(files.skip_imports), *(f"{k}={v.resolve()}" for k, v in sorted(imports.items()))]
+        str(files.skip_imports), files.reasoning,
+        *(f"{k}={v.resolve()}" for k, v in sorted(imports.items()))]
     platform, _ = cache.cached("platform", parts, build, lambda found: cache.unchanged(found[1]))
     return platform
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple
 
 from .errors import Span
@@ -75,7 +75,9 @@ class Signature:
 
 @dataclass(frozen=True, slots=True)
 class Ontology:
-    """One platform's told axioms, read without inference (signatures must stay as asserted)."""
+    """One platform's told axioms, read without inference (signatures must stay as asserted);
+    with `reasoning = "owl-rl"`, `types` and `same_as` also hold what OWL 2 RL entails, each
+    such pair in `entailed` with the axiom it follows from."""
 
     platform: str
     file: str
@@ -88,6 +90,7 @@ class Ontology:
     same_as: tuple[tuple[str, str], ...]
     ids: Mapping[str, IdValue]
     prefixes: Mapping[str, str]
+    entailed: Mapping[tuple[str, str], str] = field(default_factory=dict)
 
     @property
     def sorts(self) -> frozenset[str]:

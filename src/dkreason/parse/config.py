@@ -9,6 +9,8 @@
     ontology = "ontologies/platform1.owl"           # a file, or a list of files
     imports = "skip"                                # optional: an unresolved import is a
                                                     # warning, not an error
+    reasoning = "owl-rl"                            # optional: OWL 2 RL memberships and
+                                                    # sameAs become facts (default "none")
     specs = "specs/platform1.sslt"                  # .sslt or .xml; optional
     namespace = "/robot1"                           # optional: relative topic names resolve
                                                     # under it, as ROS resolves them
@@ -55,6 +57,7 @@ class PlatformFiles:
     specs: Path | None
     namespace: str | None = None  # ROS namespace of the platform's relative topic names
     skip_imports: bool = False  # an owl:imports found nowhere is a warning, not an error
+    reasoning: str = "none"  # "owl-rl": OWL 2 RL memberships and sameAs become facts
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,7 +117,8 @@ def read_config(path: Path) -> Config:
     for name, table in platforms_raw.items():
         if not isinstance(table, dict):
             raise fail(f"platforms.{name} must be a table")
-        _only(table, {"ontology", "specs", "namespace", "imports"}, f"[platforms.{name}]", fail)
+        _only(table, {"ontology", "specs", "namespace", "imports", "reasoning"},
+              f"[platforms.{name}]", fail)
         section = f"[platforms.{name}]"
         if "specs" in table and "ontology" not in table:
             raise fail(f"{section}: specs without an ontology")
@@ -130,7 +134,11 @@ def read_config(path: Path) -> Config:
         skip = table.get("imports", "follow")
         if skip not in ("follow", "skip"):
             raise fail(f'{section}: imports must be "follow" or "skip", not {skip!r}')
-        platforms.append(PlatformFiles(name, ontology, specs, namespace, skip == "skip"))
+        reasoning = table.get("reasoning", "none")
+        if reasoning not in ("none", "owl-rl"):
+            raise fail(f'{section}: reasoning must be "none" or "owl-rl", not {reasoning!r}')
+        platforms.append(PlatformFiles(name, ontology, specs, namespace, skip == "skip",
+                                       reasoning))
     names = [p.name for p in platforms]
     local = data.get("local", names[0] if len(names) == 1 else None)
     if local not in names:

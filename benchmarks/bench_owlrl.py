@@ -1,0 +1,133 @@
+"""What `reasoning = "owl-rl"` costs a load, beside rdflib's parse and two OWL RL reasoners.
+
+On W3C SOSA/SSN (a weather station importing SSN through a catalog, tests/data/sosa-ssn) and
+on a thesis chapter 7 workload (case 1.3's last point: 200 concepts, 200 individuals), each
+in a fresh process with the cache off, best of ROUNDS: rdflib parsing the same files, a
+dkreason load without and with reasoning, and the OWL 2 RL closure of the same graph by
+owlrl (what dkreason runs) and by the `reasonable` package (Rust; `make bench` installs it).
+Target (issue 15): the OWL RL step adds at most the time rdflib needs to parse the files.
+
+    python -m benchmarks.bench_owlrl [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from .chapter7.__main__ import CASES
+from .chapter7.workload import write
+
+ROUNDS = 3
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _configs(folder: Path) -> dict[str, tuple[Path, list[Path]]]:
+    """Per workload: a config with reasoning on, and the ontology files with their imports."""
+    sosa = REPO / "tests" / "data" / "sosa-ssn"
+    weather = folder / "weather.toml"
+    weather.write_text(f'[platforms.w]\nontology = "{sosa / "weather.ttl"}"\n'
+                       'reasoning = "owl-rl"\n', encoding="utf-8")
+    case = next(c for c in CASES if c.name == "1.3")
+    workload, _ = case.point(len(case.xs) - 1, 1)
+    ch7 = write(workload, folder / "ch7")
+    ch7.write_text(ch7.read_text() + 'reasoning = "owl-rl"\n', encoding="utf-8")
+    return {"SOSA/SSN": (weather, [sosa / "weather.ttl", sosa / "ssn.ttl", sosa / "sosa.ttl"]),
+            "chapter 7 (1.3, 200/200)": (ch7, [folder / "ch7" / "ch7.owl"])}
+
+
+def _point(what: str, config: Path, files: list[Path]) -> float:
+    """`--point`: one figure in this process, seconds."""
+    import rdflib
+
+    if what == "parse":
+        t0 = time.perf_counter()
+        for f in files:
+            rdflib.Graph().parse(f)
+        return time.perf_counter() - t0
+    if what in ("owlrl", "reasonable"):
+        graph = rdflib.Graph()
+        for f in files:
+            graph.parse(f)
+        t0 = time.perf_counter()
+        if what == "owlrl":
+            import owlrl
+
+            owlrl.DeductiveClosure(owlrl.OWLRL_Semantics, rdfs_closure=False,
+                                   axiomatic_triples=False, datatype_axioms=False).expand(graph)
+        else:
+            import reasonable
+
+            reasoner = reasonable.PyReasoner()
+            reasoner.from_graph(graph)
+            reasoner.reason()
+        return time.perf_counter() - t0
+    from dkreason import KnowledgeManager
+
+    if what == "load":
+        plain = config.with_name(config.stem + "-plain.toml")
+        plain.write_text(config.read_text().replace('reasoning = "owl-rl"', ""))
+        config = plain
+    t0 = time.perf_counter()
+    KnowledgeManager.from_config(config)
+    return time.perf_counter() - t0
+
+
+def measure() -> dict[str, dict[str, float | None]]:
+    out: dict[str, dict[str, float | None]] = {}
+    env = os.environ | {"DKREASON_CACHE": "off"}
+    with tempfile.TemporaryDirectory(prefix="dkreason-owlrl-") as tmp:
+        for name, (config, files) in _configs(Path(tmp)).items():
+            row: dict[str, float | None] = {}
+            for what in ("parse", "load", "load+owl-rl", "owlrl", "reasonable"):
+                best = None
+                for _ in range(ROUNDS):
+                    done = subprocess.run(
+                        [sys.executable, "-m", "benchmarks.bench_owlrl", "--point", what,
+                         str(config), *map(str, files)], capture_output=True, text=True,
+                        env=env, check=False)
+                    if done.returncode:  # `reasonable` not installed: no figure
+                        break
+                    value = float(done.stdout)
+                    best = value if best is None else min(best, value)
+                row[what] = best
+            out[name] = row
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--point", nargs="+", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.point:
+        what, config, *files = args.point
+        print(_point(what, Path(config), [Path(f) for f in files]))
+        return 0
+    rows = measure()
+    if args.json:
+        print(json.dumps(rows, indent=1))
+        return 0
+
+    def ms(value: float | None) -> str:
+        return "-" if value is None else f"{value * 1e3:.0f}"
+
+    print(f"best of {ROUNDS} fresh processes, ms; cache off")
+    print(f"{'workload':<26}{'parse':>7}{'load':>7}{'+owl-rl':>9}{'step':>7}{'owlrl':>7}"
+          f"{'reasonable':>11}  step / parse (target <= 1)")
+    for name, r in rows.items():
+        step = (r["load+owl-rl"] or 0) - (r["load"] or 0)
+        print(f"{name:<26}{ms(r['parse']):>7}{ms(r['load']):>7}{ms(r['load+owl-rl']):>9}"
+              f"{ms(step):>7}{ms(r['owlrl']):>7}{ms(r['reasonable']):>11}  "
+              f"{step / (r['parse'] or 1):.1f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,128 @@
+"""OWL 2 RL entailments of class membership and sameAs (`reasoning = "owl-rl"`).
+
+Real ontologies type their objects through property domains and ranges, restrictions and
+intersections, and the thesis ran Pellet for that.  The closure is owlrl's (OWL 2 RL, the
+design card's reasoner), computed once per load and cached with the platform; only what it
+adds about named objects is kept: their classes and sameAs partners.  Feature signatures stay
+as told (an OWL closure would give equivalent features each other's signatures, thesis 6.1),
+and a membership the told subclass axioms already give is left to the rules.  Each entailed
+pair is kept with the told axiom it follows from, for explanations.
+
+owlrl costs 20-30× rdflib's parse of the same files (benchmarks/bench_owlrl.py); the
+`reasonable` package is 40× faster than owlrl but leaves out property chains (prp-spo2), so
+owlrl it is, paid once per change of the files (the cache keeps the result).
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import replace
+from typing import Any
+
+from ..model import Ontology
+from ..names import local_name
+
+
+def entail(graph: Any, told: Ontology) -> Ontology:
+    """`told` with the memberships and sameAs pairs OWL 2 RL entails from `graph`."""
+    import owlrl
+    from rdflib import Graph, URIRef
+    from rdflib.namespace import OWL, RDF
+
+    closure = Graph(bind_namespaces="none")
+    for triple in graph:
+        closure.add(triple)
+    owlrl.DeductiveClosure(owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False,
+                           datatype_axioms=False).expand(closure)
+    supers = _told_supers(told)
+    objects, sorts = told.individuals, told.sorts
+    typed: dict[str, set[str]] = defaultdict(set)  # every sort the closure gives an object
+    for s, c in closure.subject_objects(RDF.type):
+        if isinstance(s, URIRef) and str(s) in objects and str(c) in sorts:
+            typed[str(s)].add(str(c))
+    told_types = set(told.types)
+    types: dict[tuple[str, str], str] = {}
+    for obj, classes in typed.items():
+        for cls in classes:  # the most specific only: the rules climb the told hierarchy
+            if (obj, cls) in told_types or any(
+                    cls in supers[other] and other not in supers[cls] for other in classes):
+                continue
+            types[(obj, cls)] = "entailed by OWL RL from " + \
+                _why_type(closure, URIRef(obj), URIRef(cls))
+    same: dict[tuple[str, str], str] = {}
+    for a, b in closure.subject_objects(OWL.sameAs):
+        pair = (str(a), str(b))
+        if a != b and pair[0] in objects and pair[1] in objects and \
+                not {pair, pair[::-1]} & (set(told.same_as) | same.keys()):
+            same[pair] = f"entailed by OWL RL from {_why_same(graph, a, b)}"
+    return replace(told, types=(*told.types, *sorted(types)),
+                   same_as=(*told.same_as, *sorted(same)), entailed=types | same)
+
+
+def _told_supers(told: Ontology) -> dict[str, set[str]]:
+    """Each class's superclasses by told subClassOf and equivalentClass (what rules derive)."""
+    up: dict[str, set[str]] = defaultdict(set)
+    for a, b in told.subclass_of:
+        up[a].add(b)
+    for a, b in told.equivalent:
+        up[a].add(b)
+        up[b].add(a)
+    out: dict[str, set[str]] = defaultdict(set)
+    for start in list(up):
+        seen: set[str] = set()
+        todo = [start]
+        while todo:
+            for nxt in up[todo.pop()] - seen:
+                seen.add(nxt)
+                todo.append(nxt)
+        out[start] = seen
+    return out
+
+
+def _name(node: Any) -> str:
+    return local_name(str(node))
+
+
+def _why_type(graph: Any, s: Any, c: Any) -> str:
+    """The told axiom a membership s : c follows from, in a few words (the first found of the
+    OWL 2 RL rules that type an object: domain, range, hasValue, someValuesFrom,
+    intersection), else the rule set itself."""
+    from rdflib import BNode
+    from rdflib.collection import Collection
+    from rdflib.namespace import OWL, RDFS
+
+    for p, _ in graph.predicate_objects(s):
+        for d in graph.objects(p, RDFS.domain):
+            if d == c:
+                return f"{_name(p)} rdfs:domain {_name(c)}"
+    for _, p in graph.subject_predicates(s):
+        for r in graph.objects(p, RDFS.range):
+            if r == c:
+                return f"{_name(p)} rdfs:range {_name(c)}"
+    for restriction in graph.objects(c, OWL.equivalentClass):
+        if not isinstance(restriction, BNode):
+            continue
+        prop = graph.value(restriction, OWL.onProperty)
+        value = graph.value(restriction, OWL.hasValue)
+        if prop is not None and value is not None:
+            return f"{_name(c)} ≡ {_name(prop)} value {_name(value)}"
+        some = graph.value(restriction, OWL.someValuesFrom)
+        if prop is not None and some is not None:
+            return f"{_name(c)} ≡ {_name(prop)} some {_name(some)}"
+        parts = graph.value(restriction, OWL.intersectionOf)
+        if parts is not None:
+            shown = " ⊓ ".join(_name(x) for x in Collection(graph, parts))
+            return f"{_name(c)} ≡ {shown}"
+    return f"the OWL 2 RL rules ({_name(s)} : {_name(c)})"
+
+
+def _why_same(graph: Any, a: Any, b: Any) -> str:
+    from rdflib.namespace import OWL, RDF
+
+    for p, v in graph.predicate_objects(a):
+        if (b, p, v) in graph and (p, RDF.type, OWL.InverseFunctionalProperty) in graph:
+            return f"{_name(p)} is inverse functional ({_name(a)} and {_name(b)} share it)"
+    for v, p in graph.subject_predicates(a):
+        if (v, p, b) in graph and (p, RDF.type, OWL.FunctionalProperty) in graph:
+            return f"{_name(p)} is functional ({_name(v)} has both)"
+    return f"the OWL 2 RL rules ({_name(a)} = {_name(b)})"
