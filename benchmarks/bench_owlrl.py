@@ -3,8 +3,9 @@
 On W3C SOSA/SSN (a weather station importing SSN through a catalog, tests/data/sosa-ssn) and
 on a thesis chapter 7 workload (case 1.3's last point: 200 concepts, 200 individuals), each
 in a fresh process with the cache off, best of ROUNDS: rdflib parsing the same files, a
-dkreason load without and with reasoning, and the OWL 2 RL closure of the same graph by
-owlrl (what dkreason runs) and by the `reasonable` package (Rust; `make bench` installs it).
+dkreason load without and with reasoning (its own OWL 2 RL rules, parse/owlrl_rules.py), and
+the OWL 2 RL closure of the same graph by owlrl (the tests' oracle) and by the `reasonable`
+package (Rust; it leaves out property chains).  `make bench` installs both.
 Target (issue 15): the OWL RL step adds at most the time rdflib needs to parse the files.
 
     python -m benchmarks.bench_owlrl [--json]

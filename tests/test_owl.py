@@ -465,4 +465,15 @@ def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
         ours = {o for o in km.kb.engine.query("instance_of", "e", None, sort)}
         theirs = {str(s) for s in closure.subjects(RDF.type, URIRef(sort))
                   if str(s) in ont.individuals}
-        assert {str(o[1]) for o in ours} >= theirs, local_name(sort)
+        assert {str(o[1]) for o in ours} == theirs, local_name(sort)
+
+
+def test_an_unresolved_import_on_the_cli_is_one_line_and_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from dkreason.cli import main
+
+    config = station(tmp_path)
+    (tmp_path / "catalog-v001.xml").unlink()
+    assert main(["match", "--config", str(config), "always (Reading[baro1] > 1)"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "owl:imports <http://www.w3.org/ns/ssn/>" in err

@@ -28,7 +28,7 @@ T = TypeVar("T")
 # The modules whose code shapes a cached value: a change to any of them is a new key.
 _SHAPERS = ("model.py", "names.py", "facts.py", "kb.py", "errors.py", "parse/owl.py",
             "parse/sslt.py", "parse/sslt.lark", "parse/files.py", "parse/entail.py",
-            "parse/config.py", "xmlsafe.py")
+            "parse/owlrl_rules.py", "parse/config.py", "xmlsafe.py")
 
 
 def folder() -> Path | None:
