@@ -24,20 +24,24 @@ from ..names import local_name
 
 def entail(graph: Any, told: Ontology) -> Ontology:
     """`told` with the memberships and sameAs pairs OWL 2 RL entails from `graph`."""
-    from rdflib import Graph, URIRef
+    from rdflib import URIRef
     from rdflib.namespace import OWL, RDF
 
     from .owlrl_rules import closure as rl_closure
 
-    closure = Graph(bind_namespaces="none")
-    for triple in rl_closure(graph):
-        closure.add(triple)
+    facts = rl_closure(graph)
     supers = _told_supers(told)
     objects, sorts = told.individuals, told.sorts
     typed: dict[str, set[str]] = defaultdict(set)  # every sort the closure gives an object
-    for s, c in closure.subject_objects(RDF.type):
-        if isinstance(s, URIRef) and str(s) in objects and str(c) in sorts:
-            typed[str(s)].add(str(c))
+    out_of: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)  # its assertions, to say why
+    into: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
+    for s, p, o in facts:
+        if p == RDF.type:
+            if isinstance(s, URIRef) and str(s) in objects and str(o) in sorts:
+                typed[str(s)].add(str(o))
+        else:
+            out_of[s].append((p, o))
+            into[o].append((s, p))
     told_types = set(told.types)
     types: dict[tuple[str, str], str] = {}
     for obj, classes in typed.items():
@@ -46,9 +50,9 @@ def entail(graph: Any, told: Ontology) -> Ontology:
                     cls in supers[other] and other not in supers[cls] for other in classes):
                 continue
             types[(obj, cls)] = "entailed by OWL RL from " + \
-                _why_type(closure, URIRef(obj), URIRef(cls))
+                _why_type(graph, out_of, into, URIRef(obj), URIRef(cls))
     same: dict[tuple[str, str], str] = {}
-    for a, b in closure.subject_objects(OWL.sameAs):
+    for a, b in ((s, o) for s, p, o in facts if p == OWL.sameAs):
         pair = (str(a), str(b))
         if a != b and pair[0] in objects and pair[1] in objects and \
                 not {pair, pair[::-1]} & (set(told.same_as) | same.keys()):
@@ -81,7 +85,8 @@ def _name(node: Any) -> str:
     return local_name(str(node))
 
 
-def _why_type(graph: Any, s: Any, c: Any) -> str:
+def _why_type(graph: Any, out_of: dict[Any, list[tuple[Any, Any]]],
+              into: dict[Any, list[tuple[Any, Any]]], s: Any, c: Any) -> str:
     """The told axiom a membership s : c follows from, in a few words (the first found of the
     OWL 2 RL rules that type an object: domain, range, hasValue, someValuesFrom,
     intersection), else the rule set itself."""
@@ -89,11 +94,11 @@ def _why_type(graph: Any, s: Any, c: Any) -> str:
     from rdflib.collection import Collection
     from rdflib.namespace import OWL, RDFS
 
-    for p, _ in graph.predicate_objects(s):
+    for p, _ in out_of.get(s, ()):  # s's assertions, told or entailed (chains)
         for d in graph.objects(p, RDFS.domain):
             if d == c:
                 return f"{_name(p)} rdfs:domain {_name(c)}"
-    for _, p in graph.subject_predicates(s):
+    for _, p in into.get(s, ()):
         for r in graph.objects(p, RDFS.range):
             if r == c:
                 return f"{_name(p)} rdfs:range {_name(c)}"
