@@ -79,19 +79,11 @@ def _step(facts: set[Triple]) -> set[Triple]:
     for p, c in by_p[RDFS.range]:
         for _, y in by_p.get(p, ()):
             add((y, TYPE, c))
-    # prp-fp, prp-ifp
+    # prp-fp, prp-ifp: one value per subject (per object, read backwards)
     for p in typed(OWL.FunctionalProperty):
-        seen: dict[Any, Any] = {}
-        for x, y in by_p.get(p, ()):
-            if x in seen and seen[x] != y:
-                add((seen[x], SAME, y))
-            seen.setdefault(x, y)
+        _single(by_p.get(p, ()), add)
     for p in typed(OWL.InverseFunctionalProperty):
-        seen = {}
-        for x, y in by_p.get(p, ()):
-            if y in seen and seen[y] != x:
-                add((seen[y], SAME, x))
-            seen.setdefault(y, x)
+        _single([(y, x) for x, y in by_p.get(p, ())], add)
     # prp-symp, prp-trp
     for p in typed(OWL.SymmetricProperty):
         for x, y in by_p.get(p, ()):
@@ -173,3 +165,12 @@ def _step(facts: set[Triple]) -> set[Triple]:
         for x in members.get(c2, ()):
             add((x, TYPE, c1))
     return out
+
+
+def _single(pairs: Iterable[tuple[Any, Any]], add: Any) -> None:
+    """Each key has one value: the values found for a key are sameAs each other."""
+    seen: dict[Any, Any] = {}
+    for key, value in pairs:
+        if key in seen and seen[key] != value:
+            add((seen[key], SAME, value))
+        seen.setdefault(key, value)
