@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -477,3 +478,17 @@ def test_an_unresolved_import_on_the_cli_is_one_line_and_exit_2(
     assert main(["match", "--config", str(config), "always (Reading[baro1] > 1)"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "owl:imports <http://www.w3.org/ns/ssn/>" in err
+
+
+def test_the_weather_example_expands_over_sosa_sensors(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from dkreason.cli import main
+
+    from .conftest import REPO
+
+    assert main(["match", "--json", "--config", str(REPO / "examples" / "weather" /
+                                                     "station.toml"),
+                 "forall s in System: always (Reading[s] > 900)"]) == 0
+    request = json.loads(capsys.readouterr().out)
+    assert [(f["args"], [t["filter"] for t in f["topics"]]) for f in request["features"]] == [
+        (["baro1"], [{"msg.id": 1}]), (["baro2"], [{"msg.id": 2}])]
