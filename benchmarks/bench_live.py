@@ -141,8 +141,9 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
                 if not latencies and hasattr(monitor, "processor"):
                     step = monitor.processor.on_state
 
-                    def timed(t: int, values: dict[FeatureKey, Any], step: Any = step) -> None:
-                        step(t, values)
+                    def timed(t: int, values: dict[FeatureKey, Any], *rest: Any,
+                              step: Any = step) -> None:
+                        step(t, values, *rest)
                         latencies.append(time.time_ns() - t)
                     monitor.processor.on_state = timed
                     latencies.append(0)
