@@ -380,7 +380,7 @@ def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeMa
     added, removed = kb.replace_specs("platform3", [*kb.platform("platform3").specs.values(),
                                                     *spec])
     assert (added, removed) == (["uastopic9"], [])
-    assert set(kb.rederived) <= {"topic_objects", "sort_arg_at"}
+    assert set(kb.rederived) <= {"topic_objects", "sort_arg_at", "sort_position"}
     assert ("platform3", "uastopic9") in _request(kb, ALTITUDE)["Altitude[uav2]"]
 
 
@@ -410,7 +410,7 @@ def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path) -> None:
     kb.add_object("platform2", "truck1", "Automobile")
     # what reads objects' sorts is derived again; the sort hierarchy and topic keys are not
     assert "member" in kb.rederived
-    assert not {"rep_reach", "topic_objects", "sort_arg_at", "feature_candidate"} & \
+    assert not {"rep_reach", "topic_objects", "sort_arg_at", "sort_position", "feature_candidate"} & \
         set(kb.rederived)
     request = KnowledgeManager(kb).check_formula(formula)
     assert {(t.platform, t.topic) for t in request.features[0].topics} == {
