@@ -12,7 +12,8 @@ kept by dkreason.cache), with the peak memory of the process:
   each (9.5 s and 481 MB before; the target for a formula there is 5 ms).
 
 Beside each figure: the issue's target and the figure measured before this design (issue 16).
-The live half of item 6 (nodes joining over Zenoh) is `benchmarks/bench_live.py`'s business.
+The live half of item 6: `benchmarks/bench_join.py` (nodes joining) and `bench_live.py`
+(samples/s at a latency).
 
     python -m benchmarks.bench_fleet [--json] [--only fleet,sorts,objects]
 """
