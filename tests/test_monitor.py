@@ -296,6 +296,17 @@ def test_custom_message_definitions_are_read_from_msg_files(tmp_path: Path) -> N
         _msg_types([tmp_path / "CarMsg.txt"])
 
 
+def test_a_msg_file_replaces_a_standard_definition_of_the_same_type(tmp_path: Path) -> None:
+    """--msg std_msgs/msg/String.msg with another definition is that type's definition (as it
+    replaces a recording's own), not rosbags' 'already present' error."""
+    msg = tmp_path / "std_msgs" / "msg"
+    msg.mkdir(parents=True)
+    (msg / "String.msg").write_text("int32 data\n")
+    from dkreason.stream.sources import _msg_types, _typestore
+    store = _typestore(_msg_types([msg / "String.msg"]), ros1=False)
+    assert store.fielddefs["std_msgs/msg/String"][1][0][1][1][0] == "int32"
+
+
 def test_a_recording_without_the_features_leaves_every_verdict_unknown(
         capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     source = tmp_path / "other.jsonl"

@@ -95,7 +95,7 @@ class RosbagSource:
         replaced = sorted(name for name, definition in given.items()
                           if self.reader.typestore.fielddefs.get(name, definition) != definition)
         if replaced:
-            self.reader.typestore = _replaced(self.reader.typestore.fielddefs, given)
+            self.reader.typestore = _replaced(self.reader.typestore, given)
             self.note = "; ".join(f"{name}: the definition of --msg replaces the one {path} "
                                   f"stores" for name in replaced)
 
@@ -234,22 +234,24 @@ def _store_name(ros1: bool, name: str | None) -> str:
 
 def _typestore(given: dict[str, Any], ros1: bool, name: str | None = None) -> Any:
     """rosbags' standard definitions of `name` (default by the recording's kind), with the
-    `given` types added."""
+    `given` types added or in place of their namesakes."""
     from rosbags.typesys import Stores, get_typestore
 
-    store = get_typestore(Stores(_store_name(ros1, name)))
-    store.register(given)
-    return store
+    return _replaced(get_typestore(Stores(_store_name(ros1, name))), given)
 
 
-def _replaced(types: dict[str, Any], given: dict[str, Any]) -> Any:
-    """A typestore of `types` with the `given` definitions in place of their namesakes
-    (rosbags' own register refuses a second definition of a type)."""
+def _replaced(store: Any, given: dict[str, Any]) -> Any:
+    """`store` with the `given` definitions added, each in place of a namesake (rosbags' own
+    register refuses a second definition of a type, so that case is a new store)."""
     from rosbags.typesys import Stores, get_typestore
 
-    store = get_typestore(Stores.EMPTY)
-    store.register(types | given)
-    return store
+    if all(store.fielddefs.get(name, definition) == definition
+           for name, definition in given.items()):
+        store.register(given)
+        return store
+    replaced = get_typestore(Stores.EMPTY)
+    replaced.register(store.fielddefs | given)
+    return replaced
 
 
 def _msg_types(msg_files: Sequence[Path]) -> dict[str, Any]:
