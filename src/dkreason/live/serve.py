@@ -40,9 +40,9 @@ class PlatformNode:
         self.specs_stamp = self._stamp()
         self.closed = threading.Event()
         platform = km.kb.platform(self.name)
-        text, digest = self._served(Path(platform.ontology.file))
-        self._ontology = wire.encode({"file": Path(platform.ontology.file).name, "turtle": text,
-                                      "digest": digest})
+        main = Path(platform.ontology.file)
+        text, digest = self._served(main)
+        self._ontology = wire.encode({"file": main.name, "turtle": text, "digest": digest})
         self._answers = {"ontology": lambda: self._ontology, "specs": self._specs,
                          "objects": self._objects}
         self.queryables = [session.declare_queryable(
@@ -56,11 +56,11 @@ class PlatformNode:
     def _served(self, main: Path) -> tuple[str, str]:
         """The platform's ontology with what it imports, as the config says to read it."""
         config = self.km.kb.config
-        files = next((f for f in config.platforms if f.name == self.name), None) \
-            if config is not None else None
-        if config is None or files is None:
-            return served((main,))
-        return served(files.ontology, config.imports, files.skip_imports)
+        if config is not None:
+            for files in config.platforms:
+                if files.name == self.name:
+                    return served(files.ontology, config.imports, files.skip_imports)
+        return served((main,))  # a knowledge base built without a config: its one file
 
     def _answer(self, query: Any, what: str) -> None:
         with self.lock:

@@ -55,36 +55,41 @@ def read_sources(files: Sequence[Path], imports: Mapping[str, Path] | None = Non
     skipped: list[str] = []
     catalogs: dict[Path, dict[str, Path]] = {}
     loaded: set[Path] = set()
-    names: set[str] = set()  # the IRIs of the ontologies loaded so far
+    names: set[str] = set()  # the ontologies loaded so far, by IRI without a trailing / or #
+    prefixes: set[str] = set()
     todo: list[tuple[Path, str | None]] = [(Path(f), None) for f in files]
     while todo:
         path, iri = todo.pop(0)
-        if path.resolve() in loaded:
+        where = path.resolve()
+        if where in loaded:
             continue
-        loaded.add(path.resolve())
+        loaded.add(where)
         data = read_bytes(path)
         read.append((path, data))
-        part = _graph(data, str(path), path.resolve().as_uri(), None)
-        names |= {str(o) for o in part.subjects(RDF.type, OWL.Ontology) if isinstance(o, URIRef)}
-        names |= {iri} if iri else set()
+        part = _graph(data, str(path), where.as_uri(), None)
+        names |= {str(o).rstrip("/#") for o in part.subjects(RDF.type, OWL.Ontology)
+                  if isinstance(o, URIRef)}
+        if iri:
+            names.add(iri.rstrip("/#"))
         for _, _, wanted in sorted(part.triples((None, OWL.imports, None))):
             target = str(wanted)
-            if target in names or target.rstrip("/#") in {n.rstrip("/#") for n in names}:
+            if target.rstrip("/#") in names:
                 continue
             found = (imports or {}).get(target) or _catalog(path.parent, catalogs, read).get(
                 target)
-            if found is None:
-                message = (f"{path}: owl:imports <{target}> is found neither in the config's "
-                           f"[imports] nor in a catalog-v001.xml beside it (nothing is fetched)")
-                if not skip:
-                    raise ParseError(message.split(": ", 1)[1], Span(str(path)))
-                skipped.append(message + "; skipped")
+            if found is not None:
+                todo.append((found, target))
                 continue
-            todo.append((found, target))
+            why = (f"owl:imports <{target}> is found neither in the config's [imports] nor in a "
+                   f"catalog-v001.xml beside it (nothing is fetched)")
+            if not skip:
+                raise ParseError(why, Span(str(path)))
+            skipped.append(f"{path}: {why}; skipped")
         for triple in part:
             graph.add(triple)
         for prefix, ns in part.namespaces():
-            if prefix and prefix not in dict(graph.namespaces()):
+            if prefix and prefix not in prefixes:
+                prefixes.add(prefix)
                 graph.bind(prefix, ns)
     return Sources(graph, tuple(read), tuple(skipped))
 
