@@ -8,7 +8,7 @@ kept: their classes and sameAs partners.  Feature signatures stay as told (an OW
 would give equivalent features each other's signatures, thesis 6.1), and a membership the
 told subclass axioms already give is left to the rules.  Each entailed pair is kept with the
 told axiom it follows from, for explanations.  owlrl, the full OWL 2 RL reasoner, is the
-oracle in the tests (the same memberships on every test ontology); it takes 20-40× what
+oracle in the tests (the same memberships on every test ontology); it takes 20-30× what
 rdflib needs to parse the files, these rules a fraction of it (benchmarks/bench_owlrl.py).
 """
 
@@ -52,10 +52,12 @@ def entail(graph: Any, told: Ontology) -> Ontology:
             types[(obj, cls)] = "entailed by OWL RL from " + \
                 _why_type(graph, out_of, into, URIRef(obj), URIRef(cls))
     same: dict[tuple[str, str], str] = {}
+    known = set(told.same_as)  # told pairs, then entailed ones, either way round
     for a, b in ((s, o) for s, p, o in facts if p == OWL.sameAs):
         pair = (str(a), str(b))
         if a != b and pair[0] in objects and pair[1] in objects and \
-                not {pair, pair[::-1]} & (set(told.same_as) | same.keys()):
+                pair not in known and pair[::-1] not in known:
+            known.add(pair)
             same[pair] = f"entailed by OWL RL from {_why_same(graph, a, b)}"
     return replace(told, types=(*told.types, *sorted(types)),
                    same_as=(*told.same_as, *sorted(same)), entailed=types | same)
