@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo live test lint bench clean
+.PHONY: demo live ros2-demo test lint bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,18 @@ live: $(STAMP) $(RECORDING)/metadata.yaml
 	$(BIN)/dkreason monitor --live --config examples/live/monitor.toml \
 	    --listen tcp/127.0.0.1:7447 --delay 0.1 --until 330 "$(SPEEDING)" \
 	    "always (Position[car2] >= 0)"; status=$$?; kill $$pids; test $$status -eq 1
+
+# The same example as three live ROS 2 robots (rmw_zenoh's wire format, no ROS install): the
+# replay announces its publishers and /clock, `monitor --ros2 --sim-time` finds them on
+# loopback (port 7448), subscribes to the relevant topics only and finds car2's violation.
+MSGS := $(foreach m,$(wildcard examples/traffic/msg/dkreason_msgs/msg/*.msg),--msg $(m))
+ros2-demo: $(STAMP) $(RECORDING)/metadata.yaml
+	@$(BIN)/python examples/ros2/replay.py $(RECORDING) --listen tcp/127.0.0.1:7448 \
+	    --speed 30 --delay 3 & pid=$$!; \
+	$(BIN)/dkreason monitor --ros2 --sim-time --config examples/federation.toml $(MSGS) \
+	    --connect tcp/127.0.0.1:7448 --delay 0.5 --until 330 --record examples/ros2/run.mcap \
+	    "$(SPEEDING)" "always (Position[car2] >= 0)"; status=$$?; kill $$pid 2>/dev/null; \
+	test $$status -eq 1
 
 $(RECORDING)/metadata.yaml: examples/traffic/simulate.py $(STAMP)
 	rm -rf $(RECORDING)

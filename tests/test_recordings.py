@@ -483,3 +483,38 @@ def test_start_and_end_may_count_from_the_recordings_first_sample(
     assert verdict["time"] == 1780000001 and verdict["t"] == 1
     assert main(["monitor", "--start", "+0.25", "--end", "2", *args]) == 2
     assert "both relative (+SECONDS) or both absolute" in capsys.readouterr().err
+
+
+def test_an_mcap_with_json_channels_beside_its_ros_ones_is_read_whole(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    """Foxglove and dkreason's own --record write JSON channels into ROS 2 MCAP files; rosbags
+    stops at their schema encoding.  The ROS channels are read as usual (not as damage) and the
+    others skipped, with a note."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    plain = bag(tmp_path / "plain.mcap", {"/robot1/pose": 1.0})
+    mixed = tmp_path / "mixed.mcap"
+    with plain.open("rb") as f, mixed.open("wb") as out:
+        writer = Writer(out)
+        writer.start(profile="ros2", library="test")
+        reader = make_reader(f)
+        ids: dict[int, int] = {}
+        summary = reader.get_summary()
+        assert summary is not None
+        for schema in summary.schemas.values():
+            ids[schema.id] = writer.register_schema(schema.name, schema.encoding, schema.data)
+        chans = {c.id: writer.register_channel(c.topic, c.message_encoding, ids[c.schema_id])
+                 for c in summary.channels.values()}
+        notes = writer.register_channel("/notes", "json", writer.register_schema(
+            "Note", "jsonschema", b'{"type": "object"}'))
+        for _, channel, message in reader.iter_messages():
+            writer.add_message(chans[channel.id], message.log_time, message.data,
+                               message.publish_time)
+            writer.add_message(notes, message.log_time, b'{"note": 1}', message.log_time)
+        writer.finish()  # type: ignore[no-untyped-call]
+    code, found, err = verdicts(capsys, "--config", str(TURTLES / "robot1.toml"), "--source",
+                                str(mixed), "always (X[me] < 15)")
+    assert (code, found) == (0, [(True, 0.9)])
+    assert "damaged" not in err and "sequentially" not in err
+    assert "/notes (json)" in err

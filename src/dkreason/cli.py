@@ -128,6 +128,25 @@ def _build() -> _Parser:
     definitions(p)
     p.add_argument("--live", action="store_true",
                    help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
+    p.add_argument("--ros2", action="store_true",
+                   help="monitor live ROS 2 robots over Zenoh (rmw_zenoh; --bridge: DDS robots "
+                        "through zenoh-bridge-ros2dds); no ROS install needed")
+    p.add_argument("--domain", type=_domain, default=None, metavar="N",
+                   help="ros2: the ROS_DOMAIN_ID (default: $ROS_DOMAIN_ID, else 0)")
+    p.add_argument("--bridge", action="store_true",
+                   help="ros2: also take the publishers zenoh-bridge-ros2dds announces")
+    p.add_argument("--bind", action="append", default=[], metavar="PLATFORM=NAMESPACE",
+                   help="ros2: topics of nodes in (or named under) NAMESPACE are PLATFORM's, "
+                        "by their names relative to it (repeatable)")
+    p.add_argument("--sim-time", action="store_true",
+                   help="ros2: the stream clock is /clock (rosgraph_msgs/msg/Clock), as with "
+                        "use_sim_time")
+    p.add_argument("--record", type=Path, metavar="OUT.mcap",
+                   help="ros2: write the relevant topics' messages and the verdicts (a JSON "
+                        "channel) to one MCAP file, which --source replays")
+    p.add_argument("--publish-verdicts", action="store_true",
+                   help="live, ros2: put verdicts and violations on dkreason/verdicts/<formula "
+                        "id> (JSON); with --ros2 also on the ROS 2 topic /dkreason/verdicts")
     network(p)
     p.add_argument("--wait", type=_positive, default=10.0,
                    help="live: seconds to wait for the local platform (default 10)")
@@ -413,6 +432,16 @@ def _monitor(args: argparse.Namespace) -> int:
         raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
     if args.plot is not None and args.plot.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise DkError(f"--plot {args.plot}: name a .png, .svg or .pdf file")
+    ros2_only = [flag for flag, given in (("--bridge", args.bridge), ("--bind", args.bind),
+                                          ("--sim-time", args.sim_time),
+                                          ("--record", args.record), ("--domain", args.domain))
+                 if given not in (False, [], None)]
+    if ros2_only and not args.ros2:
+        raise DkError(f"{ros2_only[0]} is for --ros2")
+    if args.publish_verdicts and not (args.live or args.ros2):
+        raise DkError("--publish-verdicts is for --live or --ros2")
+    if args.ros2:
+        return _monitor_ros2(args, policy)
     if args.live:
         return _monitor_live(args, policy)
     if not args.source:
@@ -454,20 +483,83 @@ def _monitor(args: argparse.Namespace) -> int:
 
 
 def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
-    from .live.monitor import Change, LiveMonitor
+    from .live.monitor import LiveMonitor
     from .live.wire import trusted_keys
-    from .progress import Verdict
 
     if args.source or args.plot is not None:
         raise DkError("--live takes no --source and no --plot")
     _logging()
     trust = trusted_keys(args.trust) if args.trust is not None else None
+    formulas = _formulas(args)
     session = _session(args)
     try:
-        monitor = LiveMonitor(args.config, _formulas(args), policy, session, args.wait, trust=trust)
+        monitor = LiveMonitor(args.config, formulas, policy, session, args.wait, trust=trust)
         _on_signals(lambda *_: monitor.stop.set())
-        verdicts, violations = [], 0
-        for event in monitor.run(args.until, args.duration):
+        return _report(args, monitor.run(args.until, args.duration),
+                       lambda: getattr(monitor, "processor", None), session,
+                       [f.text for f in monitor.formulas], ros2=False)
+    finally:
+        session.close()
+
+
+def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
+    import os
+
+    from .live.record import Recorder
+    from .live.ros2 import Ros2Monitor
+    from .stream.sources import _msg_types, _typestore
+
+    if args.source or args.plot is not None or args.live:
+        raise DkError("--ros2 takes no --source, --plot or --live")
+    _logging()
+    bind = {}
+    for given in args.bind:
+        platform, sep, namespace = given.partition("=")
+        if not sep or not namespace.startswith("/"):
+            raise DkError(f"--bind {given!r}: expected PLATFORM=/NAMESPACE")
+        bind[platform] = namespace
+    try:
+        domain = args.domain if args.domain is not None else \
+            _domain(os.environ.get("ROS_DOMAIN_ID", "0") or "0")
+    except argparse.ArgumentTypeError as exc:
+        raise DkError(f"$ROS_DOMAIN_ID: {exc}") from None
+    km = _km(args)
+    unknown = sorted(set(bind) - set(km.platforms))
+    if unknown:
+        raise DkError(f"--bind {unknown[0]}: not a platform of the config (platforms: "
+                      f"{', '.join(sorted(km.platforms))})")
+    store = _typestore(_msg_types(args.msg), False, args.typestore or "ros2_jazzy")
+    formulas = _formulas(args)
+    recorder = Recorder(args.record, store) if args.record is not None else None
+    session = _session(args)
+    try:
+        monitor = Ros2Monitor(km, list(formulas), policy, session, store=store, domain=domain,
+                              bridge=args.bridge, bind=bind, remap=_remaps(args),
+                              sim_time=args.sim_time, recorder=recorder)
+        recorder = None  # the monitor closes it
+        _on_signals(lambda *_: monitor.stop.set())
+        return _report(args, monitor.run(args.until, args.duration), lambda: monitor.processor,
+                       session, [f.text for f in monitor.monitor.plan.formulas], ros2=True,
+                       domain=domain)
+    finally:
+        if recorder is not None:
+            recorder.close()
+        session.close()
+
+
+def _report(args: argparse.Namespace, events: Any, processor: Any, session: Any,
+            formulas: list[str], ros2: bool, domain: int = 0) -> int:
+    """A live run's events printed (and published with --publish-verdicts) as they come."""
+    from .live.monitor import Change
+    from .live.ros2node import Announcer
+    from .progress import Verdict
+
+    announce = Announcer(session, formulas, ros2, domain) if args.publish_verdicts else None
+    verdicts, violations = [], 0
+    try:
+        for event in events:
+            if announce is not None:
+                announce(event)
             if isinstance(event, Change):
                 print(json.dumps(event.to_json(), ensure_ascii=False) if args.json else
                       str(event), flush=True)
@@ -476,13 +568,21 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
                 verdicts.append(event)
             else:
                 violations += 1
-            processor = getattr(monitor, "processor", None)
-            _print_event(event, args.json, processor.first if processor else None)
+            shown = processor()
+            _print_event(event, args.json, shown.first if shown else None)
     finally:
-        session.close()
+        if announce is not None:
+            announce.close()
     if not args.json:
         _summary(verdicts, violations)
     return exit_status([v.verdict for v in verdicts])
+
+
+def _domain(text: str) -> int:
+    """A ROS_DOMAIN_ID: 0 to 232 (an argparse type, so a ValueError is its one-line error)."""
+    if not text.isdigit() or int(text) > 232:
+        raise argparse.ArgumentTypeError(f"ROS domain id {text!r}: expected 0 to 232")
+    return int(text)
 
 
 def _formulas(args: argparse.Namespace) -> list[str]:
@@ -503,12 +603,7 @@ def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
     from .stream.binding import Recording, Recordings
     from .stream.sources import open_source
 
-    remap = {}
-    for rule in args.remap:
-        old, sep, new = rule.partition(":=")
-        if not sep or not old or not new:
-            raise DkError(f"--remap {rule!r}: expected FROM:=TO")
-        remap[old] = new
+    remap = _remaps(args)
     parts = []
     try:
         for given in args.source:
@@ -525,6 +620,17 @@ def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
         for r in parts:
             r.source.close()
         raise
+
+
+def _remaps(args: argparse.Namespace) -> dict[str, str]:
+    """--remap FROM:=TO (repeatable)."""
+    remap = {}
+    for rule in args.remap:
+        old, sep, new = rule.partition(":=")
+        if not sep or not old or not new:
+            raise DkError(f"--remap {rule!r}: expected FROM:=TO")
+        remap[old] = new
+    return remap
 
 
 def _info(args: argparse.Namespace) -> int:

@@ -119,6 +119,20 @@ class _Live:
         pass
 
 
+def drain(events: queue.Queue[Any], timeout: float) -> list[Any]:
+    """What has arrived, up to BATCH events, waiting up to `timeout` s for the first: the
+    watermark, the processor's advance and the verdicts are paid once a batch, not once a
+    sample."""
+    try:
+        batch = [events.get(timeout=timeout)]
+    except queue.Empty:
+        return []
+    with contextlib.suppress(queue.Empty):
+        while len(batch) < BATCH:
+            batch.append(events.get_nowait())
+    return batch
+
+
 def _logged(n: int) -> bool:
     """1, 10, 100, 1000…: how often a repeated warning is worth a line."""
     return n == 1 or (n % 10 == 0 and _logged(n // 10))
@@ -260,15 +274,9 @@ class LiveMonitor:
                 mark = self.watermark()
                 if end is not None and mark is not None and mark > end:
                     break
-                try:
-                    batch = [self.events.get(timeout=0.1)]
-                except queue.Empty:
+                batch = drain(self.events, 0.1)
+                if not batch:
                     continue
-                # Drain what else has arrived (up to BATCH): the watermark, the processor's
-                # advance and the verdicts are paid once a batch, not once a sample.
-                with contextlib.suppress(queue.Empty):
-                    while len(batch) < BATCH:
-                        batch.append(self.events.get_nowait())
                 for event in batch:
                     yield from self._handle(event)
                 mark = self.watermark()

@@ -75,7 +75,6 @@ class RosbagSource:
                  typestore: str | None = None) -> None:
         self.name = str(path)
         self.path = path
-        self.note = ""
         if not path.exists():
             raise DkError(f"{path}: no such recording")
         from rosbags.highlevel import AnyReader
@@ -83,24 +82,31 @@ class RosbagSource:
         ros1 = path.suffix == ".bag"
         given = _msg_types(msg_files)
         default = _typestore(given, ros1, typestore)
+        _foreign_channels_allowed()
         try:
             self.reader = AnyReader([path], default_typestore=default)
             self.reader.open()
         except Exception as exc:  # rosbags raises several kinds for unreadable files
             raise DkError(f"{path}: not a readable ROS recording ({_why(exc)})") from None
+        self.connections = [c for c in self.reader.connections if _ros(c)]
+        foreign = sorted({f"{c.topic} ({getattr(c.ext, 'serialization_format', '?')})"
+                          for c in self.reader.connections if not _ros(c)})
+        notes = [f"{path}: channels not in a ROS encoding skipped: {', '.join(foreign)}"] \
+            if foreign else []
         if not msg_files and typestore is None and \
-                any(not c.msgdef.data for c in self.reader.connections):
-            self.note = (f"{path} stores no message definitions: using rosbags' "
+                any(not c.msgdef.data for c in self.connections):
+            notes.append(f"{path} stores no message definitions: using rosbags' "
                          f"{_store_name(ros1, None)} ones (--typestore, --msg)")
         replaced = sorted(name for name, definition in given.items()
                           if self.reader.typestore.fielddefs.get(name, definition) != definition)
         if replaced:
             self.reader.typestore = _replaced(self.reader.typestore, given)
-            self.note = "; ".join(f"{name}: the definition of --msg replaces the one {path} "
-                                  f"stores" for name in replaced)
+            notes = [f"{name}: the definition of --msg replaces the one {path} stores"
+                     for name in replaced]
+        self.note = "; ".join(notes)
 
     def types(self) -> dict[str, str]:
-        return {c.topic: c.msgtype for c in self.reader.connections}
+        return {c.topic: c.msgtype for c in self.connections}
 
     def check_field(self, topic: str, field: str) -> str | None:
         msgtype = self.types().get(topic)
@@ -114,14 +120,14 @@ class RosbagSource:
                                                          msgtype, field)
 
     def last_record(self) -> int | None:
-        return int(self.reader.end_time) - 1 if self.reader.connections else None
+        return int(self.reader.end_time) - 1 if self.connections else None
 
     def count(self, topics: set[str] | None) -> int | None:
-        return sum(c.msgcount for c in self.reader.connections
+        return sum(c.msgcount for c in self.connections
                    if topics is None or c.topic in topics)
 
     def messages(self, wanted: Wanted) -> Iterator[Message]:
-        connections = [c for c in self.reader.connections if c.topic in wanted]
+        connections = [c for c in self.connections if c.topic in wanted]
         if not connections:
             return
         fielddefs = self.reader.typestore.fielddefs
@@ -151,7 +157,7 @@ class RosbagSource:
     def records(self) -> Iterator[Record]:
         """Every message in full, as plain data (what a live platform node publishes)."""
         try:
-            for connection, t_ns, raw in self.reader.messages():
+            for connection, t_ns, raw in self.reader.messages(connections=self.connections):
                 msg = plain(self.reader.deserialize(raw, connection.msgtype))
                 stamp = msg.get("header", {}).get("stamp") if isinstance(msg, dict) else None
                 valid = stamp["sec"] * NS + stamp.get("nanosec", stamp.get("nsec", 0)) \
@@ -163,6 +169,31 @@ class RosbagSource:
     def close(self) -> None:
         if self.reader.stack is not None:
             self.reader.close()
+
+
+def _ros(connection: Any) -> bool:
+    """A channel in a ROS encoding (an MCAP may hold others: JSON, protobuf)."""
+    return getattr(connection.ext, "serialization_format", "cdr") in ("cdr", "ros1")
+
+
+def _foreign_channels_allowed() -> None:
+    """rosbags refuses an MCAP file at the first schema not in a ROS encoding (a JSON channel
+    that Foxglove or `--record` wrote beside the ROS ones); read such a schema as carrying no
+    ROS definition instead, so its channel can be skipped (`_ros`)."""
+    from rosbags.interfaces import MessageDefinition, MessageDefinitionFormat
+    from rosbags.rosbag2 import storage_mcap
+
+    strict = storage_mcap.get_msgdef
+    if getattr(strict, "lenient", False):
+        return
+
+    def lenient(schema: Any) -> Any:
+        if schema is not None and schema.encoding not in ("ros2msg", "ros2idl", "omgidl", ""):
+            return MessageDefinition(MessageDefinitionFormat.NONE, "")
+        return strict(schema)
+
+    lenient.lenient = True  # type: ignore[attr-defined]
+    storage_mcap.get_msgdef = lenient
 
 
 def _decodes(deserialize: Any, raw: Any, connection: Any) -> None:

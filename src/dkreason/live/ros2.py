@@ -1,0 +1,340 @@
+"""Monitor live ROS 2 robots over Zenoh: rmw_zenoh, or DDS robots through zenoh-bridge-ros2dds.
+
+No ROS installation is needed: publishers are discovered from their liveliness tokens (rmw.py),
+bound to spec topics by name as recordings are (stream/binding.py: namespaces, `PLATFORM=`
+binding, here by a node's namespace, remaps), and only the relevant ones are subscribed.  CDR
+payloads are read with rosbags' typestores (standard types built in; custom types from `--msg`
+files), only the fields the request needs (stream/fastread.py).
+
+Time.  A sample's valid time is its `header.stamp` when it has one; otherwise the publisher's
+source time from the attachment (wall clock), or the sim clock at arrival (`sim_time`).  Its
+available time is its arrival: the wall clock, or with `sim_time` the latest `/clock`.  States
+are made as that clock passes (less the policy's delay), so a silent publisher's value turns
+unknown once it is older than the maximum age.
+
+Change.  A publisher that appears later is subscribed when it appears; one whose token goes
+away is unsubscribed, and a feature left with no publisher is reported as source loss.  A
+publisher of a type the typestore does not know, or of a type or fields other than its
+specification says, is one warning line and is skipped.  A payload that is not CDR, too large
+or does not decode is counted and reported (at 1, 10, 100… of a kind), never fatal.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+from ..errors import DkError
+from ..manager import KnowledgeManager
+from ..model import FeatureKey, TopicMatch
+from ..monitor import Monitor
+from ..plan import Parsed
+from ..progress import Verdict
+from ..stream import fields
+from ..stream.binding import message_type_fits, recording_names
+from ..stream.processor import StreamPolicy
+from ..stream.sources import NS, _ros_reader
+from . import rmw
+from .monitor import Change, Event, _Live, _logged, drain
+from .record import Recorder
+from .ros2node import CLOCK, CLOCK_TYPE
+from .wire import WireError
+
+log = logging.getLogger("dkreason.ros2")
+MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
+
+
+def _direct(callback: Any) -> Any:
+    """A callback zenoh calls on its own receiving task (zenoh-python's default hands each
+    subscriber's samples to a thread of its own): samples of one session then reach the queue
+    in the order they were put, across keys, so a message is never taken before the /clock
+    tick put ahead of it.  It only enqueues."""
+    import zenoh
+
+    return zenoh.handlers.Callback(callback, indirect=False)
+
+
+@dataclass(slots=True)
+class _Sub:
+    """One subscribed key expression: a topic of one type, from one or more publishers."""
+
+    name: str  # as bound: the spec topic's recording name
+    topic: str  # its ROS name
+    msgtype: str
+    read: Any  # raw CDR → the wanted values (and the header stamp)
+    stamped: bool
+    features: list[FeatureKey]
+    handle: Any = None
+    publishers: set[str] = field(default_factory=set)
+    checked: bool = False  # the first message was decoded in full against the definition
+
+
+class Ros2Monitor:
+    def __init__(self, km: KnowledgeManager, formulas: list[str | Parsed], policy: StreamPolicy,
+                 session: Any, *, store: Any, domain: int = 0, bridge: bool = False,
+                 bind: Mapping[str, str] | None = None, remap: Mapping[str, str] | None = None,
+                 sim_time: bool = False, recorder: Recorder | None = None,
+                 keep_states: bool = False) -> None:
+        """`store`: a rosbags typestore; `bind`: platform → ROS namespace whose nodes (or
+        topics) are that platform's; `remap`: ROS topic name → the name it is bound by;
+        `bridge`: take zenoh-bridge-ros2dds' publishers too."""
+        self.session, self.store = session, store
+        self.domain, self.bridge, self.sim_time = domain, bridge, sim_time
+        self.bind = {p: ns.rstrip("/") or "/" for p, ns in (bind or {}).items()}
+        self.remap = dict(remap or {})
+        self.recorder = recorder
+        self.monitor = Monitor(km, formulas, policy, keep_states=keep_states)
+        self.processor = self.monitor.start(_Live())
+        request = self.monitor.request
+        namespaces = dict(request.namespaces)
+        self.wants: dict[str, list[tuple[FeatureKey, TopicMatch]]] = {}
+        for f in request.features:
+            for m in f.topics:
+                for name in recording_names(m, request.local, namespaces.get(m.platform)):
+                    self.wants.setdefault(name, []).append((f.feature.key, m))
+        self.events: queue.Queue[tuple[Any, ...]] = queue.Queue()
+        self.seen: dict[str, rmw.Publisher] = {}  # token → every publisher discovered
+        self.taken: dict[str, str] = {}  # token → the key expression subscribed for it
+        self.subs: dict[str, _Sub] = {}  # key expression → subscription
+        self.feeding: dict[FeatureKey, set[str]] = {}  # feature → its subscribed keys
+        self.warned: set[tuple[str, ...]] = set()
+        self.rejected: dict[tuple[str, str], int] = {}
+        self.clock: int | None = None  # sim time: the latest /clock
+        self.received = 0
+        self.stop = threading.Event()
+        self.declared = [session.liveliness().declare_subscriber(
+            rmw.TOKENS, _direct(self._on_token), history=True)]
+
+    # ---- zenoh callbacks (other threads): only enqueue ----------------------------------
+
+    def _on_token(self, sample: Any) -> None:
+        import zenoh
+
+        self.events.put(("token", str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+
+    def _on_sample(self, key: str, sample: Any) -> None:
+        attachment = sample.attachment
+        self.events.put(("sample", key, sample.payload.to_bytes(),
+                         None if attachment is None else attachment.to_bytes(), time.time_ns()))
+
+    # ---- the loop ----------------------------------------------------------------------
+
+    def now(self) -> int | None:
+        """The stream clock: the latest /clock with sim time (None before it), else wall."""
+        return self.clock if self.sim_time else time.time_ns()
+
+    def run(self, until: Fraction | None = None, duration: float | None = None
+            ) -> Iterator[Event]:
+        """Events as they happen until every formula is decided, the stream clock passes
+        `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts."""
+        end = None if until is None else int(until * NS)
+        stop_at = None if duration is None else time.monotonic() + duration
+        try:
+            try:
+                while not self.stop.is_set() and not self.monitor.done:
+                    if stop_at is not None and time.monotonic() >= stop_at:
+                        break
+                    mark = self.now()
+                    if end is not None and mark is not None and mark > end:
+                        break
+                    out: list[Event] = []
+                    for event in drain(self.events, 0.1):
+                        out += self._handle(event)
+                    mark = self.now()
+                    if mark is not None:
+                        self.processor.advance(mark if end is None else min(mark, end))
+                    yield from self._out([*out, *self.monitor.events()])
+            finally:
+                self.close()
+            yield from self._out(self.monitor.finish())
+        finally:
+            if self.recorder is not None:
+                self.recorder.close()
+
+    def _out(self, events: Sequence[Event]) -> Iterator[Event]:
+        """Events as they go out, each recorded (at its own time, else now) when asked."""
+        for event in events:
+            if self.recorder is not None:
+                t = event.time
+                at = round(t * NS) if isinstance(event, Verdict) and t is not None else t
+                self.recorder.event(at if at is not None else self.now() or 0, event.to_json())
+            yield event
+
+    def _handle(self, event: tuple[Any, ...]) -> list[Event]:
+        try:
+            if event[0] == "sample":
+                self._sample(*event[1:])
+                return []
+            return self._token(event[1], event[2])
+        except WireError as exc:
+            self._reject(event[1] if event[0] == "sample" else "tokens", exc.kind, str(exc))
+        except DkError as exc:  # a value the formulas cannot use
+            self._reject(event[1], "value", str(exc))
+        return []
+
+    def _reject(self, where: str, kind: str, why: str) -> None:
+        """Counted per key and kind; logged at 1, 10, 100… of each."""
+        sub = self.subs.get(where)
+        shown = sub.topic if sub is not None else where
+        n = self.rejected[(shown, kind)] = self.rejected.get((shown, kind), 0) + 1
+        if _logged(n):
+            log.warning("rejected %s (%s, %d so far): %s", shown, kind, n, why)
+
+    def _warn(self, *why: str) -> None:
+        if why not in self.warned:
+            self.warned.add(why)
+            log.warning("%s", " ".join(why))
+
+    # ---- discovery -----------------------------------------------------------------------
+
+    def _token(self, token: str, alive: bool) -> list[Event]:
+        if not alive:
+            return self._gone(token)
+        pub = rmw.parse_token(token)
+        if pub is None or token in self.seen:
+            return []
+        self.seen[token] = pub
+        if pub.bridged and not self.bridge:
+            self._warn(f"{pub.describe()}: announced by zenoh-bridge-ros2dds; skipped "
+                       f"(give --bridge to take it)")
+            return []
+        if not pub.bridged and pub.domain != self.domain:
+            return []
+        if self.sim_time and pub.topic == CLOCK:
+            return self._subscribe(pub, CLOCK, [])
+        name = self._bound(pub)
+        if name is None:
+            return []
+        if pub.msgtype not in self.store.fielddefs:
+            self._warn(f"{pub.topic}: type {pub.msgtype} is not known (give its .msg file "
+                       f"with --msg, or --typestore); skipped")
+            return []
+        fits = []
+        for key, m in self.wants[name]:
+            why = None if message_type_fits(pub.msgtype, m.msgtype) else \
+                f"carries {pub.msgtype}, but its specification says {m.msgtype}"
+            for f in (m.field, *(k for k, _ in m.filter)):
+                why = why or fields.check(self.store.fielddefs, pub.msgtype, f)
+            if why is not None:
+                self._warn(f"{pub.topic} for {key} ({m.platform}/{m.topic}): {why}; skipped")
+            else:
+                fits.append(key)
+        return self._subscribe(pub, name, list(dict.fromkeys(fits))) if fits else []
+
+    def _bound(self, pub: rmw.Publisher) -> str | None:
+        """The recording name a publisher's topic binds by: under a `bind` namespace (its
+        node's, or its topic's), as that platform's own name; else as the topic is named."""
+        topic = self.remap.get(pub.topic, pub.topic)
+        for platform, ns in self.bind.items():
+            prefix = "" if ns == "/" else ns
+            if topic.startswith(prefix + "/"):
+                own = topic[len(prefix):]
+            elif pub.namespace is not None and (pub.namespace + "/").startswith(prefix + "/"):
+                own = topic
+            else:
+                continue
+            if f"{platform}:{own}" in self.wants:
+                return f"{platform}:{own}"
+        return next((n for n in (topic, topic[1:]) if n in self.wants), None)
+
+    def _subscribe(self, pub: rmw.Publisher, name: str, features: list[FeatureKey]
+                   ) -> list[Event]:
+        if name == CLOCK and pub.msgtype != CLOCK_TYPE:
+            self._warn(f"{CLOCK}: type {pub.msgtype}, not {CLOCK_TYPE}; skipped")
+            return []
+        self.taken[pub.token] = pub.key
+        sub = self.subs.get(pub.key)
+        if sub is not None:
+            sub.publishers.add(pub.token)
+            return []
+        wanted = ["msg.clock.sec", "msg.clock.nanosec"] if name == CLOCK else \
+            self.processor.wanted[name]
+        read, stamped = _ros_reader(self.store.fielddefs, pub.msgtype, wanted, False,
+                                    self.store.deserialize_cdr)
+        sub = self.subs[pub.key] = _Sub(name, pub.topic, pub.msgtype, read, stamped, features,
+                                        publishers={pub.token})
+        sub.handle = self.session.declare_subscriber(
+            pub.key, _direct(lambda sample, key=pub.key: self._on_sample(key, sample)))
+        now = self.now()
+        changes: list[Event] = []
+        for key in features:
+            self.feeding.setdefault(key, set()).add(pub.key)
+            m = next(m for k, m in self.wants[name] if k == key)
+            changes.append(Change("subscribed", now, m.platform, pub.describe(), str(key),
+                                  m.topic))
+        return changes
+
+    def _gone(self, token: str) -> list[Event]:
+        pub = self.seen.pop(token, None)
+        key = self.taken.pop(token, None)
+        if pub is None or key is None:
+            return []
+        sub = self.subs[key]
+        sub.publishers.discard(token)
+        if sub.publishers:
+            return []
+        del self.subs[key]
+        sub.handle.undeclare()
+        now = self.now()
+        platform, topic = next(((m.platform, m.topic) for _, m in self.wants.get(sub.name, ())),
+                               ("", sub.topic))
+        changes: list[Event] = [Change("unsubscribed", now, platform,
+                                       f"{pub.describe()} went away", topic=topic)]
+        for feature in sub.features:
+            feeding = self.feeding[feature]
+            feeding.discard(key)
+            if not feeding:
+                changes.append(Change("source_lost", now, platform,
+                                      f"the last publisher of {sub.topic} went away",
+                                      feature=str(feature),
+                                      last_sample=self.processor.newest(feature)))
+        return changes
+
+    # ---- samples -------------------------------------------------------------------------
+
+    def _sample(self, key: str, payload: bytes, attachment: bytes | None, arrival: int) -> None:
+        sub = self.subs.get(key)
+        if sub is None:
+            return  # in flight when its subscription was dropped
+        rmw.check_cdr(payload, MAX_PAYLOAD)
+        if not sub.checked:  # a topic's first message decodes in full, or is refused
+            try:
+                self.store.deserialize_cdr(payload, sub.msgtype)
+            except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds
+                raise WireError(f"does not decode as {sub.msgtype} "
+                                f"({str(exc)[:120] or type(exc).__name__})", "decode") from None
+            sub.checked = True
+        try:
+            values = sub.read(payload)
+        except Exception as exc:  # noqa: BLE001 - a torn or lying payload
+            raise WireError(f"does not decode as {sub.msgtype} "
+                            f"({str(exc)[:120] or type(exc).__name__})", "decode") from None
+        if sub.name == CLOCK:
+            t = values[0] * NS + values[1]
+            self.clock = t if self.clock is None else max(self.clock, t)
+            return
+        source_time = rmw.parse_attachment(attachment)[1] if attachment is not None else None
+        if sub.stamped:
+            valid = values[-2] * NS + values[-1]
+        elif self.sim_time:
+            valid = self.clock if self.clock is not None else arrival
+        else:
+            valid = source_time if source_time is not None else arrival
+        available = (self.clock if self.clock is not None else valid) if self.sim_time \
+            else arrival
+        self.processor.put(sub.name, available, valid, values)
+        self.received += 1
+        if self.recorder is not None:
+            self.recorder.message(sub.topic, sub.msgtype, available if sub.stamped else valid,
+                                  source_time if source_time is not None else arrival, payload)
+
+    def close(self) -> None:
+        for handle in [*self.declared, *(s.handle for s in self.subs.values())]:
+            handle.undeclare()
+        self.declared, self.subs = [], {}
