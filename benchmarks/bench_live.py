@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing as mp
+import queue
 import socket
 import statistics
 import tempfile
@@ -31,6 +32,8 @@ from typing import Any
 
 TOPICS, PLATFORMS = 10, 3
 LIMIT, BAD = 1000, 5000
+# the violation to find, and one that stays open so the run lasts until every sample is taken
+FORMULAS = [f"forall s in Sensor: always (Reading[s] < {LIMIT})", "always (Reading[p1s1] >= 0)"]
 
 
 def _turtle(n: int) -> str:
@@ -77,9 +80,10 @@ def write(folder: Path) -> None:
 
 
 def publisher(folder: str, n: int, endpoint: str, start: float, seconds: float, hz: float,
-              done: Any) -> None:
+              done: Any, finished: Any) -> None:
     """One platform: 10 topics at `hz` from `start` for `seconds`; platform 3 then sends the
-    violating reading.  Puts (published, wall ns of the bad reading) on `done`."""
+    violating reading.  Puts (published, wall ns of the bad reading) on `done`, and keeps its
+    session (and what is still queued in it) until `finished`."""
     from dkreason import KnowledgeManager
     from dkreason.live.serve import PlatformNode
     from dkreason.live.wire import open_session
@@ -95,22 +99,93 @@ def publisher(folder: str, n: int, endpoint: str, start: float, seconds: float, 
         for k in range(1, TOPICS + 1):
             node.publish(f"t{k}", {"id": k, "value": float(k)})
             published += 1
-        tick += 1 / hz
-        time.sleep(max(0.0, tick - time.time()))
+        if hz:
+            tick += 1 / hz
+            time.sleep(max(0.0, tick - time.time()))
+        else:  # a flood: as fast as it can
+            tick = time.time()
     if n == PLATFORMS:
         bad_at = time.time_ns()
         node.publish("t1", {"id": 1, "value": float(BAD)}, valid=bad_at)
         published += 1
-    time.sleep(1.0)  # the monitor reads the last samples before the token goes
     done.put((published, bad_at))
+    finished.wait(120)  # the monitor reads the last samples before the token goes
     node.close()
     session.close()
+
+
+class Fleet:
+    """Publisher processes started together (spawned: no state shared), and the monitor
+    stopped once it has taken every sample they published (or a minute after they are done):
+    a flood's backlog is drained, not cut off when its publishers stop."""
+
+    def __init__(self, target: Any, args: list[tuple[Any, ...]], seconds: float, hz: float,
+                 monitor: Any) -> None:
+        ctx = mp.get_context("spawn")
+        self.done, self.finished = ctx.Queue(), ctx.Event()
+        start = time.time() + 4
+        self.procs = [ctx.Process(target=target, args=(*a, start, seconds, hz, self.done,
+                                                       self.finished)) for a in args]
+        for p in self.procs:
+            p.start()
+        self.results: list[tuple[int, int | None]] = []
+        self.watcher = threading.Thread(target=self._watch, args=(monitor,), daemon=True)
+        self.watcher.start()
+
+    def _watch(self, monitor: Any) -> None:
+        for _ in self.procs:
+            try:
+                self.results.append(self.done.get(timeout=300))
+            except queue.Empty:
+                break
+        published = sum(r[0] for r in self.results)
+        end = time.monotonic() + 60
+        while monitor.received < published and time.monotonic() < end:
+            time.sleep(0.01)
+        monitor.stop.set()
+
+    def stop(self) -> list[tuple[int, int | None]]:
+        self.watcher.join(timeout=400)
+        self.finished.set()
+        for p in self.procs:
+            p.join(timeout=15)
+        return self.results
+
+
+class Meter:
+    """What a monitor's stream processor did, timed: publish → state progressed per state (the
+    state's time is the sample's publish stamp), and when it took its first and last sample
+    (the rate it sustained, whatever the backlog)."""
+
+    def __init__(self) -> None:
+        self.latencies: list[int] = []
+        self.first = self.last = 0.0
+        self.processor: Any = None
+
+    def attach(self, processor: Any) -> None:
+        self.processor = processor
+        step, put = processor.on_state, processor.put
+
+        def timed(t: int, values: dict[Any, Any], *rest: Any) -> None:
+            step(t, values, *rest)
+            self.latencies.append(time.time_ns() - t)
+
+        def taken(*args: Any) -> None:
+            self.last = time.monotonic()
+            self.first = self.first or self.last
+            put(*args)
+
+        processor.on_state, processor.put = timed, taken
+
+    def rate(self, received: int) -> int:
+        """Samples a second from the first sample taken to the last."""
+        span = self.last - self.first
+        return round(received / span) if span > 0 else 0
 
 
 def run(seconds: float, hz: float) -> dict[str, Any]:
     from dkreason.live.monitor import LiveMonitor
     from dkreason.live.wire import open_session
-    from dkreason.model import FeatureKey
     from dkreason.progress import Verdict
     from dkreason.stream.processor import StreamPolicy
 
@@ -123,44 +198,27 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
         endpoint = f"tcp/127.0.0.1:{port}"
         session = open_session([], [endpoint])
         policy = StreamPolicy(max_age=Fraction(1))
-        monitor = LiveMonitor(folder / "monitor.toml",
-                              [f"forall s in Sensor: always (Reading[s] < {LIMIT})"], policy,
-                              session, wait=30)
-        ctx = mp.get_context("spawn")
-        done = ctx.Queue()
-        start = time.time() + 4
-        procs = [ctx.Process(target=publisher, args=(str(folder), n, endpoint, start, seconds,
-                                                     hz, done))
-                 for n in range(1, PLATFORMS + 1)]
-        for p in procs:
-            p.start()
-        latencies: list[int] = []
+        monitor = LiveMonitor(folder / "monitor.toml", FORMULAS, policy, session, wait=30)
+        fleet = Fleet(publisher, [(str(folder), n, endpoint) for n in range(1, PLATFORMS + 1)],
+                      seconds, hz, monitor)
+        meter = Meter()
         verdict_at = None
         try:
-            for event in monitor.run(duration=seconds + 30):
-                if not latencies and hasattr(monitor, "processor"):
-                    step = monitor.processor.on_state
-
-                    def timed(t: int, values: dict[FeatureKey, Any], *rest: Any,
-                              step: Any = step) -> None:
-                        step(t, values, *rest)
-                        latencies.append(time.time_ns() - t)
-                    monitor.processor.on_state = timed
-                    latencies.append(0)
+            for event in monitor.run(duration=seconds + 60):
+                if meter.processor is None and hasattr(monitor, "processor"):
+                    meter.attach(monitor.processor)
                 if isinstance(event, Verdict) and event.verdict is False:
                     verdict_at = time.time_ns()
         finally:
-            for p in procs:
-                p.join(timeout=10)
+            results = fleet.stop()
             session.close()
-        results = [done.get(timeout=5) for _ in procs]
     published = sum(r[0] for r in results)
     bad_at = next(r[1] for r in results if r[1] is not None)
-    ms = sorted(x / 1e6 for x in latencies[1:] if x > 0)
+    ms = sorted(x / 1e6 for x in meter.latencies if x > 0)
     return {"platforms": PLATFORMS, "topics_per_platform": TOPICS, "hz": hz,
             "seconds": seconds, "published": published, "received": monitor.received,
             "lost": published - monitor.received,
-            "samples_per_s": round(monitor.received / seconds),
+            "samples_per_s": meter.rate(monitor.received),
             "states": len(ms),
             "p50_ms": round(statistics.median(ms), 2),
             "p99_ms": round(ms[int(0.99 * (len(ms) - 1))], 2),
@@ -172,7 +230,8 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seconds", type=float, default=10.0)
-    parser.add_argument("--hz", type=float, default=100.0, help="rate of each topic")
+    parser.add_argument("--hz", type=float, default=100.0,
+                        help="rate of each topic (0: as fast as each publisher can)")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     r = run(args.seconds, args.hz)

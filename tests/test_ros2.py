@@ -28,7 +28,7 @@ from dkreason.cli import main
 from dkreason.live import rmw
 from dkreason.live.monitor import Change
 from dkreason.live.record import Recorder
-from dkreason.live.ros2 import Ros2Monitor
+from dkreason.live.ros2 import Ros2Monitor, held
 from dkreason.live.ros2node import Announcer, Ros2Node, cdr_clock, replay
 from dkreason.live.wire import WireError, open_session
 from dkreason.monitor import Monitor
@@ -42,6 +42,8 @@ from .test_live import POSITION, SPEEDING, free_port
 S = 10**9
 POSE = "geometry_msgs/msg/PoseStamped"
 TRAFFIC_MSGS = sorted((REPO / "examples" / "traffic" / "msg").rglob("*.msg"))
+TRAFFIC_TOPICS = ["/clock", "/platform1/topic3", "/platform1/topic4", "/platform1/topic5",
+                  "/platform2/carstopic1", "/platform2/carstopic3"]  # what the formulas read
 TALKER = ("@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/"
           "std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503"
           "259e948f6b1a18/::,7:,:,:,,")
@@ -140,6 +142,20 @@ def test_type_names_map_both_ways_and_payloads_must_be_cdr() -> None:
         with pytest.raises(WireError) as caught:
             rmw.check_cdr(bad, 100)
         assert caught.value.kind == kind
+
+
+def test_on_the_wall_clock_busy_topics_hold_states_back_to_their_newest_sample_for_a_while(
+        ) -> None:
+    """A publisher's samples come in order: states wait until every topic heard from in the
+    last second has passed their time (a congested link delays states, it does not make its
+    samples late), but no topic holds them back by more than a second, and a silent one not
+    at all."""
+    now = 100 * S
+    assert held(now, []) == now
+    assert held(now, [(now - S // 10, now - S // 2)]) == now - S // 2  # busy: holds
+    assert held(now, [(now - 2 * S, now - 5 * S)]) == now  # silent for 2 s: holds nobody
+    assert held(now, [(now, now - 30 * S)]) == now - S  # far behind (or skewed): 1 s at most
+    assert held(now, [(now - S // 10, now - S // 2), (now, now - S // 5)]) == now - S // 2
 
 
 # ---- live, on loopback --------------------------------------------------------------------
@@ -250,15 +266,13 @@ def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
     record = tmp_path / "run.mcap"
     run = live(km, formulas, store=store, policy=policy, sim_time=True,
                recorder=Recorder(record, store), until=Fraction(400))
-    topics = ["/clock", "/platform1/topic3", "/platform1/topic4", "/platform1/topic5",
-              "/platform2/carstopic1", "/platform2/carstopic3"]
-    sent = replay(traffic, run.publishing, speed=200, wait_for=topics)
+    sent = replay(traffic, run.publishing, speed=200, wait_for=TRAFFIC_TOPICS)
     assert sent > 2900
     run.until(lambda: run.monitor.clock is not None and run.monitor.clock >= 359 * S,
               "the monitor's clock reaches the recording's end")
     run.finish()
     assert {c.topic for c in run.changes("subscribed")} == {t.rsplit("/", 1)[1]
-                                                            for t in topics[1:]}
+                                                            for t in TRAFFIC_TOPICS[1:]}
     assert run.verdicts() == [v for v in offline if isinstance(v, Verdict)]
     assert run.verdicts()[0].verdict is False and run.verdicts()[0].time == 300.02
     replayed = list(Monitor(km, formulas, policy).run(RosbagSource(record)))
@@ -438,3 +452,44 @@ def test_ros2_options_misused_are_one_line_and_exit_2(
                  "always (X[me] < 15)"]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
+        traffic: Path, tmp_path: Path) -> None:
+    """`dkreason monitor --ros2 --sim-time --json --record --publish-verdicts` against the
+    replayed robots: the offline verdicts, as JSON lines; the record replays them; the
+    verdicts arrive on dkreason/verdicts/f1."""
+    import subprocess
+    import sys
+
+    port = free_port()
+    session = open_session([], [f"tcp/127.0.0.1:{port}"])
+    got: list[bytes] = []
+    listener = session.declare_subscriber("dkreason/verdicts/f1",
+                                          lambda s: got.append(s.payload.to_bytes()))
+    record = tmp_path / "run.mcap"
+    args = ["monitor", "--config", str(REPO / "examples" / "federation.toml"), "--delay", "0.5",
+            *(a for m in TRAFFIC_MSGS for a in ("--msg", str(m))), SPEEDING]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dkreason.cli", *args, "--ros2", "--sim-time", "--json",
+         "--record", str(record), "--publish-verdicts", "--connect", f"tcp/127.0.0.1:{port}",
+         "--until", "330"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        replay(traffic, session, speed=200, wait_for=TRAFFIC_TOPICS[:-1], timeout=60)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+        listener.undeclare()
+        session.close()
+    assert proc.returncode == 1, err
+    lines = [json.loads(line) for line in out.splitlines()]
+    verdicts = [(v["verdict"], v["time"]) for v in lines if "verdict" in v]
+    assert verdicts == [(False, 300.02)]
+    assert {c["topic"] for c in lines if c.get("event") == "subscribed"} >= {"topic4"}
+    assert json.loads(got[0])["verdict"] is False
+    offline = subprocess.run([sys.executable, "-m", "dkreason.cli", *args, "--json", "--source",
+                              str(record)], capture_output=True, text=True, timeout=120)
+    assert [(v["verdict"], v["time"]) for v in map(json.loads, offline.stdout.splitlines())
+            if "verdict" in v] == verdicts

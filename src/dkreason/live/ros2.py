@@ -25,7 +25,7 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -48,6 +48,17 @@ from .wire import WireError
 
 log = logging.getLogger("dkreason.ros2")
 MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
+HOLD_NS = NS  # how long a topic's newest sample may hold states back (wall clock)
+
+
+def held(now: int, topics: Iterable[tuple[int, int]]) -> int:
+    """The wall-clock watermark at `now`: each topic (latest arrival, newest valid time) that
+    delivered within `HOLD_NS` holds it back to its newest valid time, by `HOLD_NS` at most."""
+    floor, mark = now - HOLD_NS, now
+    for arrived, newest in topics:
+        if arrived >= floor and newest < mark:
+            mark = max(newest, floor)
+    return mark
 
 
 def _direct(callback: Any) -> Any:
@@ -73,6 +84,8 @@ class _Sub:
     handle: Any = None
     publishers: set[str] = field(default_factory=set)
     checked: bool = False  # the first message was decoded in full against the definition
+    newest: int = -1  # ns, the newest valid time taken from it
+    arrived: int = -1  # ns, the wall clock at its latest sample
 
 
 class Ros2Monitor:
@@ -129,6 +142,16 @@ class Ros2Monitor:
         """The stream clock: the latest /clock with sim time (None before it), else wall."""
         return self.clock if self.sim_time else time.time_ns()
 
+    def watermark(self) -> int | None:
+        """Up to when every sample has been taken.  With sim time, the clock.  On the wall
+        clock, each topic that delivered within the last `HOLD` s holds it back to its newest
+        sample (a publisher's samples come in order), by `HOLD` at most: a congested link
+        delays states instead of making its samples late, and a silent or skewed publisher
+        holds nobody for long."""
+        if self.sim_time:
+            return self.clock
+        return held(time.time_ns(), ((s.arrived, s.newest) for s in self.subs.values()))
+
     def run(self, until: Fraction | None = None, duration: float | None = None
             ) -> Iterator[Event]:
         """Events as they happen until every formula is decided, the stream clock passes
@@ -144,9 +167,9 @@ class Ros2Monitor:
                     if end is not None and mark is not None and mark > end:
                         break
                     out: list[Event] = []
-                    for event in drain(self.events, 0.1):
+                    for event in drain(self.events, self._idle()):
                         out += self._handle(event)
-                    mark = self.now()
+                    mark = self.watermark()
                     if mark is not None:
                         self.processor.advance(mark if end is None else min(mark, end))
                     yield from self._out([*out, *self.monitor.events()])
@@ -156,6 +179,15 @@ class Ros2Monitor:
         finally:
             if self.recorder is not None:
                 self.recorder.close()
+
+    def _idle(self) -> float:
+        """How long to wait for the next event: on the wall clock, no longer than until the
+        watermark (which moves at most as fast as the wall clock between events) can reach
+        the next state due: a state waits for its delay, not for the next sample."""
+        mark = self.watermark()
+        if self.sim_time or mark is None:
+            return 0.1
+        return min(0.1, max(0.0, (self.processor.quiet_until - mark) / NS))
 
     def _out(self, events: Sequence[Event]) -> Iterator[Event]:
         """Events as they go out, each recorded (at its own time, else now) when asked."""
@@ -257,6 +289,7 @@ class Ros2Monitor:
             self.processor.wanted[name]
         read, stamped = _ros_reader(self.store.fielddefs, pub.msgtype, wanted, False,
                                     self.store.deserialize_cdr)
+        self.store.get_msgdef(pub.msgtype)  # rosbags' decoder built now, not at a sample
         sub = self.subs[pub.key] = _Sub(name, pub.topic, pub.msgtype, read, stamped, features,
                                         publishers={pub.token})
         sub.handle = self.session.declare_subscriber(
@@ -330,6 +363,9 @@ class Ros2Monitor:
             else arrival
         self.processor.put(sub.name, available, valid, values)
         self.received += 1
+        sub.arrived = arrival
+        if valid > sub.newest:
+            sub.newest = valid
         if self.recorder is not None:
             self.recorder.message(sub.topic, sub.msgtype, available if sub.stamped else valid,
                                   source_time if source_time is not None else arrival, payload)
