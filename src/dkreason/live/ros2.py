@@ -44,7 +44,7 @@ from . import rmw
 from .monitor import Change, Event, _Live, _logged, drain
 from .record import Recorder
 from .ros2node import CLOCK, CLOCK_TYPE
-from .wire import WireError
+from .wire import WireError, direct
 
 log = logging.getLogger("dkreason.ros2")
 MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
@@ -59,16 +59,6 @@ def held(now: int, topics: Iterable[tuple[int, int]]) -> int:
         if arrived >= floor and newest < mark:
             mark = max(newest, floor)
     return mark
-
-
-def _direct(callback: Any) -> Any:
-    """A callback zenoh calls on its own receiving task (zenoh-python's default hands each
-    subscriber's samples to a thread of its own): samples of one session then reach the queue
-    in the order they were put, across keys, so a message is never taken before the /clock
-    tick put ahead of it.  It only enqueues."""
-    import zenoh
-
-    return zenoh.handlers.Callback(callback, indirect=False)
 
 
 @dataclass(slots=True)
@@ -122,7 +112,7 @@ class Ros2Monitor:
         self.received = 0
         self.stop = threading.Event()
         self.declared = [session.liveliness().declare_subscriber(
-            rmw.TOKENS, _direct(self._on_token), history=True)]
+            rmw.TOKENS, direct(self._on_token), history=True)]
 
     # ---- zenoh callbacks (other threads): only enqueue ----------------------------------
 
@@ -292,8 +282,12 @@ class Ros2Monitor:
         self.store.get_msgdef(pub.msgtype)  # rosbags' decoder built now, not at a sample
         sub = self.subs[pub.key] = _Sub(name, pub.topic, pub.msgtype, read, stamped, features,
                                         publishers={pub.token})
-        sub.handle = self.session.declare_subscriber(
-            pub.key, _direct(lambda sample, key=pub.key: self._on_sample(key, sample)))
+        def take(sample: Any, key: str = pub.key) -> None:
+            self._on_sample(key, sample)
+
+        # on sim time, samples and /clock ticks must keep their order across keys
+        sub.handle = self.session.declare_subscriber(pub.key,
+                                                     direct(take) if self.sim_time else take)
         now = self.now()
         changes: list[Event] = []
         for key in features:
