@@ -117,6 +117,7 @@ def test_attachments_of_both_layouts_are_read() -> None:
         (b"source_timestamp", struct.pack("<q", 1_700_000_000_000_000_000)),
         (b"source_gid", b"\x10" + gid)))
     assert rmw.parse_attachment(labelled) == (42, 1_700_000_000_000_000_000, gid)
+    assert rmw.attachment(42, 1_700_000_000_000_000_000, gid, labelled=True) == labelled
 
 
 @given(st.binary(max_size=100))
@@ -343,7 +344,8 @@ def test_payloads_that_are_not_cdr_too_large_or_torn_are_counted_and_the_rest_ke
     monkeypatch.setattr("dkreason.live.ros2.MAX_PAYLOAD", 1000)
     km = KnowledgeManager.from_config(robots / "robot1.toml")
     run = live(km, ["always (X[me] < 15)"])
-    pub = Ros2Node(run.publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
+    pub = Ros2Node(run.publishing, "turtle", "/robot1", labelled=True).publisher(
+        "/robot1/pose", POSE)  # a robot on Jazzy's first rmw_zenoh
     run.until(lambda: bool(run.changes("subscribed")), "subscribed")
     good = pose(STORE, time.time_ns(), 3.0)
     pub.put(b'{"x": 1}')  # JSON, not CDR
@@ -355,6 +357,7 @@ def test_payloads_that_are_not_cdr_too_large_or_torn_are_counted_and_the_rest_ke
     run.until(lambda: run.monitor.received == 2, "both good poses taken")
     run.until(lambda: sum(run.monitor.rejected.values()) == 4, "the four bad ones counted")
     assert {kind for _, kind in run.monitor.rejected} == {"cdr", "decode", "size"}
+    assert run.monitor.labelled  # so verdicts published back use its attachment layout
     assert "rejected /robot1/pose (cdr, 1 so far)" in caplog.text
     run.finish()
 
@@ -406,23 +409,34 @@ def test_verdicts_go_back_onto_the_network_as_json_and_as_a_ros2_topic(
     talker = open_session([], [f"tcp/127.0.0.1:{port}"])
     listener = open_session([f"tcp/127.0.0.1:{port}"], [])
     got: list[tuple[str, bytes]] = []
+    attachments: list[bytes] = []
     subs = [listener.declare_subscriber(key, lambda s: got.append(
         (str(s.key_expr), s.payload.to_bytes()))) for key in
         ("dkreason/verdicts/**", rmw.data_key("/dkreason/verdicts", "std_msgs/msg/String"))]
+    subs.append(listener.declare_subscriber(
+        rmw.data_key("/dkreason/verdicts", "std_msgs/msg/String"),
+        lambda s: attachments.append(s.attachment.to_bytes())))
+    labelled = [False]  # what the monitor has seen of the robots' attachments
     tokens: list[str] = []
     lv = listener.liveliness().declare_subscriber(f"{rmw.ADMIN}/**",
                                                   lambda s: tokens.append(str(s.key_expr)))
     try:
-        announce = Announcer(talker, ["always (X[me] < 15)"], ros2=True)
+        announce = Announcer(talker, ["always (X[me] < 15)"], ros2=True,
+                             labelled=lambda: labelled[0])
         deadline = time.monotonic() + 30
         while not tokens and time.monotonic() < deadline:
             time.sleep(0.01)
         verdict = Verdict("always (X[me] < 15)", False, 2, False, "X[me] < 15 failed at 2")
         for _ in range(100):  # until the subscriptions reach the talker
             announce(verdict)
-            if len({k for k, _ in got}) == 2:
+            if len({k for k, _ in got}) == 2 and attachments:
                 break
             time.sleep(0.05)
+        labelled[0] = True  # robots on Jazzy's first rmw_zenoh: theirs is what they read
+        announce(verdict)
+        deadline = time.monotonic() + 30
+        while len(attachments[-1]) != 77 and time.monotonic() < deadline:
+            time.sleep(0.01)
         announce.close()
     finally:
         for s in (*subs, lv):
@@ -434,6 +448,7 @@ def test_verdicts_go_back_onto_the_network_as_json_and_as_a_ros2_topic(
                                                            "std_msgs/msg/String")
     as_json = json.loads(next(p for k, p in got if k == "dkreason/verdicts/f1"))
     assert as_json["id"] == "f1" and as_json["verdict"] is False and as_json["time"] == 2
+    assert len(attachments[0]) == 33 and rmw.parse_attachment(attachments[-1])[0] > 1
     ros = next(p for k, p in got if k.startswith("0/"))
     length = struct.unpack_from("<I", ros, 4)[0]
     assert json.loads(ros[8:8 + length - 1]) == as_json

@@ -540,7 +540,7 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
         _on_signals(lambda *_: monitor.stop.set())
         return _report(args, monitor.run(args.until, args.duration), lambda: monitor.processor,
                        session, [f.text for f in monitor.monitor.plan.formulas], ros2=True,
-                       domain=domain)
+                       domain=domain, labelled=lambda: monitor.labelled)
     finally:
         if recorder is not None:
             recorder.close()
@@ -548,13 +548,14 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
 
 
 def _report(args: argparse.Namespace, events: Any, processor: Any, session: Any,
-            formulas: list[str], ros2: bool, domain: int = 0) -> int:
+            formulas: list[str], ros2: bool, domain: int = 0, labelled: Any = None) -> int:
     """A live run's events printed (and published with --publish-verdicts) as they come."""
     from .live.monitor import Change
     from .live.ros2node import Announcer
     from .progress import Verdict
 
-    announce = Announcer(session, formulas, ros2, domain) if args.publish_verdicts else None
+    announce = Announcer(session, formulas, ros2, domain, labelled) \
+        if args.publish_verdicts else None
     verdicts, violations = [], 0
     try:
         for event in events:

@@ -150,11 +150,17 @@ def _mangle(name: str) -> str:
 # ---- attachments --------------------------------------------------------------------------
 
 _PLAIN = struct.Struct("<qqB16s")
+PLAIN_SIZE = _PLAIN.size
 
 
-def attachment(sequence: int, source_time: int, gid: bytes) -> bytes:
-    """rmw_zenoh's attachment (33 bytes)."""
-    return _PLAIN.pack(sequence, source_time, 16, gid)
+def attachment(sequence: int, source_time: int, gid: bytes, labelled: bool = False) -> bytes:
+    """rmw_zenoh's attachment: 33 bytes, or with `labelled` the 77 of Jazzy's first releases
+    (whose subscribers refuse the other)."""
+    if not labelled:
+        return _PLAIN.pack(sequence, source_time, 16, gid)
+    items = (struct.pack("<q", sequence), struct.pack("<q", source_time), b"\x10" + gid)
+    return b"".join(bytes([len(label)]) + label + item
+                    for label, item in zip(_LABELS, items, strict=True))
 
 
 def parse_attachment(data: bytes) -> tuple[int, int, bytes]:

@@ -109,6 +109,7 @@ class Ros2Monitor:
         self.warned: set[tuple[str, ...]] = set()
         self.rejected: dict[tuple[str, str], int] = {}
         self.clock: int | None = None  # sim time: the latest /clock
+        self.labelled = False  # the robots' attachments are in Jazzy's first layout
         self.received = 0
         self.stop = threading.Event()
         self.declared = [session.liveliness().declare_subscriber(
@@ -346,7 +347,10 @@ class Ros2Monitor:
             t = values[0] * NS + values[1]
             self.clock = t if self.clock is None else max(self.clock, t)
             return
-        source_time = rmw.parse_attachment(attachment)[1] if attachment is not None else None
+        source_time = None
+        if attachment is not None:
+            source_time = rmw.parse_attachment(attachment)[1]
+            self.labelled = len(attachment) != rmw.PLAIN_SIZE
         if sub.stamped:
             valid = values[-2] * NS + values[-1]
         elif self.sim_time:

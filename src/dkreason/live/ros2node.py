@@ -15,7 +15,7 @@ import json
 import struct
 import threading
 import time
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -56,7 +56,8 @@ class Ros2Publisher:
             self.publisher.put(cdr)
             return
         stamp = time.time_ns() if source_time is None else source_time
-        self.publisher.put(cdr, attachment=rmw.attachment(self.sequence, stamp, self.gid))
+        self.publisher.put(cdr, attachment=rmw.attachment(self.sequence, stamp, self.gid,
+                                                          self.node.labelled))
 
     def close(self) -> None:
         """The publisher goes away: its token is withdrawn."""
@@ -71,9 +72,10 @@ class Ros2Node:
     _ids = itertools.count()
 
     def __init__(self, session: Any, name: str, namespace: str = "/", domain: int = 0,
-                 bridged: bool = False) -> None:
+                 bridged: bool = False, labelled: bool = False) -> None:
+        """`labelled`: attachments in the layout of Jazzy's first rmw_zenoh releases."""
         self.session, self.name, self.namespace = session, name, namespace
-        self.domain, self.bridged = domain, bridged
+        self.domain, self.bridged, self.labelled = domain, bridged, labelled
         self.session_id = str(session.info.zid())
         self.node_id = next(self._ids)
         self.entities = itertools.count(10)
@@ -109,8 +111,10 @@ class Announcer:
     the ROS 2 topic `/dkreason/verdicts`."""
 
     def __init__(self, session: Any, formulas: list[str], ros2: bool = False,
-                 domain: int = 0) -> None:
-        self.session = session
+                 domain: int = 0, labelled: Callable[[], bool] | None = None) -> None:
+        """`labelled`: whether the robots' attachments are in Jazzy's first layout (the ROS 2
+        monitor says what it has seen), which their subscribers then expect of ours too."""
+        self.session, self.labelled = session, labelled
         self.ids = {text: f"f{n}" for n, text in enumerate(formulas, 1)}
         self.node = Ros2Node(session, "dkreason_monitor", "/", domain) if ros2 else None
         self.topic = self.node.publisher(VERDICTS, "std_msgs/msg/String") if self.node else None
@@ -126,6 +130,7 @@ class Announcer:
         text = json.dumps(data, ensure_ascii=False, default=str)
         self.session.put(f"dkreason/verdicts/{fid}", text.encode())
         if self.topic is not None:
+            self.topic.node.labelled = self.labelled is not None and self.labelled()
             self.topic.put(cdr_string(text))
 
     def close(self) -> None:
