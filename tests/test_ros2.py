@@ -89,6 +89,7 @@ def test_other_entities_are_not_publishers_and_a_bridge_token_is_read_too() -> N
     "@ros2_lv/0/aa/0/10/ZZ/%/%/talker",  # no such entity
     "@ros2_lv/7f3a/MP/robot2§odom/Odometry/q",  # bridge: not a ROS type
     "@ros2_lv/" + "a/" * 3000,  # too long
+    "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/**/q",  # wildcard
 ])
 def test_a_malformed_token_is_a_wire_error(token: str) -> None:
     with pytest.raises(WireError):
@@ -508,3 +509,18 @@ def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
                               str(record)], capture_output=True, text=True, timeout=120)
     assert [(v["verdict"], v["time"]) for v in map(json.loads, offline.stdout.splitlines())
             if "verdict" in v] == verdicts
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_a_record_that_cannot_be_written_is_one_error_and_stops_the_run() -> None:
+    """A full disk is the monitor's own trouble, not a peer's: one line naming the file."""
+    import os
+
+    from dkreason.live.record import RecordError
+
+    recorder = Recorder(Path("/dev/full"), STORE)
+    with pytest.raises(RecordError, match=r"^--record /dev/full: No space left on device"):
+        for n in range(10_000):  # incompressible: the writer's chunks reach the file
+            recorder.message("/robot1/pose", POSE, n, n, os.urandom(1000))
+        recorder.close()
+    recorder.close()  # once failed, closing again is quiet

@@ -10,6 +10,7 @@ time is the publisher's source time when the attachment gave one.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,10 @@ EVENT_SCHEMA = {
 }
 
 
+class RecordError(DkError):
+    """The record file cannot be written (a full disk): the run stops, what is written kept."""
+
+
 class Recorder:
     def __init__(self, path: Path, store: Any) -> None:
         """`store`: the rosbags typestore the messages' definitions come from."""
@@ -42,6 +47,7 @@ class Recorder:
         except OSError as exc:
             raise DkError(f"--record {path}: {exc.strerror}") from None
         self.path, self.store = path, store
+        self.closed = False
         self.writer = Writer(self.file)
         self.writer.start(profile="ros2", library="dkreason")
         self.channels: dict[str, int] = {}
@@ -67,10 +73,25 @@ class Recorder:
 
     def _add(self, channel: int, log_time: int, publish_time: int, data: bytes) -> None:
         self.sequence += 1
-        self.writer.add_message(channel_id=channel, log_time=max(log_time, 0),
-                                publish_time=max(publish_time, 0), data=data,
-                                sequence=self.sequence & 0xFFFFFFFF)
+        try:
+            self.writer.add_message(channel_id=channel, log_time=max(log_time, 0),
+                                    publish_time=max(publish_time, 0), data=data,
+                                    sequence=self.sequence & 0xFFFFFFFF)
+        except OSError as exc:
+            raise RecordError(f"--record {self.path}: {exc.strerror or exc}; the messages "
+                              f"before it are in the file") from None
 
     def close(self) -> None:
-        self.writer.finish()  # type: ignore[no-untyped-call]
-        self.file.close()
+        """The file's index and summary written (a file cut short still reads, up to the
+        cut, as a damaged recording)."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self.writer.finish()  # type: ignore[no-untyped-call]
+            self.file.close()
+        except OSError as exc:
+            with contextlib.suppress(OSError):
+                self.file.close()
+            raise RecordError(f"--record {self.path}: {exc.strerror or exc}; the file is cut "
+                              f"short (it reads as a damaged recording)") from None

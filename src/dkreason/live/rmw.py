@@ -40,6 +40,7 @@ _DDS = re.compile(r"^([A-Za-z_]\w*)::(msg|srv|action)::dds_::(\w+)_$")
 _ROS = re.compile(r"^([A-Za-z_]\w*)/(msg|srv|action)/(\w+)$")
 _NAME = re.compile(r"^/$|^(/[\w~{}]+)+$")  # a fully qualified ROS name
 _LABELS = (b"sequence_number", b"source_timestamp", b"source_gid")
+_HASH = re.compile(r"^\w+$")  # RIHS01_<hex>, TypeHashNotSupported: never a wildcard
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,6 +122,8 @@ def parse_token(key: str) -> Publisher | None:
     namespace = _name(parts[7], "%", "namespace")
     topic = _name(parts[9], "%", "topic")
     msgtype = ros_type(parts[10])
+    if not _HASH.match(parts[11]):
+        raise WireError(f"type hash {parts[11][:80]!r} is not one: {key[:120]}", "token")
     data_key = f"{domain}/{topic.strip('/')}/{parts[10]}/{parts[11]}"
     return Publisher(key, topic, msgtype, data_key, parts[8], namespace, domain, False)
 

@@ -42,7 +42,7 @@ from ..stream.processor import StreamPolicy
 from ..stream.sources import NS, _ros_reader
 from . import rmw
 from .monitor import Change, Event, _Live, _logged, drain
-from .record import Recorder
+from .record import Recorder, RecordError
 from .ros2node import CLOCK, CLOCK_TYPE
 from .wire import WireError, direct
 
@@ -197,6 +197,8 @@ class Ros2Monitor:
             return self._token(event[1], event[2])
         except WireError as exc:
             self._reject(event[1] if event[0] == "sample" else "tokens", exc.kind, str(exc))
+        except RecordError:
+            raise  # ours, not the peer's: the run stops
         except DkError as exc:  # a value the formulas cannot use
             self._reject(event[1], "value", str(exc))
         return []
@@ -286,9 +288,15 @@ class Ros2Monitor:
         def take(sample: Any, key: str = pub.key) -> None:
             self._on_sample(key, sample)
 
-        # on sim time, samples and /clock ticks must keep their order across keys
-        sub.handle = self.session.declare_subscriber(pub.key,
-                                                     direct(take) if self.sim_time else take)
+        import zenoh
+
+        try:  # on sim time, samples and /clock ticks must keep their order across keys
+            sub.handle = self.session.declare_subscriber(
+                pub.key, direct(take) if self.sim_time else take)
+        except zenoh.ZError as exc:
+            del self.subs[pub.key], self.taken[pub.token]
+            raise WireError(f"{pub.describe()}: cannot subscribe to {pub.key[:120]!r} "
+                            f"({str(exc)[:120]})", "token") from None
         now = self.now()
         changes: list[Event] = []
         for key in features:
