@@ -78,6 +78,9 @@ class Recorder:
                                     publish_time=max(publish_time, 0), data=data,
                                     sequence=self.sequence & 0xFFFFFFFF)
         except OSError as exc:
+            self.closed = True  # nothing more goes in; closing is quiet
+            with contextlib.suppress(OSError):
+                self.file.close()
             raise RecordError(f"--record {self.path}: {exc.strerror or exc}; the messages "
                               f"before it are in the file") from None
 
