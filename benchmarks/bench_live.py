@@ -212,18 +212,22 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
         finally:
             results = fleet.stop()
             session.close()
-    published = sum(r[0] for r in results)
-    bad_at = next(r[1] for r in results if r[1] is not None)
-    ms = sorted(x / 1e6 for x in meter.latencies if x > 0)
     return {"platforms": PLATFORMS, "topics_per_platform": TOPICS, "hz": hz,
-            "seconds": seconds, "published": published, "received": monitor.received,
-            "lost": published - monitor.received,
-            "samples_per_s": meter.rate(monitor.received),
-            "states": len(ms),
+            "seconds": seconds, **figures(results, monitor.received, meter, verdict_at)}
+
+
+def figures(results: list[tuple[int, int | None]], received: int, meter: Meter,
+            verdict_at: int | None) -> dict[str, Any]:
+    """Samples published (each publisher's count, and the wall ns of the bad reading) and
+    taken, the rate, publish → state latencies, and the bad reading's publish → verdict."""
+    published = sum(r[0] for r in results)
+    bad_at = next((r[1] for r in results if r[1] is not None), None)
+    ms = sorted(x / 1e6 for x in meter.latencies if x > 0)
+    return {"published": published, "received": received, "lost": published - received,
+            "samples_per_s": meter.rate(received), "states": len(ms),
             "p50_ms": round(statistics.median(ms), 2),
-            "p99_ms": round(ms[int(0.99 * (len(ms) - 1))], 2),
-            "max_ms": round(ms[-1], 2),
-            "violation_to_verdict_ms": None if verdict_at is None else
+            "p99_ms": round(ms[int(0.99 * (len(ms) - 1))], 2), "max_ms": round(ms[-1], 2),
+            "violation_to_verdict_ms": None if verdict_at is None or bad_at is None else
             round((verdict_at - bad_at) / 1e6, 2)}
 
 

@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import json
 import socket
-import statistics
 import tempfile
 import time
 from fractions import Fraction
@@ -123,17 +122,9 @@ def run_ros2(folder: Path, seconds: float, hz: float, delay: Fraction) -> dict[s
     finally:
         results = fleet.stop()
         session.close()
-    published = sum(r[0] for r in results)
-    bad_at = next(r[1] for r in results if r[1] is not None)
-    ms = sorted(x / 1e6 for x in meter.latencies if x > 0)
-    return {"hz": hz, "seconds": seconds, "published": published,
-            "received": monitor.received, "lost": published - monitor.received,
-            "samples_per_s": meter.rate(monitor.received), "states": len(ms),
-            "p50_ms": round(statistics.median(ms), 2),
-            "p99_ms": round(ms[int(0.99 * (len(ms) - 1))], 2),
-            "violation_to_verdict_ms": None if verdict_at is None else
-            round((verdict_at - bad_at) / 1e6, 2), "late_samples": late,
-            "delay_ms": float(delay * 1000)}
+    return {"hz": hz, "seconds": seconds,
+            **bench_live.figures(results, monitor.received, meter, verdict_at),
+            "late_samples": late, "delay_ms": float(delay * 1000)}
 
 
 def main() -> None:

@@ -288,10 +288,16 @@ def test_bridge_tokens_are_taken_with_bridge_and_named_otherwise(
     Ros2Node(without.publishing, "turtle", "/robot1", bridged=True).publisher("/robot1/pose", POSE)
     without.until(lambda: "give --bridge" in caplog.text, "the bridge's topic named")
     assert not without.monitor.subs
-    run = live(km, ["always (X[me] < 15)"], bridge=True, sim_time=True)
-    Ros2Node(run.publishing, "turtle", "/robot1", bridged=True).publisher("/robot1/pose", POSE)
+    run = live(km, ["always (X[me] < 15)"], bridge=True)
+    pub = Ros2Node(run.publishing, "turtle", "/robot1", bridged=True).publisher(
+        "/robot1/pose", POSE)
     run.until(lambda: bool(run.changes("subscribed")), "subscribed through the bridge")
     assert "through the bridge" in run.changes("subscribed")[0].detail
+    assert pub.key == "robot1/pose"  # the bridge's key: the topic, no type, no attachment
+    pub.put(pose(STORE, 7 * S, 20.0))
+    run.until(lambda: run.monitor.received == 1, "the bridged sample taken")
+    run.until(lambda: bool(run.verdicts()), "its verdict")
+    assert (run.verdicts()[0].verdict, run.verdicts()[0].time) == (False, 7)
 
 
 def test_a_late_publisher_is_subscribed_and_a_vanished_one_is_source_loss(
