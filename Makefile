@@ -60,6 +60,7 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks.bench_match
 	$(BIN)/python -m benchmarks.bench_progress
 	$(BIN)/python -m benchmarks.bench_live
+	$(BIN)/python -m benchmarks.bench_ros2
 	$(BIN)/python -m benchmarks.bench_join
 	$(BIN)/python -m benchmarks.chapter7 --growth
 	$(BIN)/python -m benchmarks.chapter7 --sorts
