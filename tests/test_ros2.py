@@ -180,7 +180,7 @@ class Live:
 
     def __init__(self, km: KnowledgeManager, formulas: list[str], *, store: Any = None,
                  policy: StreamPolicy | None = None, until: Fraction | None = None,
-                 **options: Any) -> None:
+                 wait: float = 60.0, **options: Any) -> None:
         port = free_port()
         self.publishing = open_session([], [f"tcp/127.0.0.1:{port}"])
         self.watching = open_session([f"tcp/127.0.0.1:{port}"], [])
@@ -189,12 +189,12 @@ class Live:
             store=store or _typestore({}, False, "ros2_jazzy"), **options)
         self.events: list[Any] = []
         self.error: BaseException | None = None
-        self.thread = threading.Thread(target=self._run, args=(until,), daemon=True)
+        self.thread = threading.Thread(target=self._run, args=(until, wait), daemon=True)
         self.thread.start()
 
-    def _run(self, until: Fraction | None) -> None:
+    def _run(self, until: Fraction | None, wait: float) -> None:
         try:
-            for event in self.monitor.run(until=until, duration=60):
+            for event in self.monitor.run(until=until, duration=60, wait=wait):
                 self.events.append(event)
         except BaseException as exc:  # noqa: BLE001 - the test reports it
             self.error = exc
@@ -530,3 +530,24 @@ def test_a_record_that_cannot_be_written_is_one_error_and_stops_the_run() -> Non
             recorder.message("/robot1/pose", POSE, n, n, os.urandom(1000))
         recorder.close()
     recorder.close()  # once failed, closing again is quiet
+
+
+def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(
+        robots: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture) -> None:
+    """A header stamp of zero (never set, as many drivers leave it) is not 1970: the source
+    time is taken.  A feature no publisher feeds after `wait` is named with the names it binds
+    by and the publishers seen instead: names that do not bind are the usual day-one trouble."""
+    run = live(KnowledgeManager.from_config(robots / "robot1.toml"), ["always (X[me] < 15)"],
+               wait=0.5)
+    node = Ros2Node(run.publishing, "turtle", "/robot2")
+    node.publisher("/robot2/pose", POSE)
+    run.until(lambda: "no publisher yet" in caplog.text, "the unfed feature named")
+    assert "no publisher yet for X[me] (it binds by /robot1/pose); publishers seen: " \
+        "/robot2/pose" in caplog.text
+    before = time.time_ns()
+    pub = Ros2Node(run.publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
+    run.until(lambda: bool(run.changes("subscribed")), "subscribed")
+    pub.put(pose(STORE, 0, 20.0))
+    run.until(lambda: bool(run.verdicts()), "the verdict")
+    verdict = run.verdicts()[0]
+    assert verdict.verdict is False and verdict.time >= before / S

@@ -149,7 +149,8 @@ def _build() -> _Parser:
                         "id> (JSON); with --ros2 also on the ROS 2 topic /dkreason/verdicts")
     network(p)
     p.add_argument("--wait", type=_positive, default=10.0,
-                   help="live: seconds to wait for the local platform (default 10)")
+                   help="live: seconds to wait for the local platform; ros2: after which the "
+                        "features no publisher feeds are named (default 10)")
     p.add_argument("--until", type=_seconds, help="live: stop when the stream clock passes it")
     p.add_argument("--trust", type=Path, metavar="KEYS",
                    help="live: TOML of platform = Ed25519 public key (PEM); their samples "
@@ -538,7 +539,8 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
                               sim_time=args.sim_time, recorder=recorder)
         recorder = None  # the monitor closes it
         _on_signals(lambda *_: monitor.stop.set())
-        return _report(args, monitor.run(args.until, args.duration), lambda: monitor.processor,
+        return _report(args, monitor.run(args.until, args.duration, args.wait),
+                       lambda: monitor.processor,
                        session, [f.text for f in monitor.monitor.plan.formulas], ros2=True,
                        domain=domain, labelled=lambda: monitor.labelled)
     finally:

@@ -143,17 +143,23 @@ class Ros2Monitor:
             return self.clock
         return held(time.time_ns(), ((s.arrived, s.newest) for s in self.subs.values()))
 
-    def run(self, until: Fraction | None = None, duration: float | None = None
-            ) -> Iterator[Event]:
+    def run(self, until: Fraction | None = None, duration: float | None = None,
+            wait: float = 10.0) -> Iterator[Event]:
         """Events as they happen until every formula is decided, the stream clock passes
-        `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts."""
+        `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts.
+        `wait` s after the start, each feature no publisher feeds yet is named, with the
+        names it would bind by and the publishers seen instead."""
         end = None if until is None else int(until * NS)
         stop_at = None if duration is None else time.monotonic() + duration
+        report_at: float | None = time.monotonic() + wait
         try:
             try:
                 while not self.stop.is_set() and not self.monitor.done:
                     if stop_at is not None and time.monotonic() >= stop_at:
                         break
+                    if report_at is not None and time.monotonic() >= report_at:
+                        report_at = None
+                        self._unfed()
                     mark = self.now()
                     if end is not None and mark is not None and mark > end:
                         break
@@ -170,6 +176,24 @@ class Ros2Monitor:
         finally:
             if self.recorder is not None:
                 self.recorder.close()
+
+    def _unfed(self) -> None:
+        """One line per feature that no publisher feeds yet: what would feed it, and what
+        is on the network instead (the usual day-one trouble: names that do not bind)."""
+        names: dict[FeatureKey, list[str]] = {}
+        for name, uses in self.wants.items():
+            if ":" not in name and name.startswith("/"):
+                for key, _ in uses:
+                    names.setdefault(key, []).append(name)
+        unbound = sorted({p.topic for t, p in self.seen.items() if t not in self.taken})
+        for key in self.processor.keys:
+            if not self.feeding.get(key):
+                looked = ", ".join(names.get(key, [])[:4]) or "no topic specification"
+                log.warning("no publisher yet for %s (it binds by %s); %s", key, looked,
+                            f"publishers seen: {', '.join(unbound[:8])}"
+                            f"{' …' if len(unbound) > 8 else ''}" if unbound else
+                            "no ROS 2 publisher seen (is --connect a router or robot, "
+                            "--domain right, --bridge needed?)")
 
     def _idle(self) -> float:
         """How long to wait for the next event: on the wall clock, no longer than until the
@@ -359,7 +383,8 @@ class Ros2Monitor:
         if attachment is not None:
             source_time = rmw.parse_attachment(attachment)[1]
             self.labelled = len(attachment) != rmw.PLAIN_SIZE
-        if sub.stamped:
+        stamped = sub.stamped and bool(values[-2] or values[-1])  # zero: never set
+        if stamped:
             valid = values[-2] * NS + values[-1]
         elif self.sim_time:
             valid = self.clock if self.clock is not None else arrival
@@ -373,7 +398,7 @@ class Ros2Monitor:
         if valid > sub.newest:
             sub.newest = valid
         if self.recorder is not None:
-            self.recorder.message(sub.topic, sub.msgtype, available if sub.stamped else valid,
+            self.recorder.message(sub.topic, sub.msgtype, available if stamped else valid,
                                   source_time if source_time is not None else arrival, payload)
 
     def close(self) -> None:
