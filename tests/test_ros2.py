@@ -28,13 +28,13 @@ from dkreason.cli import main
 from dkreason.live import rmw
 from dkreason.live.monitor import Change
 from dkreason.live.record import Recorder
-from dkreason.live.ros2 import Ros2Monitor, held
+from dkreason.live.ros2 import Ros2Monitor, decode, held
 from dkreason.live.ros2node import Announcer, Ros2Node, cdr_clock, replay
 from dkreason.live.wire import WireError, open_session
 from dkreason.monitor import Monitor
 from dkreason.progress import Verdict
 from dkreason.stream.processor import StreamPolicy
-from dkreason.stream.sources import RosbagSource, _msg_types, _typestore
+from dkreason.stream.sources import RosbagSource, _msg_types, _ros_reader, _typestore
 
 from .conftest import REPO
 from .test_live import POSITION, SPEEDING, free_port
@@ -158,6 +158,24 @@ def test_on_the_wall_clock_busy_topics_hold_states_back_to_their_newest_sample_f
     assert held(now, [(now - 2 * S, now - 5 * S)]) == now  # silent for 2 s: holds nobody
     assert held(now, [(now, now - 30 * S)]) == now - S  # far behind (or skewed): 1 s at most
     assert held(now, [(now - S // 10, now - S // 2), (now, now - S // 5)]) == now - S // 2
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=120), st.sampled_from([b"\x00\x01\x00\x00", b"\x00\x00\x00\x00"]))
+def test_any_payload_decodes_to_the_wanted_values_or_is_a_wire_error(
+        body: bytes, header: bytes) -> None:
+    """What a peer puts on a subscribed key: read field by field, or decoded in full (a
+    topic's first message), either gives values or a WireError, in either byte order."""
+    read, stamped = _ros_reader(STORE.fielddefs, POSE, ["msg.pose.position.x"], False,
+                                STORE.deserialize_cdr)
+    payload = header + body
+    for reader in (read, lambda raw: STORE.deserialize_cdr(raw, POSE)):
+        try:
+            decode(reader, payload, POSE)
+        except WireError as exc:
+            assert exc.kind == "decode"
+    good = pose(STORE, 3 * S, 1.5)
+    assert decode(read, good, POSE) == (1.5, 3, 0) and stamped
 
 
 # ---- live, on loopback --------------------------------------------------------------------

@@ -25,7 +25,7 @@ import logging
 import queue
 import threading
 import time
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -49,6 +49,16 @@ from .wire import WireError, direct
 log = logging.getLogger("dkreason.ros2")
 MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
 HOLD_NS = NS  # how long a topic's newest sample may hold states back (wall clock)
+
+
+def decode(read: Callable[[bytes], Any], payload: bytes, msgtype: str) -> Any:
+    """What `read` makes of a peer's payload; however it fails (rosbags and struct raise
+    several kinds on a torn or lying payload), a WireError."""
+    try:
+        return read(payload)
+    except Exception as exc:  # noqa: BLE001 - see above
+        raise WireError(f"does not decode as {msgtype} "
+                        f"({str(exc)[:120] or type(exc).__name__})", "decode") from None
 
 
 def held(now: int, topics: Iterable[tuple[int, int]]) -> int:
@@ -364,17 +374,10 @@ class Ros2Monitor:
             return  # in flight when its subscription was dropped
         rmw.check_cdr(payload, MAX_PAYLOAD)
         if not sub.checked:  # a topic's first message decodes in full, or is refused
-            try:
-                self.store.deserialize_cdr(payload, sub.msgtype)
-            except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds
-                raise WireError(f"does not decode as {sub.msgtype} "
-                                f"({str(exc)[:120] or type(exc).__name__})", "decode") from None
+            decode(lambda raw: self.store.deserialize_cdr(raw, sub.msgtype), payload,
+                   sub.msgtype)
             sub.checked = True
-        try:
-            values = sub.read(payload)
-        except Exception as exc:  # noqa: BLE001 - a torn or lying payload
-            raise WireError(f"does not decode as {sub.msgtype} "
-                            f"({str(exc)[:120] or type(exc).__name__})", "decode") from None
+        values = decode(sub.read, payload, sub.msgtype)
         if sub.name == CLOCK:
             t = values[0] * NS + values[1]
             self.clock = t if self.clock is None else max(self.clock, t)
