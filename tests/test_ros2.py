@@ -555,8 +555,10 @@ def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(
     """A header stamp of zero (never set, as many drivers leave it) is not 1970: the source
     time is taken.  A feature no publisher feeds after `wait` is named with the names it binds
     by and the publishers seen instead: names that do not bind are the usual day-one trouble."""
-    run = live(KnowledgeManager.from_config(robots / "robot1.toml"), ["always (X[me] < 15)"],
-               wait=0.5)
+    km = KnowledgeManager.from_config(robots / "robot1.toml")
+    clockless = live(km, ["always (X[me] < 15)"], wait=0.2, sim_time=True)
+    clockless.until(lambda: "no /clock yet" in caplog.text, "the missing clock named")
+    run = live(km, ["always (X[me] < 15)"], wait=0.5)
     node = Ros2Node(run.publishing, "turtle", "/robot2")
     node.publisher("/robot2/pose", POSE)
     run.until(lambda: "no publisher yet" in caplog.text, "the unfed feature named")

@@ -195,6 +195,8 @@ class Ros2Monitor:
             if ":" not in name and name.startswith("/"):
                 for key, _ in uses:
                     names.setdefault(key, []).append(name)
+        if self.sim_time and self.clock is None:
+            log.warning("no /clock yet (--sim-time): no state is made before its first tick")
         unbound = sorted({p.topic for t, p in self.seen.items() if t not in self.taken})
         for key in self.processor.keys:
             if not self.feeding.get(key):
