@@ -169,7 +169,7 @@ class Ros2Monitor:
                         break
                     if report_at is not None and time.monotonic() >= report_at:
                         report_at = None
-                        self._unfed()
+                        self.unfed()
                     mark = self.now()
                     if end is not None and mark is not None and mark > end:
                         break
@@ -187,7 +187,7 @@ class Ros2Monitor:
             if self.recorder is not None:
                 self.recorder.close()
 
-    def _unfed(self) -> None:
+    def unfed(self) -> None:
         """One line per feature that no publisher feeds yet: what would feed it, and what
         is on the network instead (the usual day-one trouble: names that do not bind)."""
         names: dict[FeatureKey, list[str]] = {}
