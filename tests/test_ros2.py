@@ -231,6 +231,12 @@ class Live:
             assert time.monotonic() < end, f"not within {timeout} s: {what}"
             time.sleep(0.01)
 
+    def matched(self, *pubs: Any) -> None:
+        """Until the monitor's subscriptions have reached these publishers (a put before
+        that goes nowhere)."""
+        self.until(lambda: all(p.publisher.matching_status.matching for p in pubs),
+                   "the monitor's subscriptions reach the publishers")
+
     def finish(self) -> None:
         self.monitor.stop.set()
         self.thread.join(30)
@@ -310,6 +316,7 @@ def test_bridge_tokens_are_taken_with_bridge_and_named_otherwise(
     pub = Ros2Node(run.publishing, "turtle", "/robot1", bridged=True).publisher(
         "/robot1/pose", POSE)
     run.until(lambda: bool(run.changes("subscribed")), "subscribed through the bridge")
+    run.matched(pub)
     assert "through the bridge" in run.changes("subscribed")[0].detail
     assert pub.key == "robot1/pose"  # the bridge's key: the topic, no type, no attachment
     pub.put(pose(STORE, 7 * S, 20.0))
@@ -324,11 +331,13 @@ def test_a_late_publisher_is_subscribed_and_a_vanished_one_is_source_loss(
     run = live(km, ["always (X[me] < 15)"], sim_time=True, keep_states=True)
     player = Ros2Node(run.publishing, "player").publisher("/clock", "rosgraph_msgs/msg/Clock")
     run.until(lambda: "0/clock" in "".join(run.monitor.subs), "the clock subscribed")
+    run.matched(player)
     player.put(cdr_clock(1 * S))
     run.until(lambda: run.monitor.clock == 1 * S, "the first tick")
     assert not run.changes("subscribed")  # nobody publishes the pose yet
     pub = Ros2Node(run.publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
     run.until(lambda: bool(run.changes("subscribed")), "the late publisher subscribed")
+    run.matched(pub)
     for n in range(2, 5):
         player.put(cdr_clock(n * S))
         pub.put(pose(STORE, n * S, 1.0 + n))
@@ -372,6 +381,7 @@ def test_payloads_that_are_not_cdr_too_large_or_torn_are_counted_and_the_rest_ke
     pub = Ros2Node(run.publishing, "turtle", "/robot1", labelled=True).publisher(
         "/robot1/pose", POSE)  # a robot on Jazzy's first rmw_zenoh
     run.until(lambda: bool(run.changes("subscribed")), "subscribed")
+    run.matched(pub)
     good = pose(STORE, time.time_ns(), 3.0)
     pub.put(b'{"x": 1}')  # JSON, not CDR
     pub.put(good)  # the first good one: decoded in full once, then read field by field
@@ -419,6 +429,7 @@ def test_a_malformed_token_and_a_flood_keep_the_monitor_running_and_lose_nothing
         "@ros2_lv/0/aa/0/10/MP/%/%/n/%robot1%pose/geometry_msgs::PoseStamped/h/q")
     pub = Ros2Node(run.publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
     run.until(lambda: bool(run.changes("subscribed")), "subscribed")
+    run.matched(pub)
     assert run.monitor.rejected == {("tokens", "token"): 1}
     message = pose(STORE, time.time_ns(), 1.0)
     for _ in range(20_000):
@@ -569,6 +580,7 @@ def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(
     before = time.time_ns()
     pub = Ros2Node(run.publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
     run.until(lambda: bool(run.changes("subscribed")), "subscribed")
+    run.matched(pub)
     pub.put(pose(STORE, 0, 20.0))
     run.until(lambda: bool(run.verdicts()), "the verdict")
     verdict = run.verdicts()[0]
