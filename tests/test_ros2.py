@@ -585,3 +585,82 @@ def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(
     run.until(lambda: bool(run.verdicts()), "the verdict")
     verdict = run.verdicts()[0]
     assert verdict.verdict is False and verdict.time >= before / S
+
+
+SDK_PUBLISHER = """
+import sys, time
+from zenoh_ros2_sdk import ROS2Publisher
+pub = ROS2Publisher(topic="/robot1/value", msg_type="std_msgs/msg/Float64",
+                    msg_definition="float64 data\\n", namespace="/robot1", node_name="sdk",
+                    router_port=int(sys.argv[1]))
+for i in range(600):  # until the test has what it needs and stops it (30 s at most)
+    pub.publish(data=float(i))
+    time.sleep(0.05)
+"""
+SDK_SUBSCRIBER = """
+import os, sys, time
+from zenoh_ros2_sdk import ROS2Subscriber
+got = []
+sub = ROS2Subscriber(topic="/dkreason/verdicts", msg_type="std_msgs/msg/String",
+                     msg_definition="string data\\n", callback=got.append,
+                     router_port=int(sys.argv[1]))
+end = time.time() + 30
+while not got and time.time() < end:
+    time.sleep(0.05)
+print(got[0].data if got else "", flush=True)
+os._exit(0)  # the SDK's session threads would hold the interpreter
+"""
+
+
+def test_an_independent_rmw_zenoh_implementation_talks_with_dkreason_both_ways(
+        robots: Path, tmp_path: Path) -> None:
+    """zenoh-ros2-sdk (its own tokens, keys, RIHS01 hashes and attachments) publishes a
+    std_msgs/msg/Float64 the monitor discovers, binds and judges; and it receives the verdicts
+    dkreason publishes as /dkreason/verdicts."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("zenoh_ros2_sdk")
+    (tmp_path / "v.sslt").write_text("topic value:std_msgs/msg/Float64 contains X(me) = "
+                                     "msg.data\n")
+    ttl = REPO / "tests" / "data" / "turtles" / "turtle.ttl"
+    (tmp_path / "v.toml").write_text(f'[platforms.robot1]\nontology = "{ttl}"\nspecs = "v.sslt"\n'
+                                     f'namespace = "/robot1"\n')
+    log = tmp_path / "sdk.log"  # a file, not a pipe: the SDK logs freely and never blocks
+    port = free_port()
+    session = open_session([], [f"tcp/127.0.0.1:{port}"])  # the SDK connects to it
+    monitor = Ros2Monitor(KnowledgeManager.from_config(tmp_path / "v.toml"),
+                          ["always (X[me] < 15)"], StreamPolicy(), session, store=STORE)
+    with log.open("w") as sink:
+        sdk = subprocess.Popen([sys.executable, "-c", SDK_PUBLISHER, str(port)],
+                               stdout=sink, stderr=sink)
+    try:
+        events = list(monitor.run(duration=60))
+    finally:
+        sdk.kill()
+        sdk.wait()
+        session.close()
+    verdicts = [e for e in events if isinstance(e, Verdict)]
+    assert [v.verdict for v in verdicts] == [False], log.read_text()[-2000:]
+    assert "X[me] = 15.0" in str(verdicts[0].witness)
+    subscribed = [e for e in events if isinstance(e, Change) and e.event == "subscribed"]
+    assert "/robot1/value (std_msgs/msg/Float64) by /robot1/sdk" in subscribed[0].detail
+
+    port = free_port()
+    session = open_session([], [f"tcp/127.0.0.1:{port}"])
+    announce = Announcer(session, ["always (X[me] < 15)"], ros2=True)
+    out = tmp_path / "sdk.out"
+    with out.open("w") as answer, log.open("w") as sink:
+        sdk = subprocess.Popen([sys.executable, "-c", SDK_SUBSCRIBER, str(port)],
+                               stdout=answer, stderr=sink)
+    try:
+        deadline = time.monotonic() + 60
+        while not out.read_text() and time.monotonic() < deadline:  # until it has one
+            announce(verdicts[0])
+            time.sleep(0.05)
+    finally:
+        sdk.kill()
+        sdk.wait()
+        announce.close()
+        session.close()
+    assert json.loads(out.read_text())["verdict"] is False, log.read_text()[-2000:]
