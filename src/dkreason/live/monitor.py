@@ -78,18 +78,29 @@ class Change:
         return out
 
     def __str__(self) -> str:
-        when = "before start" if self.time is None else f"at {seconds(self.time)} s"
+        when = "before start" if self.time is None else f"at {_shown(self.time)}"
         what = {"joined": f"platform {self.platform} joined",
                 "left": f"platform {self.platform} left",
                 "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
                 "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
                 "source_lost": f"source lost: {self.feature} has no topic left"}[self.event]
         if self.last_sample is not None:
-            what += f"; its last sample is from {seconds(self.last_sample)} s"
+            what += f"; its last sample is from {_shown(self.last_sample)}"
         return f"{when}: {what}" + (f" ({self.detail})" if self.detail else "")
 
 
 Event = Verdict | Violation | Change
+
+
+def _shown(t: int) -> str:
+    """A stream time (ns) for people: seconds, or on an epoch clock (a live robot's wall
+    clock) the UTC time, which says more than ten digits."""
+    if t < 10**18:
+        return f"{seconds(t)} s"
+    import datetime
+
+    return datetime.datetime.fromtimestamp(t / 10**9, datetime.UTC).isoformat(
+        timespec="milliseconds").replace("+00:00", "Z")
 
 
 class _Live:
