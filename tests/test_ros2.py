@@ -146,18 +146,20 @@ def test_type_names_map_both_ways_and_payloads_must_be_cdr() -> None:
         assert caught.value.kind == kind
 
 
-def test_on_the_wall_clock_busy_topics_hold_states_back_to_their_newest_sample_for_a_while(
-        ) -> None:
-    """A publisher's samples come in order: states wait until every topic heard from in the
-    last second has passed their time (a congested link delays states, it does not make its
-    samples late), but no topic holds them back by more than a second, and a silent one not
-    at all."""
-    now = 100 * S
+def test_on_the_wall_clock_a_topic_holds_states_back_as_far_as_its_samples_lag() -> None:
+    """A publisher's samples come in order, each about as late as the last: states wait for a
+    congested topic's backlog (its samples are not made late), not for a slow topic on a
+    healthy link, and for no topic more than a second, nor for one silent that long."""
+    now, ms = 100 * S, S // 1000
     assert held(now, []) == now
-    assert held(now, [(now - S // 10, now - S // 2)]) == now - S // 2  # busy: holds
-    assert held(now, [(now - 2 * S, now - 5 * S)]) == now  # silent for 2 s: holds nobody
-    assert held(now, [(now, now - 30 * S)]) == now - S  # far behind (or skewed): 1 s at most
-    assert held(now, [(now - S // 10, now - S // 2), (now, now - S // 5)]) == now - S // 2
+    healthy_slow = (now - 900 * ms, now - 901 * ms, ms)  # 1 Hz, its last sample 1 ms late
+    assert held(now, [healthy_slow]) == now - ms
+    congested = (now, now - 500 * ms, 500 * ms)  # samples arrive half a second late
+    assert held(now, [congested]) == now - 500 * ms
+    assert held(now, [(now - 2 * S, now - 5 * S, 3 * S)]) == now  # silent for 2 s
+    assert held(now, [(now, now - 30 * S, 30 * S)]) == now - S  # a clock 30 s behind: 1 s
+    ahead = (now - 10 * ms, now + 5 * S, -5 * S)  # a clock ahead: nothing to wait for
+    assert held(now, [healthy_slow, congested, ahead]) == now - 500 * ms
 
 
 @settings(max_examples=300, deadline=None)

@@ -61,13 +61,18 @@ def decode(read: Callable[[bytes], Any], payload: bytes, msgtype: str) -> Any:
                         f"({str(exc)[:120] or type(exc).__name__})", "decode") from None
 
 
-def held(now: int, topics: Iterable[tuple[int, int]]) -> int:
-    """The wall-clock watermark at `now`: each topic (latest arrival, newest valid time) that
-    delivered within `HOLD_NS` holds it back to its newest valid time, by `HOLD_NS` at most."""
+def held(now: int, topics: Iterable[tuple[int, int, int]]) -> int:
+    """The wall-clock watermark at `now`, from each topic's (latest arrival, newest valid
+    time, lag: arrival less valid time of its latest sample).  A topic's next sample comes
+    after its newest (a publisher's samples are in order) and, arriving now or later with
+    about the same lag, is valid at now - lag or later: so a topic holds the watermark back
+    to max(newest, now - lag).  A healthy link (lag of a millisecond) holds it by that much,
+    whatever the topic's rate; a congested one by its backlog.  No topic holds it by more
+    than `HOLD_NS` (a publisher whose clock runs behind), nor once silent for that long."""
     floor, mark = now - HOLD_NS, now
-    for arrived, newest in topics:
-        if arrived >= floor and newest < mark:
-            mark = max(newest, floor)
+    for arrived, newest, lag in topics:
+        if arrived >= floor:
+            mark = min(mark, max(newest, now - min(lag, HOLD_NS)))
     return mark
 
 
@@ -86,6 +91,7 @@ class _Sub:
     checked: bool = False  # the first message was decoded in full against the definition
     newest: int = -1  # ns, the newest valid time taken from it
     arrived: int = -1  # ns, the wall clock at its latest sample
+    last_valid: int = -1  # ns, the valid time of its latest sample
 
 
 class Ros2Monitor:
@@ -145,13 +151,13 @@ class Ros2Monitor:
 
     def watermark(self) -> int | None:
         """Up to when every sample has been taken.  With sim time, the clock.  On the wall
-        clock, each topic that delivered within the last `HOLD` s holds it back to its newest
-        sample (a publisher's samples come in order), by `HOLD` at most: a congested link
-        delays states instead of making its samples late, and a silent or skewed publisher
-        holds nobody for long."""
+        clock, now, held back by each topic as far as its samples lag (`held`): a congested
+        link delays states instead of making its samples late, a slow topic on a healthy link
+        delays nobody, and a silent or skewed publisher holds nobody for long."""
         if self.sim_time:
             return self.clock
-        return held(time.time_ns(), ((s.arrived, s.newest) for s in self.subs.values()))
+        return held(time.time_ns(), ((s.arrived, s.newest, s.arrived - s.last_valid)
+                                     for s in self.subs.values()))
 
     def run(self, until: Fraction | None = None, duration: float | None = None,
             wait: float = 10.0) -> Iterator[Event]:
@@ -399,7 +405,7 @@ class Ros2Monitor:
             else arrival
         self.processor.put(sub.name, available, valid, values)
         self.received += 1
-        sub.arrived = arrival
+        sub.arrived, sub.last_valid = arrival, valid
         if valid > sub.newest:
             sub.newest = valid
         if self.recorder is not None:
