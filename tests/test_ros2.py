@@ -666,3 +666,39 @@ def test_an_independent_rmw_zenoh_implementation_talks_with_dkreason_both_ways(
         announce.close()
         session.close()
     assert json.loads(out.read_text())["verdict"] is False, log.read_text()[-2000:]
+
+
+def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
+        robots: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+        ) -> None:
+    """Memory stays bounded on a flood the monitor cannot take: with its queue full, zenoh's
+    thread waits (holding the link, and a blocking publisher, back); past that wait a sample
+    is dropped and counted, and the count is logged."""
+    monkeypatch.setattr("dkreason.live.ros2.QUEUED", 5)
+    monkeypatch.setattr("dkreason.live.ros2.PUT_WAIT", 0.01)
+    port = free_port()
+    publishing = open_session([], [f"tcp/127.0.0.1:{port}"])
+    watching = open_session([f"tcp/127.0.0.1:{port}"], [])
+    try:
+        monitor = Ros2Monitor(KnowledgeManager.from_config(robots / "robot1.toml"),
+                              ["always (X[me] < 15)"], StreamPolicy(), watching, store=STORE)
+        pub = Ros2Node(publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
+        deadline = time.monotonic() + 30
+        while monitor.events.empty() and time.monotonic() < deadline:
+            time.sleep(0.01)  # the publisher's token queues up: nobody takes it yet
+        for event in [monitor.events.get() for _ in range(monitor.events.qsize())]:
+            monitor._handle(event)  # what the loop does: the publisher is subscribed
+        assert monitor.subs
+        while not pub.publisher.matching_status.matching and time.monotonic() < deadline:
+            time.sleep(0.01)
+        for n in range(20):
+            pub.put(pose(STORE, (n + 1) * S, 1.0))
+        while monitor.dropped < 15 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert monitor.events.qsize() == 5 and monitor.dropped == 15
+        list(monitor.run(duration=1))  # takes the five, reports the fifteen, ends
+        assert monitor.received == 5
+        assert "15 samples or announcements dropped so far" in caplog.text
+    finally:
+        watching.close()
+        publishing.close()

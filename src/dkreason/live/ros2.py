@@ -49,6 +49,8 @@ from .wire import WireError, direct
 log = logging.getLogger("dkreason.ros2")
 MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
 HOLD_NS = NS  # how long a topic's newest sample may hold states back (wall clock)
+QUEUED = 200_000  # events waiting for the monitor, at most (a sample's bytes and times each)
+PUT_WAIT = 1.0  # s a zenoh thread waits for room before an event is dropped
 
 
 def decode(read: Callable[[bytes], Any], payload: bytes, msgtype: str) -> Any:
@@ -117,7 +119,9 @@ class Ros2Monitor:
             for m in f.topics:
                 for name in recording_names(m, request.local, namespaces.get(m.platform)):
                     self.wants.setdefault(name, []).append((f.feature.key, m))
-        self.events: queue.Queue[tuple[Any, ...]] = queue.Queue()
+        self.events: queue.Queue[tuple[Any, ...]] = queue.Queue(maxsize=QUEUED)
+        self.dropped = 0  # samples the queue had no room for within PUT_WAIT (zenoh threads)
+        self.told = 0  # of those, reported
         self.seen: dict[str, rmw.Publisher] = {}  # token → every publisher discovered
         self.taken: dict[str, str] = {}  # token → the key expression subscribed for it
         self.subs: dict[str, _Sub] = {}  # key expression → subscription
@@ -136,12 +140,21 @@ class Ros2Monitor:
     def _on_token(self, sample: Any) -> None:
         import zenoh
 
-        self.events.put(("token", str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+        self._put(("token", str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
 
     def _on_sample(self, key: str, sample: Any) -> None:
         attachment = sample.attachment
-        self.events.put(("sample", key, sample.payload.to_bytes(),
-                         None if attachment is None else attachment.to_bytes(), time.time_ns()))
+        self._put(("sample", key, sample.payload.to_bytes(),
+                   None if attachment is None else attachment.to_bytes(), time.time_ns()))
+
+    def _put(self, event: tuple[Any, ...]) -> None:
+        """Memory stays bounded: a full queue holds zenoh's thread back (and so the link and
+        a blocking publisher) for up to PUT_WAIT s; only then is the event dropped, and
+        counted."""
+        try:
+            self.events.put(event, timeout=PUT_WAIT)
+        except queue.Full:
+            self.dropped += 1
 
     # ---- the loop ----------------------------------------------------------------------
 
@@ -182,6 +195,11 @@ class Ros2Monitor:
                     out: list[Event] = []
                     for event in drain(self.events, self._idle()):
                         out += self._handle(event)
+                    if self.dropped != self.told:
+                        self.told = self.dropped
+                        log.warning("%d samples or announcements dropped so far: the monitor "
+                                    "fell more than %g s behind with %d queued", self.told,
+                                    PUT_WAIT, QUEUED)
                     mark = self.watermark()
                     if mark is not None:
                         self.processor.advance(mark if end is None else min(mark, end))
