@@ -489,7 +489,33 @@ def test_verdicts_go_back_onto_the_network_as_json_and_as_a_ros2_topic(
     assert len(attachments[0]) == 33 and rmw.parse_attachment(attachments[-1])[0] > 1
     ros = next(p for k, p in got if k.startswith("0/"))
     length = struct.unpack_from("<I", ros, 4)[0]
-    assert json.loads(ros[8:8 + length - 1]) == as_json
+    as_ros = json.loads(ros[8:8 + length - 1])
+    assert as_ros.pop("ids") == [as_json.pop("id")] and as_ros == as_json
+
+
+def test_a_violation_goes_to_every_formula_that_reads_its_feature() -> None:
+    """Each formula's key carries what concerns it: its verdict, and the stream constraint
+    violations of the features it reads."""
+    from dkreason.model import FeatureKey
+    from dkreason.stream.processor import Violation
+
+    class Session:
+        def __init__(self) -> None:
+            self.puts: list[tuple[str, Any]] = []
+
+        def put(self, key: str, payload: bytes) -> None:
+            self.puts.append((key, json.loads(payload)))
+
+    speed, position = FeatureKey("Speed", ("car2",)), FeatureKey("Position", ("car2",))
+    formulas = {SPEEDING: [speed], POSITION: [position], "always (Speed[car2] < 200)": [speed]}
+    session = Session()
+    announce = Announcer(session, list(formulas), reads=lambda key: [
+        text for text, keys in formulas.items() if key in keys])
+    announce(Violation("late", 5 * S, speed, "platform1/topic4", "a late sample"))
+    announce(Violation("late", 6 * S, FeatureKey("Altitude", ("uav1",)), "t", "unread"))
+    assert [(k, p["id"], p["violation"]) for k, p in session.puts] == [
+        ("dkreason/verdicts/f1", "f1", "late"), ("dkreason/verdicts/f3", "f3", "late"),
+        ("dkreason/verdicts/violations", "violations", "late")]
 
 
 @pytest.mark.parametrize(("argv", "message"), [

@@ -498,7 +498,8 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
         _on_signals(lambda *_: monitor.stop.set())
         return _report(args, monitor.run(args.until, args.duration),
                        lambda: getattr(monitor, "processor", None), session,
-                       [f.text for f in monitor.formulas], ros2=False)
+                       [f.text for f in monitor.formulas], ros2=False,
+                       reads=lambda key: _reading(monitor.monitor, key))
     finally:
         session.close()
 
@@ -542,21 +543,28 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
         return _report(args, monitor.run(args.until, args.duration, args.wait),
                        lambda: monitor.processor,
                        session, [f.text for f in monitor.monitor.plan.formulas], ros2=True,
-                       domain=domain, labelled=lambda: monitor.labelled)
+                       domain=domain, labelled=lambda: monitor.labelled,
+                       reads=lambda key: _reading(monitor.monitor, key))
     finally:
         if recorder is not None:
             recorder.close()
         session.close()
 
 
+def _reading(monitor: Any, key: Any) -> list[str]:
+    """The formulas (as written) of a running Monitor that read a feature."""
+    return [f.text for f in monitor.plan.formulas if key in f.keys]
+
+
 def _report(args: argparse.Namespace, events: Any, processor: Any, session: Any,
-            formulas: list[str], ros2: bool, domain: int = 0, labelled: Any = None) -> int:
+            formulas: list[str], ros2: bool, domain: int = 0, labelled: Any = None,
+            reads: Any = None) -> int:
     """A live run's events printed (and published with --publish-verdicts) as they come."""
     from .live.monitor import Change
     from .live.ros2node import Announcer
     from .progress import Verdict
 
-    announce = Announcer(session, formulas, ros2, domain, labelled) \
+    announce = Announcer(session, formulas, ros2, domain, labelled, reads) \
         if args.publish_verdicts else None
     verdicts, violations = [], 0
     try:

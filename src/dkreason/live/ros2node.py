@@ -19,6 +19,7 @@ from collections.abc import Callable, Collection, Iterator
 from pathlib import Path
 from typing import Any
 
+from ..model import FeatureKey
 from ..progress import Verdict
 from ..stream.processor import Violation
 from ..stream.sources import NS
@@ -106,32 +107,42 @@ def cdr_clock(t: int) -> bytes:
 
 class Announcer:
     """Verdicts and violations back onto the network: JSON on `dkreason/verdicts/<formula
-    id>` (`f1`, `f2`, … in the order the formulas were given; violations on
-    `dkreason/verdicts/violations`), and with `ros2` the same JSON as std_msgs/msg/String on
-    the ROS 2 topic `/dkreason/verdicts`."""
+    id>` (`f1`, `f2`, … in the order the formulas were given), a violation on the id of each
+    formula reading its feature (`violations` when none does), and with `ros2` the same JSON
+    once as std_msgs/msg/String on the ROS 2 topic `/dkreason/verdicts`."""
 
     def __init__(self, session: Any, formulas: list[str], ros2: bool = False,
-                 domain: int = 0, labelled: Callable[[], bool] | None = None) -> None:
+                 domain: int = 0, labelled: Callable[[], bool] | None = None,
+                 reads: Callable[[FeatureKey], list[str]] | None = None) -> None:
         """`labelled`: whether the robots' attachments are in Jazzy's first layout (the ROS 2
-        monitor says what it has seen), which their subscribers then expect of ours too."""
-        self.session, self.labelled = session, labelled
+        monitor says what it has seen), which their subscribers then expect of ours too;
+        `reads`: the formulas (as written) that read a feature."""
+        self.session, self.labelled, self.reads = session, labelled, reads
         self.ids = {text: f"f{n}" for n, text in enumerate(formulas, 1)}
+        self.readers: dict[FeatureKey, list[str]] = {}  # feature → formula ids, as asked
         self.node = Ros2Node(session, "dkreason_monitor", "/", domain) if ros2 else None
         self.topic = self.node.publisher(VERDICTS, "std_msgs/msg/String") if self.node else None
 
-    def __call__(self, event: Any) -> None:
+    def _ids(self, event: Verdict | Violation) -> list[str]:
         if isinstance(event, Verdict):
-            fid = self.ids.get(event.formula, "other")
-        elif isinstance(event, Violation):
-            fid = "violations"
-        else:
+            return [self.ids.get(event.formula, "other")]
+        ids = self.readers.get(event.feature)
+        if ids is None:
+            texts = self.reads(event.feature) if self.reads is not None else []
+            ids = self.readers[event.feature] = [self.ids[t] for t in texts if t in self.ids]
+        return ids or ["violations"]
+
+    def __call__(self, event: Any) -> None:
+        if not isinstance(event, Verdict | Violation):
             return
-        data = {"id": fid, **event.to_json()}
-        text = json.dumps(data, ensure_ascii=False, default=str)
-        self.session.put(f"dkreason/verdicts/{fid}", text.encode())
+        ids = self._ids(event)
+        for fid in ids:
+            self.session.put(f"dkreason/verdicts/{fid}", json.dumps(
+                {"id": fid, **event.to_json()}, ensure_ascii=False, default=str).encode())
         if self.topic is not None:
             self.topic.node.labelled = self.labelled is not None and self.labelled()
-            self.topic.put(cdr_string(text))
+            self.topic.put(cdr_string(json.dumps({"ids": ids, **event.to_json()},
+                                                  ensure_ascii=False, default=str)))
 
     def close(self) -> None:
         if self.node is not None:
