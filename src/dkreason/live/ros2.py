@@ -6,11 +6,13 @@ binding, here by a node's namespace, remaps), and only the relevant ones are sub
 payloads are read with rosbags' typestores (standard types built in; custom types from `--msg`
 files), only the fields the request needs (stream/fastread.py).
 
-Time.  A sample's valid time is its `header.stamp` when it has one; otherwise the publisher's
-source time from the attachment (wall clock), or the sim clock at arrival (`sim_time`).  Its
-available time is its arrival: the wall clock, or with `sim_time` the latest `/clock`.  States
-are made as that clock passes (less the policy's delay), so a silent publisher's value turns
-unknown once it is older than the maximum age.
+Time.  A sample's valid time is its `header.stamp` when it has one (a zero stamp is none);
+otherwise the publisher's source time from the attachment (wall clock), or the sim clock at
+arrival (`sim_time`).  Its available time is its arrival: the wall clock, or with `sim_time` the
+latest `/clock`.  States are made as that clock passes (on the wall clock held back by each
+topic's lag, `held`; less the policy's delay), so a silent publisher's value turns unknown once
+it is older than the maximum age.  The queue from zenoh's threads is bounded (`QUEUED`): a
+monitor that falls behind holds the link back, and past `PUT_WAIT` drops and says so.
 
 Change.  A publisher that appears later is subscribed when it appears; one whose token goes
 away is unsubscribed, and a feature left with no publisher is reported as source loss.  A
