@@ -211,3 +211,23 @@ def test_the_readmes_cowl_example_reads_every_bridge_type(tmp_path: Path) -> Non
     (tmp_path / "m.cowl.xml").write_text(example)
     rules = read_bridge_rules(tmp_path / "m.cowl.xml")
     assert sorted(r.type for r in rules) == sorted(BRIDGE_TYPES)
+
+
+def test_a_fleet_sharing_one_vocabulary_stores_links_of_the_local_platform_only(
+        tmp_path: Path) -> None:
+    """Twenty platforms sharing IRIs: only the local platform's links are kept (a context is
+    the local platform and one other), so what a joining platform costs grows with the fleet,
+    not with its square (issue 16: each join derived links between every pair)."""
+    from benchmarks import bench_join
+
+    bench_join.write(tmp_path, 20)
+    names = "".join(f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n'
+                    for n in range(1, 21))
+    (tmp_path / "fleet.toml").write_text(
+        f'local = "m"\n[platforms.m]\nontology = "m.ttl"\n{names}')
+    km = KnowledgeManager.from_config(tmp_path / "fleet.toml")
+    sizes = {name: rows for name, (_, rows) in km.kb.engine.sizes().items()}
+    assert sizes["shares_vocabulary"] == 20  # m with each p, never p with p
+    request = km.check_formula("forall s in Sensor: always (Reading[s] < 1000)")
+    assert sorted((t.platform, t.topic) for f in request.features for t in f.topics) == \
+        sorted((f"p{n}", f"t{n}") for n in range(1, 21))
