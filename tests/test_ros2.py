@@ -305,6 +305,11 @@ def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
     assert run.verdicts()[0].verdict is False and run.verdicts()[0].time == 300.02
     replayed = list(Monitor(km, formulas, policy).run(RosbagSource(record)))
     assert [v for v in replayed if isinstance(v, Verdict)] == run.verdicts()
+    again = open_session([], [f"tcp/127.0.0.1:{free_port()}"])
+    try:  # the record's JSON channel is no ROS 2 topic: replayed are its ROS messages only
+        assert replay(record, again, speed=1e9, clock=False) == run.monitor.received
+    finally:
+        again.close()
 
 
 def test_bridge_tokens_are_taken_with_bridge_and_named_otherwise(

@@ -170,13 +170,14 @@ def replay(path: Path, session: Any, *, speed: float = 1.0, domain: int = 0,
     pubs: dict[str, Ros2Publisher] = {}
     player = Ros2Node(session, "rosbag2_player", "/", domain, bridged)
     ticks = player.publisher(CLOCK, CLOCK_TYPE) if clock else None
-    for c in source.reader.connections:
+    for c in source.connections:  # its ROS channels (an MCAP may hold JSON ones too)
         robot = c.topic.strip("/").split("/")[0] if c.topic.count("/") > 1 else ""
         node = nodes.get(robot)
         if node is None:
             node = nodes[robot] = Ros2Node(session, "replay", "/" + robot, domain, bridged)
         pubs[c.topic] = node.publisher(c.topic, c.msgtype)
-    records: Iterator[tuple[Any, int, bytes]] = iter(source.reader.messages())
+    records: Iterator[tuple[Any, int, bytes]] = iter(
+        source.reader.messages(connections=source.connections))
     head = next(records, None)
     first = head[1] if head is not None else 0
     last_tick, sent = -1, 0
