@@ -332,6 +332,8 @@ class Ros2Monitor:
 
     def _subscribe(self, pub: rmw.Publisher, name: str, features: list[FeatureKey]
                    ) -> list[Event]:
+        import zenoh
+
         if name == CLOCK and pub.msgtype != CLOCK_TYPE:
             self._warn(f"{CLOCK}: type {pub.msgtype}, not {CLOCK_TYPE}; skipped")
             return []
@@ -347,10 +349,9 @@ class Ros2Monitor:
         self.store.get_msgdef(pub.msgtype)  # rosbags' decoder built now, not at a sample
         sub = self.subs[pub.key] = _Sub(name, pub.topic, pub.msgtype, read, stamped, features,
                                         publishers={pub.token})
+
         def take(sample: Any, key: str = pub.key) -> None:
             self._on_sample(key, sample)
-
-        import zenoh
 
         try:  # on sim time, samples and /clock ticks must keep their order across keys
             sub.handle = self.session.declare_subscriber(
