@@ -13,6 +13,8 @@ import pytest
 
 from benchmarks.chapter7.workload import Workload, nine, write
 from dkreason import KnowledgeManager, cache
+from dkreason.datalog import Datalog
+from dkreason.errors import SortError
 from dkreason.kb import KnowledgeBase
 
 from .conftest import REPO
@@ -48,6 +50,59 @@ def test_a_second_load_reads_the_cache_and_a_changed_file_is_parsed_again(
     with pytest.raises(Exception, match="b1"):
         KnowledgeManager.from_config(config)
     assert len(_entries(private_cache)) == 2  # a failed parse stores nothing
+
+
+def test_the_derived_views_come_from_the_cache_row_for_row(
+        tmp_path: Path, private_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The views and the spec checks are a function of the facts and the rules: a second load
+    takes the rows the first one derived (and answers alike) without asking the engine."""
+    config = write(Workload(30, 5, 5, 10, 5, nine(), sort_share=0.8), tmp_path / "w")
+    formula = " and ".join(nine())
+    first = KnowledgeManager.from_config(config)
+    derived, answer = first.kb.engine.frozen(), first.check_formula(formula)
+
+    def refuse(self: object) -> None:
+        raise AssertionError("derived again")
+
+    monkeypatch.setattr(Datalog, "materialize", refuse)
+    again = KnowledgeManager.from_config(config)
+    assert again.kb.engine.frozen() == derived
+    assert again.check_formula(formula) == answer
+    monkeypatch.undo()
+    again.kb.remove_spec(again.kb.local, "rel0")  # a change re-derives what reads it, as before
+    assert "topic_objects" in again.kb.rederived
+
+
+def test_changed_specs_or_rules_derive_the_views_again(tmp_path: Path,
+                                                       private_cache: Path) -> None:
+    config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
+    KnowledgeManager.from_config(config)
+    assert len(list(private_cache.glob("views-*"))) == 1
+    specs = tmp_path / "w" / "ch7.sslt"
+    specs.write_text(specs.read_text() + "topic late:M contains X(b1) = msg.v for b1 = msg.id\n")
+    km = KnowledgeManager.from_config(config)
+    assert "late" in {m.topic for m in km.check_formula("X[b1]").features[0].topics}
+    assert len(list(private_cache.glob("views-*"))) == 2
+
+    rules = tmp_path / "w" / "extra.dl"
+    rules.write_text("# no rule, but another policy text\n")
+    config.write_text(config.read_text().replace('local = ', 'rules = ["extra.dl"]\nlocal = ', 1)
+                      if 'local = ' in config.read_text()
+                      else 'rules = ["extra.dl"]\n' + config.read_text())
+    KnowledgeManager.from_config(config)
+    assert len(list(private_cache.glob("views-*"))) == 3
+
+
+def test_specs_that_fail_their_check_store_no_views(tmp_path: Path,
+                                                    private_cache: Path) -> None:
+    config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
+    specs = tmp_path / "w" / "ch7.sslt"
+    specs.write_text(specs.read_text()
+                     + "topic bad:M contains X(Relation as a) = msg.v for some a = msg.id\n")
+    for _ in range(2):  # refused again: nothing was kept that would let it through
+        with pytest.raises(SortError, match="Relation"):
+            KnowledgeManager.from_config(config)
+    assert not list(private_cache.glob("views-*"))
 
 
 def test_a_damaged_entry_is_parsed_again(tmp_path: Path, private_cache: Path) -> None:

@@ -26,7 +26,8 @@ from typing import TypeVar
 T = TypeVar("T")
 
 # The modules whose code shapes a cached value: a change to any of them is a new key.
-_SHAPERS = ("model.py", "names.py", "facts.py", "kb.py", "errors.py", "parse/owl.py",
+_SHAPERS = ("model.py", "names.py", "facts.py", "kb.py", "datalog.py", "errors.py",
+            "parse/owl.py",
             "parse/sslt.py", "parse/sslt.lark", "parse/files.py", "parse/entail.py",
             "parse/owlrl_rules.py", "parse/config.py", "xmlsafe.py")
 

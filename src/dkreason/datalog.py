@@ -108,6 +108,7 @@ def gc_paused() -> Iterator[None]:
 
 
 _NONE: frozenset[object] = frozenset()
+_NO_BODY: list[object] = []  # every fact's body: nothing in pyDatalog adds to a fact's body
 
 
 def _lookup(literal: object) -> list[object]:
@@ -139,8 +140,10 @@ class Datalog:
         pyEngine.relevant_clauses = _lookup
         self._logic = Logic()  # a fresh engine, current in this thread
         self.rules: list[Rule] = []
+        self.texts: list[str] = []  # the rule files as read: what derived rows depend on
         self.schema: dict[str, Relation] = {}
         self._frozen: dict[str, tuple[list[object], list[Row]]] = {}
+        self._consts: dict[Value, object] = {}
 
     def _activate(self) -> None:
         from pyDatalog import Logic
@@ -157,6 +160,7 @@ class Datalog:
         for decl in _DECL.finditer(text):
             self._declare(decl.group(1), Span(file, text.count("\n", 0, decl.start()) + 1))
         rules = _clauses(_DECL.sub("", text), file)  # blanked, so lines keep their numbers
+        self.texts.append(text)
         self._activate()
         for rule in rules:  # straight into the engine: pyParser would parse the text again
             _assert_rule(rule)
@@ -217,13 +221,33 @@ class Datalog:
             return self.query(predicate, *args)
 
     def assert_rows(self, predicate: str, rows: Iterable[Sequence[Value]]) -> None:
-        from pyDatalog import pyEngine
+        """What `pyEngine.assert_` does for a fact, for many at once: the predicate's tables
+        are looked up once, not per fact, and facts share their constants (one `Const` per
+        value, not per use) and their empty body.  ~2 µs and ~0.8 KB a fact, not ~5 µs and
+        ~1.2 KB (pyEngine.retract finds them as it finds its own)."""
+        from pyDatalog.pyEngine import Clause, Const, Literal, insert
 
+        rows = list(rows)
+        if not rows:
+            return
         self._activate()
-        const, literal, clause, add = (pyEngine.Const, pyEngine.Literal, pyEngine.Clause,
-                                       pyEngine.assert_)
+        pred = Literal(predicate, [Const(v) for v in rows[0]]).pred  # interned; sets prearity
+        insert(pred)
+        db, index, name, consts, body = pred.db, pred.index, pred.id, self._consts, _NO_BODY
         for row in rows:
-            add(clause(literal(predicate, [const(v) for v in row]), []))
+            key = ((name, *row),)  # Clause.get_id() of a fact
+            if key in db:
+                continue
+            terms = [consts.get(v) or consts.setdefault(v, Const(v)) for v in row]
+            clause = Clause(Literal(pred, terms), body)
+            clause.id = key
+            db[key] = clause
+            for column, v in zip(index, row, strict=True):
+                found = column.get(v)
+                if found is None:
+                    column[v] = {clause}
+                else:
+                    found.add(clause)
 
     def retract_rows(self, predicate: str, rows: Iterable[Sequence[Value]]) -> None:
         from pyDatalog import pyEngine
@@ -237,23 +261,30 @@ class Datalog:
         """Replace each declared view's rules by its rows (call `thaw` before the facts it
         depends on change).  Views are computed in dependency order, each frozen before the
         next, so no view is derived again inside another."""
+        for name in self._view_order():
+            if name not in self._frozen:
+                self._freeze(name, self.query(name, *[None] * self.views[name]))
+
+    def restore(self, views: dict[str, list[Row]]) -> None:
+        """Freeze the views with rows an earlier `materialize` computed from the same facts
+        and rules (`frozen()`): what a cached knowledge base skips."""
+        for name, rows in views.items():
+            self._freeze(name, rows)
+
+    def frozen(self) -> dict[str, list[Row]]:
+        """The rows of every materialized view."""
+        return {name: rows for name, (_, rows) in self._frozen.items()}
+
+    def _freeze(self, name: str, rows: list[Row]) -> None:
         from pyDatalog import Logic, pyEngine
 
-        db = Logic.tl.logic.Db
-        for name in self._view_order():
-            if name in self._frozen:
-                continue
-            found = self.query(name, *[None] * self.views[name])
-            pred = db.get(f"{name}/{self.views[name]}")
-            rules = list(pred.clauses.values()) if pred is not None else []
-            for clause in rules:  # Pred.reset_clauses() mutates what it iterates over
-                pyEngine.retract(clause)
-            self.assert_rows(name, found)
-            self._frozen[name] = (rules, found)
-
-    def view_sizes(self) -> dict[str, int]:
-        """Rows each materialized view holds: what a knowledge base costs in memory."""
-        return {name: len(rows) for name, (_, rows) in self._frozen.items()}
+        self._activate()
+        pred = Logic.tl.logic.Db.get(f"{name}/{self.views[name]}")
+        rules = list(pred.clauses.values()) if pred is not None else []
+        for clause in rules:  # Pred.reset_clauses() mutates what it iterates over
+            pyEngine.retract(clause)
+        self.assert_rows(name, rows)
+        self._frozen[name] = (rules, rows)
 
     def sizes(self) -> dict[str, tuple[str, int]]:
         """Each stored relation (input facts and materialized views): its kind and rows."""

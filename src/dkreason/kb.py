@@ -76,11 +76,19 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
         platform.notes = sources.skipped
         return platform, tuple((str(p), cache.digest(d)) for p, d in sources.read)
 
+    def parsed() -> tuple[Platform, tuple[tuple[str, str], ...]]:
+        found = build()
+        # rdflib's graph and its store refer to each other: the parse leaves cycles.  They are
+        # all younger than the last collection, so collecting the youngest generation finds
+        # them at the cost of what this parse allocated, not of the whole heap.
+        gc.collect(0)
+        return found
+
     parts: list[bytes | str] = [
         files.name, *(str(p.resolve()) for p in files.ontology), str(specs), spec_data,
         str(files.skip_imports), files.reasoning,
         *(f"{k}={v.resolve()}" for k, v in sorted(imports.items()))]
-    platform, _ = cache.cached("platform", parts, build, lambda found: cache.unchanged(found[1]))
+    platform, _ = cache.cached("platform", parts, parsed, lambda found: cache.unchanged(found[1]))
     return platform
 
 
@@ -115,12 +123,34 @@ class KnowledgeBase:
                       *(self._platform_facts(p) for p in platforms.values()),
                       self._mapping_facts(), {"online": [
                           (p,) for p in platforms if online is None or p in online]})
+        self._derive(facts)
+        self._warn()
+
+    def _derive(self, facts: Facts) -> None:
+        """Assert the facts, then compute the views and check the specs, or take the views
+        from the cache: they, and the checks' verdict, are a function of the facts and the
+        rules alone, so the key is their content (a cache hit skips ~2/3 of a load)."""
+        from importlib.metadata import version
+
+        from . import cache
+
         for pred, rows in rows_of(facts):
             self.engine.assert_rows(pred, rows)
-        self.engine.materialize()
-        for p in platforms.values():
-            self._check_specs(p, list(p.resolved))
-        self._warn()
+        computed = False
+
+        def compute() -> dict[str, list[Row]]:
+            nonlocal computed
+            computed = True
+            self.engine.materialize()
+            for p in self.platforms.values():
+                self._check_specs(p, list(p.resolved))
+            return self.engine.frozen()
+
+        content = (f"{pred}{rows!r}" for pred, rows in rows_of(facts))  # one relation at a time
+        views = cache.cached("views", [version("pyDatalog"), *self.engine.texts, *content],
+                             compute)
+        if not computed:
+            self.engine.restore(views)
 
     def _platform_facts(self, p: Platform) -> Facts:
         return merge({"platform": [(p.name,)]}, ontology_facts(p.ontology),
@@ -158,10 +188,9 @@ class KnowledgeBase:
     def from_config(cls, path: Path) -> KnowledgeBase:
         with gc_paused():
             kb = cls._load(path)
-        # The load's heap lives as long as the knowledge base: collect its garbage now and
-        # set the rest aside, so no collection during the first formulas walks it again.
-        gc.collect()
-        gc.freeze()
+            # The load's heap lives as long as the knowledge base: set it aside, so no
+            # collection during the first formulas walks it (parsing collected its garbage).
+            gc.freeze()
         return kb
 
     @classmethod
