@@ -316,7 +316,8 @@ def test_bridge_tokens_are_taken_with_bridge_and_named_otherwise(
         robots: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture) -> None:
     km = KnowledgeManager.from_config(robots / "robot1.toml")
     without = live(km, ["always (X[me] < 15)"], sim_time=True)
-    Ros2Node(without.publishing, "turtle", "/robot1", bridged=True).publisher("/robot1/pose", POSE)
+    bridged = Ros2Node(without.publishing, "turtle", "/robot1", bridged=True)
+    bridged.publisher("/robot1/pose", POSE)  # the node holds it: a dropped one is undeclared
     without.until(lambda: "give --bridge" in caplog.text, "the bridge's topic named")
     assert not without.monitor.subs
     run = live(km, ["always (X[me] < 15)"], bridge=True)
@@ -409,8 +410,9 @@ def test_ids_namespaces_and_bindings_are_those_of_recordings(
     """robot1's relative `pose` is /robot1/pose (its namespace), never /robot2/pose; for
     platforms without a namespace, --bind names the node namespace that is each robot's."""
     run = live(KnowledgeManager.from_config(robots / "robot1.toml"), ["always (X[me] < 15)"])
-    for n in (1, 2):
-        Ros2Node(run.publishing, "turtle", f"/robot{n}").publisher(f"/robot{n}/pose", POSE)
+    nodes = [Ros2Node(run.publishing, "turtle", f"/robot{n}") for n in (1, 2)]  # held: a
+    for n, node in enumerate(nodes, 1):  # dropped node's publishers are undeclared
+        node.publisher(f"/robot{n}/pose", POSE)
     run.until(lambda: len(run.monitor.seen) == 2, "both publishers seen")
     assert [s.topic for s in run.monitor.subs.values()] == ["/robot1/pose"]
     run.close()
@@ -422,8 +424,9 @@ def test_ids_namespaces_and_bindings_are_those_of_recordings(
         f'[platforms.robot2]\nontology = "{ttl}"\nspecs = "odom.sslt"\n')
     pair = live(KnowledgeManager.from_config(tmp_path / "pair.toml"), ["always (X[me] < 15)"],
                 bind={"robot1": "/r1", "robot2": "/r2"})
-    for n in (1, 2):
-        Ros2Node(pair.publishing, "turtle", f"/r{n}").publisher(f"/r{n}/odom", POSE)
+    nodes = [Ros2Node(pair.publishing, "turtle", f"/r{n}") for n in (1, 2)]
+    for n, node in enumerate(nodes, 1):
+        node.publisher(f"/r{n}/odom", POSE)
     pair.until(lambda: len(pair.changes("subscribed")) == 2, "both subscribed")
     assert {(c.platform, c.detail.split()[0]) for c in pair.changes("subscribed")} == \
         {("robot1", "/r1/odom"), ("robot2", "/r2/odom")}  # one vocabulary: both feed X[me]
