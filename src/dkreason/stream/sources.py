@@ -19,6 +19,7 @@ from ..errors import DkError, ParseError, Span
 from ..numbers import exact
 from ..parse import files
 from . import fields
+from .mcapread import IndexedMcap, open_indexed
 
 Message = tuple[str, int, int, tuple[Any, ...]]
 Record = tuple[str, int, int, Any]  # a whole message: topic, available, valid, plain data
@@ -75,6 +76,7 @@ class RosbagSource:
                  typestore: str | None = None) -> None:
         self.name = str(path)
         self.path = path
+        self._indexed: IndexedMcap | None = None
         if not path.exists():
             raise DkError(f"{path}: no such recording")
         from rosbags.highlevel import AnyReader
@@ -131,20 +133,22 @@ class RosbagSource:
         if not connections:
             return
         fielddefs = self.reader.typestore.fielddefs
-        readers = {id(c): _ros_reader(fielddefs, c.msgtype, wanted[c.topic], not self.reader.is2,
-                                      self.reader.deserialize) for c in connections}
+        readers = {id(c): (c, *_ros_reader(fielddefs, c.msgtype, wanted[c.topic],
+                                            not self.reader.is2, self.reader.deserialize))
+                   for c in connections}
         n = 0
-        unchecked = {id(c) for c in connections}
+        unchecked = set(readers)
         try:
-            for connection, t_ns, raw in self.reader.messages(connections=connections):
-                read, stamped = readers[id(connection)]
-                if unchecked and id(connection) in unchecked:  # once a topic: the reference
-                    unchecked.discard(id(connection))
-                    _decodes(self.reader.deserialize, raw, connection)
-                values = read(raw)
-                valid = values[-2] * NS + values[-1] if stamped else t_ns
-                n += 1
-                yield connection.topic, t_ns, valid, values
+            for batch, by in self._batches(connections):
+                for key, t_ns, raw in batch:
+                    connection, read, stamped = readers[by[key]]
+                    if unchecked and id(connection) in unchecked:  # once a topic: the reference
+                        unchecked.discard(id(connection))
+                        _decodes(self.reader.deserialize, raw, connection)
+                    values = read(raw)
+                    n += 1
+                    yield (connection.topic, t_ns,
+                           values[-2] * NS + values[-1] if stamped else t_ns, values)
         except DkError:
             raise
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
@@ -153,6 +157,28 @@ class RosbagSource:
             raise DamagedRecording(f"{self.name}: damaged recording ({_why(exc)}); {n} "
                                    f"messages before it were monitored, the rest is lost") \
                 from None
+
+    def _batches(self, connections: list[Any]
+                 ) -> Iterator[tuple[Sequence[tuple[Any, int, bytes]], dict[Any, int]]]:
+        """Messages in recording order, in batches: (key, record time, serialised message),
+        and what each key is (the id of its connection).  An indexed MCAP file is read through
+        mcapread, a chunk a batch (~5× rosbags' rate); anything else through rosbags."""
+        by_topic = {c.topic: c for c in connections}
+        file = _storage_file(self.path)
+        indexed = open_indexed(file) if self.reader.is2 and file is not None and \
+            len(by_topic) == len(connections) else None
+        if indexed is None:
+            same = {id(c): id(c) for c in connections}
+            for connection, t_ns, raw in self.reader.messages(connections=connections):
+                yield ((id(connection), t_ns, raw),), same
+            return
+        if self._indexed is not None:  # asked again: the file is read again from the start
+            self._indexed.close()
+        self._indexed = indexed
+        channels = {ch: id(by_topic[topic]) for ch, (topic, encoding)
+                    in indexed.channels.items() if topic in by_topic and encoding == "cdr"}
+        for batch in indexed.batches(channels):
+            yield batch, channels
 
     def records(self) -> Iterator[Record]:
         """Every message in full, as plain data (what a live platform node publishes)."""
@@ -167,8 +193,18 @@ class RosbagSource:
             raise DkError(f"{self.name}: damaged recording ({_why(exc)})") from None
 
     def close(self) -> None:
+        if self._indexed is not None:
+            self._indexed.close()
         if self.reader.stack is not None:
             self.reader.close()
+
+
+def _storage_file(path: Path) -> Path | None:
+    """The one MCAP file of a recording (a bare file, or a bag folder's only storage file)."""
+    if path.is_dir():
+        files = [*path.glob("*.mcap"), *path.glob("*.db3")]
+        return files[0] if len(files) == 1 and files[0].suffix == ".mcap" else None
+    return path if path.suffix == ".mcap" else None
 
 
 def _ros(connection: Any) -> bool:
