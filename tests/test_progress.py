@@ -204,11 +204,30 @@ families = st.tuples(atoms, atoms, st.integers(0, 2), st.lists(
                f" ({p[1]}))" for h in p[3]])
 
 
+thresholds = st.lists(st.tuples(st.sampled_from(["<", "<=", ">", ">="]), st.integers(-1, 5),
+                                st.booleans()).map(
+    lambda p: f"always (X {p[0]} {p[1]})" if p[2] else f"always ({p[1]} {p[0]} X)"),
+    min_size=2, max_size=8)
+
+
 @SETTINGS
 @given(st.lists(st.one_of(formulas(), single), max_size=4), families, traces())
 def test_formulas_sharing_one_progressor_each_keep_their_own_semantics(
         others: list[str], family: list[str], trace: Trace) -> None:
-    batch = [*others, *family]
+    judged_alone_and_together([*others, *family], trace)
+
+
+@SETTINGS
+@given(st.lists(st.one_of(formulas(), single), max_size=3), thresholds, traces())
+def test_invariants_sharing_a_feature_and_a_side_keep_their_own_semantics(
+        others: list[str], family: list[str], trace: Trace) -> None:
+    """`always (X > c)` for many c share one sorted check (fused.Thresholds)."""
+    judged_alone_and_together([*others, *family], trace)
+
+
+def judged_alone_and_together(batch: list[str], trace: Trace) -> None:
+    """Each formula of a batch on one progressor gets the verdict it has alone, at a state
+    where its prefix already decides it."""
     p = Progressor()
     for f in batch:
         p.add(f)
@@ -235,3 +254,15 @@ def test_times_print_as_exact_decimals_never_as_fractions() -> None:
     assert fmt(Fraction(279258777611209011, 200000000)) == "1396293888.056045055"
     assert fmt(1779999999970000029, Fraction(1, 10**9)) == "1779999999.970000029"
     assert fmt(Fraction(1, 10)) == "0.1" and fmt(Fraction(1, 3)) == "1/3"
+
+
+def test_thresholds_sharing_a_feature_report_when_it_was_unknown() -> None:
+    p = Progressor()
+    for formula in ("always (X > 0)", "always (-1 < X)"):
+        p.add(formula)
+    for t, x in ((0, 1), (1, None), (2, None), (3, 2)):
+        assert p.step(t, {"X": x}) == []
+    verdicts = p.finish()
+    assert [v.verdict for v in verdicts] == [None, None]
+    assert all([u.to_json() for u in v.unknown] == [{"feature": "X", "from": 1, "to": 2}]
+               for v in verdicts)

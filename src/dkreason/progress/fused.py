@@ -10,12 +10,17 @@ distinct state formula once (two-valued fast path, Kleene fallback), so formulas
 subterms.  Responses that differ only in their window end share one queue of waiting positions
 (`Group`): a B at time t settles every waiting position whose window holds t, a window closes at
 the state reaching its end, and with members sorted by window end each check is amortised O(1)
-however many formulas share the group.  The decisions are those of the general engine
-(nodes.py), checked against the same offline semantics in the tests.
+however many formulas share the group.  Invariants comparing one feature with a constant
+(`always (X > c)`) on the same side share a `Thresholds`: its members sorted so that those a
+value breaks are a prefix, so a state costs one comparison however many thresholds there are.
+The decisions are those of the general engine (nodes.py), checked against the same offline
+semantics in the tests.
 """
 
 from __future__ import annotations
 
+import functools
+import operator
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,10 +28,21 @@ from fractions import Fraction
 from typing import Any
 
 from ..model import FeatureKey
-from ..parse.formula import ANY, BoolConst, Connective, Formula, Not, Temporal
+from ..parse.formula import (
+    ANY,
+    BoolConst,
+    Compare,
+    Connective,
+    Formula,
+    Not,
+    Num,
+    Ref,
+    Temporal,
+    Unary,
+)
 from .compile import exact
 from .nodes import Time, Why, fmt
-from .state import _boolean_keys, _py, evaluate, features, is_state, reads, render
+from .state import _boolean_keys, _py, evaluate, features, is_state, key, reads, render
 
 TRUE = BoolConst(True)
 INF = float("inf")
@@ -225,6 +241,61 @@ class Group:
         self.members = [m for m in self.members if not m.done]
 
 
+_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}
+# op → (whether a value x breaks `x op c`, given c; members sorted so the broken come first)
+_BROKEN: dict[str, tuple[Callable[[Any, Any], bool], bool]] = {
+    ">": (operator.ge, True), ">=": (operator.gt, True),  # c >= x breaks x > c: c descending
+    "<": (operator.le, False), "<=": (operator.lt, False)}
+
+
+def threshold(f: Formula) -> tuple[FeatureKey, str, int | float] | None:
+    """(feature, op, c) when `f` is `X op c` (or `c op X`) for one feature X and a number c."""
+    if not isinstance(f, Compare) or f.op not in _FLIP:
+        return None
+    left, op, right = f.left, f.op, f.right
+    if not isinstance(left, Ref):
+        left, op, right = right, _FLIP[op], left
+    c = _constant(right)
+    return None if not isinstance(left, Ref) or c is None else (key(left.feature), op, c)
+
+
+def _constant(e: Any) -> int | float | None:
+    if isinstance(e, Unary) and e.op == "-":
+        inner = _constant(e.arg)
+        return None if inner is None else -inner
+    return e.value if isinstance(e, Num) and not isinstance(e.value, bool) else None
+
+
+class Thresholds:
+    """Invariants `always (X op c)` over one feature and op: the members a value x breaks
+    are those whose c is on x's side, a prefix when sorted by c."""
+
+    def __init__(self, op: str, members: list[tuple[int | float, Member]],
+                 on_unknown: Callable[[], None]) -> None:
+        self.on_unknown = on_unknown
+        self.broken, descending = _BROKEN[op]
+        members.sort(key=operator.itemgetter(0), reverse=descending)
+        self.cs = [c for c, _ in members]
+        self.members = [m for _, m in members]
+        self.unknown = False
+
+    def step(self, t: Time, x: Any, values: Any) -> bool:
+        if x is None:  # unknown: every member sees an unknown state
+            self.on_unknown()
+            if not self.unknown:
+                self.unknown = True
+                for m in self.members:
+                    m.unknown = True
+            return False
+        cs, broken, n = self.cs, self.broken, 0
+        while n < len(cs) and broken(cs[n], x):
+            n += 1
+        for m in self.members[:n]:
+            m.fail_now(t, values)
+        del self.cs[:n], self.members[:n]
+        return n > 0
+
+
 class FusedSet:
     """Every fused formula of a progressor, run by one generated step function."""
 
@@ -266,12 +337,19 @@ class FusedSet:
 def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
     """Source of `step(t, v) -> decided?` for the current members, compiled once."""
     formulas: dict[Formula, str] = {}
+    thresholds: dict[tuple[FeatureKey, str], list[tuple[int | float, Member]]] = {}
     for m in fs.members:
-        if not m.done:
-            for f in (m.shape.a, m.shape.b):
-                if f is not None and f != TRUE:
-                    formulas.setdefault(f, f"e{len(formulas)}")
-    keys = list(dict.fromkeys(k for f in formulas for k in features(f)))
+        found = threshold(m.shape.a) if m.shape.kind == "invariant" else None
+        if found is not None:
+            thresholds.setdefault(found[:2], []).append((found[2], m))
+    thresholds = {k: ms for k, ms in thresholds.items() if len(ms) > 1}  # one: inline
+    shared = {id(m) for ms in thresholds.values() for _, m in ms}
+    for m in fs.members:
+        for f in (m.shape.a, m.shape.b) if id(m) not in shared else ():
+            if f is not None and f != TRUE:
+                formulas.setdefault(f, f"e{len(formulas)}")
+    keys = list(dict.fromkeys([*(k for f in formulas for k in features(f)),
+                               *(k for k, _ in thresholds)]))
     consts: list[Any] = []
     scope: dict[str, Any] = {"fs": fs, "slow": evaluate, "C": consts}
     names, reading = reads(keys, "v", scope)
@@ -293,8 +371,12 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
     def value(f: Formula) -> str:
         return "True" if f == TRUE else formulas[f]
 
+    for (k, op), members in thresholds.items():
+        group = Thresholds(op, members, functools.partial(fs.on_unknown, [k]))
+        lines += [f"    if {const(group.step)}(t, {names[k]}, v):",
+                  "        decided = True"]
     for m in fs.members:
-        if m.shape.kind == "invariant" and not m.done:
+        if m.shape.kind == "invariant" and id(m) not in shared:
             var, me = value(m.shape.a), const(m)
             lines += [f"    if {var} is not True:",
                       f"        if {var} is False:",
@@ -302,8 +384,8 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
                       "            decided = True",
                       "        else:",
                       f"            {me}.unknown = True"]
-    for (a, b, _), group in fs.groups.items():
-        lines += [f"    if {const(group.step)}(t, {value(a)}, {value(b)}):",
+    for (a, b, _), responses in fs.groups.items():
+        lines += [f"    if {const(responses.step)}(t, {value(a)}, {value(b)}):",
                   "        decided = True"]
     lines.append("    return decided")
     exec(compile("\n".join(lines) + "\n", "<fused monitors>", "exec"), scope)  # noqa: S102
