@@ -204,7 +204,9 @@ families = st.tuples(atoms, atoms, st.integers(0, 2), st.lists(
                f" ({p[1]}))" for h in p[3]])
 
 
-thresholds = st.lists(st.tuples(st.sampled_from(["<", "<=", ">", ">="]), st.integers(-1, 5),
+constants = st.one_of(st.integers(-1, 5).map(str), st.integers(0, 5).map(lambda c: f"-{c}"),
+                      st.integers(0, 4).map(lambda c: f"({c} - 1) * 2 + 1"))
+thresholds = st.lists(st.tuples(st.sampled_from(["<", "<=", ">", ">="]), constants,
                                 st.booleans()).map(
     lambda p: f"always (X {p[0]} {p[1]})" if p[2] else f"always ({p[1]} {p[0]} X)"),
     min_size=2, max_size=8)

@@ -30,6 +30,7 @@ from typing import Any
 from ..model import FeatureKey
 from ..parse.formula import (
     ANY,
+    Arith,
     BoolConst,
     Compare,
     Connective,
@@ -259,11 +260,22 @@ def threshold(f: Formula) -> tuple[FeatureKey, str, int | float] | None:
     return None if not isinstance(left, Ref) or c is None else (key(left.feature), op, c)
 
 
+_FOLD: dict[str, Callable[[Any, Any], Any]] = {"+": operator.add, "-": operator.sub,
+                                               "*": operator.mul}
+
+
 def _constant(e: Any) -> int | float | None:
-    if isinstance(e, Unary) and e.op == "-":
+    """The value of a constant expression (`-5`, `200 + 9`) as the generated code computes
+    it; None for anything else (division stays with the general path: x / 0)."""
+    if isinstance(e, Num):
+        return None if isinstance(e.value, bool) else e.value
+    if isinstance(e, Unary):
         inner = _constant(e.arg)
-        return None if inner is None else -inner
-    return e.value if isinstance(e, Num) and not isinstance(e.value, bool) else None
+        return None if inner is None else -inner if e.op == "-" else abs(inner)
+    if isinstance(e, Arith) and e.op in _FOLD:
+        left, right = _constant(e.left), _constant(e.right)
+        return None if left is None or right is None else _FOLD[e.op](left, right)
+    return None
 
 
 class Thresholds:
