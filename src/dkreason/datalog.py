@@ -28,6 +28,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from .errors import RuleError, Span
 from .parse.files import read_text
@@ -142,8 +143,8 @@ class Datalog:
         self.rules: list[Rule] = []
         self.texts: list[str] = []  # the rule files as read: what derived rows depend on
         self.schema: dict[str, Relation] = {}
-        self._frozen: dict[str, tuple[list[object], list[Row]]] = {}
-        self._consts: dict[Value, object] = {}
+        self._frozen: dict[str, list[object]] = {}  # materialized view → its rules
+        self._consts: dict[Value, Any] = {}  # value → its pyEngine.Const
 
     def _activate(self) -> None:
         from pyDatalog import Logic
@@ -235,17 +236,17 @@ class Datalog:
         insert(pred)
         db, index, name, consts, body = pred.db, pred.index, pred.id, self._consts, _NO_BODY
         for row in rows:
-            key = ((name, *row),)  # Clause.get_id() of a fact
+            terms = [consts.get(v) or consts.setdefault(v, Const(v)) for v in row]
+            key = ((name, *[t.id for t in terms]),)  # Clause.get_id(); one copy of each value
             if key in db:
                 continue
-            terms = [consts.get(v) or consts.setdefault(v, Const(v)) for v in row]
             clause = Clause(Literal(pred, terms), body)
             clause.id = key
             db[key] = clause
-            for column, v in zip(index, row, strict=True):
-                found = column.get(v)
+            for column, term in zip(index, terms, strict=True):
+                found = column.get(term.id)
                 if found is None:
-                    column[v] = {clause}
+                    column[term.id] = {clause}
                 else:
                     found.add(clause)
 
@@ -267,13 +268,23 @@ class Datalog:
 
     def restore(self, views: dict[str, list[Row]]) -> None:
         """Freeze the views with rows an earlier `materialize` computed from the same facts
-        and rules (`frozen()`): what a cached knowledge base skips."""
-        for name, rows in views.items():
-            self._freeze(name, rows)
+        and rules (`frozen()`): what a cached knowledge base skips.  `views` is emptied as
+        they go in (each view's rows are then held once, by the engine)."""
+        for name in list(views):
+            self._freeze(name, views.pop(name))
 
     def frozen(self) -> dict[str, list[Row]]:
         """The rows of every materialized view."""
-        return {name: rows for name, (_, rows) in self._frozen.items()}
+        return {name: self._rows(name) for name in self._frozen}
+
+    def _rows(self, name: str) -> list[Row]:
+        """A relation's facts, read back from the engine (not kept twice)."""
+        from pyDatalog import Logic
+
+        self._activate()
+        pred = Logic.tl.logic.Db.get(f"{name}/{self.schema[name].arity}")
+        return [] if pred is None else [tuple(t.id for t in c.head.terms)
+                                        for c in pred.db.values() if not c.body]
 
     def _freeze(self, name: str, rows: list[Row]) -> None:
         from pyDatalog import Logic, pyEngine
@@ -284,7 +295,7 @@ class Datalog:
         for clause in rules:  # Pred.reset_clauses() mutates what it iterates over
             pyEngine.retract(clause)
         self.assert_rows(name, rows)
-        self._frozen[name] = (rules, rows)
+        self._frozen[name] = rules
 
     def sizes(self) -> dict[str, tuple[str, int]]:
         """Each stored relation (input facts and materialized views): its kind and rows."""
@@ -344,8 +355,8 @@ class Datalog:
                     todo.append(reader)
         thawed = [v for v in self._frozen if v in stale]
         for name in thawed:
-            rules, found = self._frozen.pop(name)
-            self.retract_rows(name, found)
+            self.retract_rows(name, self._rows(name))
+            rules = self._frozen.pop(name)
             for clause in rules:
                 pyEngine.assert_(clause)
         return thawed

@@ -8,6 +8,7 @@ rules against both ontologies they join, so a bad file fails at load time with i
 from __future__ import annotations
 
 import gc
+import hashlib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -41,10 +42,22 @@ class Platform:
     resolved: dict[str, ResolvedSpec] = field(default_factory=dict)
     specs_path: Path | None = None
     notes: tuple[str, ...] = ()  # warnings from reading its files (imports skipped)
+    # each spec's place in the platform's order (as written, added ones last): a request
+    # sorts its few topics by it without walking every spec
+    rank: dict[str, int] = field(default_factory=dict)
+    ranked: int = 0  # ranks given so far
 
     @property
     def name(self) -> str:
         return self.ontology.platform
+
+    def put(self, spec: TopicSpec, resolved: ResolvedSpec) -> None:
+        self.specs[spec.name], self.resolved[spec.name] = spec, resolved
+        self.rank[spec.name], self.ranked = self.ranked, self.ranked + 1
+
+    def drop(self, name: str) -> TopicSpec:
+        del self.resolved[name], self.rank[name]
+        return self.specs.pop(name)
 
 
 def load_platforms(config: Config) -> dict[str, Platform]:
@@ -127,15 +140,19 @@ class KnowledgeBase:
         self._warn()
 
     def _derive(self, facts: Facts) -> None:
-        """Assert the facts, then compute the views and check the specs, or take the views
-        from the cache: they, and the checks' verdict, are a function of the facts and the
-        rules alone, so the key is their content (a cache hit skips ~2/3 of a load)."""
+        """Assert the facts (emptying `facts` as they go in, so the load's peak holds them
+        once), then compute the views and check the specs, or take the views from the cache:
+        they, and the checks' verdict, are a function of the facts and the rules alone, so the
+        key is their content (a cache hit skips ~2/3 of a load)."""
         from importlib.metadata import version
 
         from . import cache
 
+        content = hashlib.sha256()
         for pred, rows in rows_of(facts):
-            self.engine.assert_rows(pred, rows)
+            content.update(f"{pred}{rows!r}".encode())
+        for pred in list(facts):
+            self.engine.assert_rows(pred, facts.pop(pred))
         computed = False
 
         def compute() -> dict[str, list[Row]]:
@@ -146,9 +163,8 @@ class KnowledgeBase:
                 self._check_specs(p, list(p.resolved))
             return self.engine.frozen()
 
-        content = (f"{pred}{rows!r}" for pred, rows in rows_of(facts))  # one relation at a time
-        views = cache.cached("views", [version("pyDatalog"), *self.engine.texts, *content],
-                             compute)
+        views = cache.cached("views", [version("pyDatalog"), *self.engine.texts,
+                                       content.digest()], compute)
         if not computed:
             self.engine.restore(views)
 
@@ -213,7 +229,7 @@ class KnowledgeBase:
             raise DkError(f"topic {spec.name} already exists on {platform}")
         resolved = resolve_spec(p, spec)
         self._change(spec_facts(platform, resolved), self.engine.assert_rows)
-        p.specs[spec.name], p.resolved[spec.name] = spec, resolved
+        p.put(spec, resolved)
         try:
             self._check_specs(p, [spec.name])
         except DkError:
@@ -226,8 +242,7 @@ class KnowledgeBase:
         if name not in p.specs:
             raise NameError_(f"no topic {name!r} on {platform}", Span("<api>"))
         self._change(spec_facts(platform, p.resolved[name]), self.engine.retract_rows)
-        del p.resolved[name]
-        return p.specs.pop(name)
+        return p.drop(name)
 
     # ---- a live federation: platforms come and go, objects join sorts ------------------
 
@@ -400,8 +415,7 @@ def make_platform(ontology: Ontology, specs: Iterable[TopicSpec],
     """A platform's knowledge, each spec's names resolved (a bad one raises, naming it)."""
     platform = Platform(ontology, _name_index(ontology), specs_path=specs_path)
     for spec in specs:
-        platform.specs[spec.name] = spec
-        platform.resolved[spec.name] = resolve_spec(platform, spec)
+        platform.put(spec, resolve_spec(platform, spec))
     return platform
 
 

@@ -26,10 +26,10 @@ def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
         topic = topic_match(kb, m)
         if topic is not None:
             per_feature[m.query][topic] = None
-    order = {(p, t): i for p, plat in kb.platforms.items() for i, t in enumerate(plat.specs)}
     features = tuple(
         FeatureRequest(g, tuple(sorted(per_feature[q], key=lambda t: (
-            t.platform != kb.local, t.platform, order.get((t.platform, t.topic), 0), t.filter))))
+            t.platform != kb.local, t.platform, kb.platforms[t.platform].rank[t.topic],
+            t.filter))))
         for q, g in enumerate(ground))
     warnings = [*kb.warnings, *_warnings(kb, ground, rejected)]
     namespaces = tuple((p.name, p.namespace) for p in (kb.config.platforms if kb.config else ())
