@@ -171,11 +171,11 @@ def measure(w: Workload, text: str, runs: int, processes: int,
             folder: Path) -> dict[str, float]:
     """Median over `processes` fresh processes of every figure of `one_process`."""
     config = write(w, folder)
-    cache = folder / "cache"  # the grammars' tables stay; the parsed platform never does
+    cache = folder / "cache"  # the grammars' tables stay; parsed platforms and views never do
     env = os.environ | {"DKREASON_CACHE": str(cache)}
     seen = []
     for _ in range(processes):
-        for entry in cache.glob("platform-*"):
+        for entry in [*cache.glob("platform-*"), *cache.glob("views-*")]:
             entry.unlink()
         done = subprocess.run([sys.executable, "-m", "benchmarks.chapter7", "--point",
                                str(config), "--formula", text, "--runs", str(runs)],

@@ -104,7 +104,9 @@ class _Group:
 
     def __init__(self, id_fields: tuple[str, ...], positions: tuple[int, ...]) -> None:
         self.id_fields = id_fields
-        self.getters = tuple(itemgetter(p) for p in positions)
+        # a message's ids in one C call: the value itself for one id field, else a tuple
+        self.key: Callable[[Any], Any] = itemgetter(*positions) if positions else \
+            (lambda _: ())
         self.index: dict[Any, list[_Route]] = {}
 
     def add(self, ids: tuple[Any, ...], route: _Route) -> None:
@@ -112,14 +114,13 @@ class _Group:
             self.index.setdefault(key[0] if len(key) == 1 else key, []).append(route)
 
     def routes(self, msg: Any) -> list[_Route]:
-        getters = self.getters
-        key = getters[0](msg) if len(getters) == 1 else tuple(get(msg) for get in getters)
+        key = self.key(msg)
         try:
             found = self.index.get(key)
         except TypeError:  # an unhashable id (a list or a map): no object has it
             return []
-        if found is None:
-            text = str(key) if len(getters) == 1 else tuple(str(v) for v in key)
+        if found is None:  # ids compare alike as ints and strings
+            text = tuple(str(v) for v in key) if len(self.id_fields) > 1 else str(key)
             found = self.index.get(text, [])
         return found
 
@@ -235,7 +236,10 @@ class StreamProcessor:
     def feed(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
         """One message's wanted values (see `wanted`), in recording order."""
         self.put(topic, available, valid, values)
-        self.advance(available)
+        if available <= self.quiet_until:  # `advance`, inline: most messages make no state
+            self.last_seen = available
+        else:
+            self._emit(available, final=False)
 
     def put(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
         """A message, without making states: a live source says when time has passed."""
