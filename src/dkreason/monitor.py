@@ -10,7 +10,7 @@ federation (which feeds it samples and re-matches it as platforms come and go), 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -36,11 +36,6 @@ class _Group:
         self.keys = keys
         self.progressor = Progressor(unit=Fraction(1, NS))
 
-    def due(self, fresh: list[FeatureKey] | None) -> bool:
-        """Whether a state is one of the group's own: one of its features was sampled at it
-        or went stale at it (every state, with a sample period)."""
-        return fresh is None or not self.keys or not self.keys.isdisjoint(fresh)
-
 
 class Monitor:
     """Formulas planned once (parsed, checked, expanded), then states in, verdicts out."""
@@ -56,6 +51,11 @@ class Monitor:
         # change.  Formulas over the same features share one progressor.
         self.order = {f.text: n for n, f in enumerate(self.plan.formulas)}
         self.groups: dict[frozenset[FeatureKey], _Group] = {}
+        # A state is a group's own when one of its features was sampled or went stale at it
+        # (every state with a sample period, and for a group reading no feature): the groups
+        # each feature makes due, in the order the groups began.
+        self.readers: dict[FeatureKey, list[_Group]] = {}
+        self.always: list[_Group] = []
         self.waiting = list(self.plan.formulas)
         if policy.start_time is not None:
             self._begin(self.waiting)
@@ -85,6 +85,10 @@ class Monitor:
             group = self.groups.get(keys)
             if group is None:
                 group = self.groups[keys] = _Group(keys)
+                for k in keys:
+                    self.readers.setdefault(k, []).append(group)
+                if not keys:
+                    self.always.append(group)
             group.progressor.add(f.text, f.tree)
             self.waiting.remove(f)
 
@@ -95,13 +99,20 @@ class Monitor:
         if self.waiting:
             self._begin([f for f in self.waiting if all(values[k] is not None for k in f.keys)])
         decided: list[Verdict] = []
-        for group in self.groups.values():
-            if group.due(fresh):
-                decided += group.progressor.step_state(time, values)
+        for group in self._due(fresh):
+            decided += group.progressor.step_state(time, values)
         if decided:
             decided.sort(key=lambda v: self.order[v.formula])
             self.decided += len(decided)
             self.pending.extend(in_seconds(v) for v in decided)
+
+    def _due(self, fresh: list[FeatureKey] | None) -> Iterable[_Group]:
+        """The groups whose own state this is, in the order they began."""
+        if fresh is None:
+            return self.groups.values()
+        if len(fresh) == 1 and not self.always:
+            return self.readers.get(fresh[0], ())
+        return [g for g in self.groups.values() if not g.keys or not g.keys.isdisjoint(fresh)]
 
     @property
     def done(self) -> bool:
