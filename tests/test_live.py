@@ -380,7 +380,7 @@ def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeMa
     added, removed = kb.replace_specs("platform3", [*kb.platform("platform3").specs.values(),
                                                     *spec])
     assert (added, removed) == (["uastopic9"], [])
-    assert set(kb.rederived) <= {"topic_objects", "sort_arg_at", "sort_position"}
+    assert set(kb.rederived) <= {"topic_objects", "topic_filter", "sort_arg_at", "sort_position"}
     assert ("platform3", "uastopic9") in _request(kb, ALTITUDE)["Altitude[uav2]"]
 
 

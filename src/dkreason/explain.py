@@ -113,6 +113,7 @@ _GLOSSES = {
     "sort": "{Sort} is a sort of {Platform}",
     "bridge": "{SourceEntity} {Type} {TargetEntity} (bridge {SourcePlatform}→{TargetPlatform})",
     "topic_feature": "{Topic} carries {Feature} in {Field} ({Platform})",
+    "topic_filter": "{Topic} feature {K} filters on {Field1}, {Field2}, {Field3} ({Platform})",
     "id_property": "{Object} has id {Id} ({Platform})",
     "name_digits": "{Object} ends in the digits {Digits} ({Platform})",
     "same_rep": "{Object} is in the sameAs class of {Class} ({Platform})",
@@ -198,11 +199,12 @@ class Reader:
         if pred == "bridge":
             span = self.bridges.get(tuple(args))  # type: ignore[arg-type]
             return str(span) if span else "bridge rule"
-        if pred in ("topic", "topic_feature", "topic_arg"):
+        if pred in ("topic", "topic_feature", "topic_arg", "topic_filter"):
             spec = kb.platforms[str(c["Platform"])].specs.get(str(c["Topic"]))
             if spec is None:
                 return "topic specification"
-            if pred == "topic_feature" or (pred == "topic_arg" and c["Entity"] == ""):
+            if pred in ("topic_feature", "topic_filter") or \
+                    (pred == "topic_arg" and c["Entity"] == ""):
                 return str(spec.features[int(c["K"]) - 1].span)
             if pred == "topic_arg":
                 return str(spec.features[int(c["K"]) - 1].args[int(c["Position"]) - 1].span)

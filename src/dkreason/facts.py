@@ -167,6 +167,8 @@ def spec_facts(platform: str, spec: ResolvedSpec) -> Facts:
         out["topic_feature"].append((platform, spec.name, k, f.iri, f.field))
         out["topic_arg"] += [(platform, spec.name, k, i, a.kind, a.iri, a.id_field)
                              for i, a in enumerate(f.args, 1)]
+        fields = [a.id_field for a in f.args]
+        out["topic_filter"].append((platform, spec.name, k, *fields, *[""] * (3 - len(fields))))
     if spec.entity is not None:
         e = spec.entity
         out["topic_entity"] = [(platform, spec.name, e.kind, e.iri, e.id_field)]
