@@ -243,10 +243,6 @@ class Group:
 
 
 _FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}
-# op → (whether a value x breaks `x op c`, given c; members sorted so the broken come first)
-_BROKEN: dict[str, tuple[Callable[[Any, Any], bool], bool]] = {
-    ">": (operator.ge, True), ">=": (operator.gt, True),  # c >= x breaks x > c: c descending
-    "<": (operator.le, False), "<=": (operator.lt, False)}
 
 
 def threshold(f: Formula) -> tuple[FeatureKey, str, int | float] | None:
@@ -278,6 +274,10 @@ def _constant(e: Any) -> int | float | None:
     return None
 
 
+_BREAKS = {">": ">=", ">=": ">", "<": "<=", "<=": "<"}  # `c BREAKS x`: x breaks `x op c`
+_COMPARE = {">=": operator.ge, ">": operator.gt, "<=": operator.le, "<": operator.lt}
+
+
 class Thresholds:
     """Invariants `always (X op c)` over one feature and op: the members a value x breaks
     are those whose c is on x's side, a prefix when sorted by c."""
@@ -285,8 +285,8 @@ class Thresholds:
     def __init__(self, op: str, members: list[tuple[int | float, Member]],
                  on_unknown: Callable[[], None]) -> None:
         self.on_unknown = on_unknown
-        self.broken, descending = _BROKEN[op]
-        members.sort(key=operator.itemgetter(0), reverse=descending)
+        self.broken = _COMPARE[_BREAKS[op]]  # broken(c, x): x breaks `x op c`
+        members.sort(key=operator.itemgetter(0), reverse=op in (">", ">="))  # broken first
         self.cs = [c for c, _ in members]
         self.members = [m for _, m in members]
         self.unknown = False
@@ -384,9 +384,12 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
         return "True" if f == TRUE else formulas[f]
 
     for (k, op), members in thresholds.items():
-        group = Thresholds(op, members, functools.partial(fs.on_unknown, [k]))
-        lines += [f"    if {const(group.step)}(t, {names[k]}, v):",
-                  "        decided = True"]
+        group, x = Thresholds(op, members, functools.partial(fs.on_unknown, [k])), names[k]
+        # the first threshold is fixed until one breaks (which regenerates this code): a
+        # state that breaks none costs one comparison, not a call
+        lines += [f"    if {x} is None or {const(group.cs[0])} {_BREAKS[op]} {x}:",
+                  f"        if {const(group.step)}(t, {x}, v):",
+                  "            decided = True"]
     for m in fs.members:
         if m.shape.kind == "invariant" and id(m) not in shared:
             var, me = value(m.shape.a), const(m)
