@@ -164,3 +164,27 @@ def test_what_the_cli_loads_is_what_the_api_loads(tmp_path: Path) -> None:
     stored = _stored(config)
     kb = KnowledgeBase.from_config(config)
     assert {n: r for n, (_, r) in kb.engine.sizes().items()} == stored
+
+
+def test_the_cache_stays_under_its_limit_dropping_what_was_used_longest_ago(
+        tmp_path: Path, private_cache: Path) -> None:
+    entries: list[set[str]] = []  # each workload's own entries
+    for n in (5, 6, 7):
+        before = {p.name for p in private_cache.glob("*-*")}
+        KnowledgeManager.from_config(write(Workload(30, 5, 5, 0, n, nine()), tmp_path / f"w{n}"))
+        entries.append({p.name for p in private_cache.glob("*-*")} - before)
+        for name in entries[-1]:  # made in this order, each workload a minute after the last
+            os.utime(private_cache / name, (60.0 * n, 60.0 * n))
+    KnowledgeManager.from_config(tmp_path / "w5" / "ch7.toml")  # the oldest, used again
+    grammar = private_cache / "mtl.lark-cache"  # lark's own, older than anything
+    grammar.write_bytes(b"tables")
+    os.utime(grammar, (1.0, 1.0))
+    mine = [p for p in private_cache.iterdir() if not p.name.endswith(".lark-cache")]
+    size = sum(p.stat().st_size for p in mine)
+    cache.prune(private_cache, limit=size * 2 // 3)
+    left = {p.name for p in private_cache.iterdir()}
+    assert entries[0] <= left  # used last
+    assert not entries[1] & left  # used longest ago
+    assert grammar.exists()
+    assert sum((private_cache / n).stat().st_size for n in left
+               if not n.endswith(".lark-cache")) <= size * 2 // 3

@@ -7,7 +7,8 @@ the source of the code that turned them into the model (so a changed parser neve
 stale model).  A changed file is a new key; an unreadable entry is ignored and rebuilt.
 
 Where: `$DKREASON_CACHE`, else `$XDG_CACHE_HOME/dkreason`, else `~/.cache/dkreason`;
-`DKREASON_CACHE=off` disables it.  The cache is the user's own, like `__pycache__`: whoever
+`DKREASON_CACHE=off` disables it.  It is kept under `$DKREASON_CACHE_MB` (default 512);
+the entries used longest ago go first.  The cache is the user's own, like `__pycache__`: whoever
 can write there can run code as that user, so it is created private (0700).
 """
 
@@ -17,6 +18,7 @@ import contextlib
 import hashlib
 import os
 import pickle
+import re
 import tempfile
 from collections.abc import Callable, Iterable
 from functools import cache
@@ -25,6 +27,7 @@ from typing import TypeVar
 
 T = TypeVar("T")
 
+_ENTRY = re.compile(r"[a-z]+-[0-9a-f]{64}")  # what `key` names; lark's tables are its own
 # The modules whose code shapes a cached value: a change to any of them is a new key.
 _SHAPERS = ("model.py", "names.py", "facts.py", "kb.py", "datalog.py", "errors.py",
             "parse/owl.py",
@@ -87,10 +90,38 @@ def cached(kind: str, parts: Iterable[bytes | str], build: Callable[[], T],
     with contextlib.suppress(Exception), open(entry, "rb") as handle:
         found: T = pickle.load(handle)
         if fresh(found):
+            with contextlib.suppress(OSError):
+                os.utime(entry)  # used now: the last to go when the folder is pruned
             return found
     value = build()
     _store(entry, value)
+    prune(where)
     return value
+
+
+def prune(where: Path, limit: int | None = None) -> None:
+    """Keep the folder under `limit` bytes (`$DKREASON_CACHE_MB`, default 512 MB) by removing
+    the entries used longest ago: every edit of a file makes a new entry, and a robot's disk
+    is small.  Lark's grammar tables stay."""
+    if limit is None:
+        try:
+            limit = int(os.environ.get("DKREASON_CACHE_MB", "512")) << 20
+        except ValueError:
+            limit = 512 << 20
+    with contextlib.suppress(OSError):
+        entries = []
+        for path in where.iterdir():
+            if _ENTRY.fullmatch(path.name):
+                with contextlib.suppress(OSError):
+                    info = path.stat()
+                    entries.append((info.st_mtime, info.st_size, path))
+        total = sum(size for _, size, _ in entries)
+        for _, size, path in sorted(entries):
+            if total <= limit:
+                break
+            with contextlib.suppress(OSError):
+                path.unlink()
+                total -= size
 
 
 def digest(data: bytes) -> str:
