@@ -167,7 +167,12 @@ class RosbagSource:
         file = _storage_file(self.path)
         indexed = open_indexed(file) if self.reader.is2 and file is not None and \
             len(by_topic) == len(connections) else None
-        if indexed is None:
+        channels = {} if indexed is None else {
+            ch: id(by_topic[topic]) for ch, (topic, encoding) in indexed.channels.items()
+            if topic in by_topic and encoding == "cdr"}
+        if indexed is None or len(set(channels.values())) != len(connections):
+            if indexed is not None:  # a topic in another encoding (ros1 in MCAP): rosbags'
+                indexed.close()
             same = {id(c): id(c) for c in connections}
             for connection, t_ns, raw in self.reader.messages(connections=connections):
                 yield ((id(connection), t_ns, raw),), same
@@ -175,8 +180,6 @@ class RosbagSource:
         if self._indexed is not None:  # asked again: the file is read again from the start
             self._indexed.close()
         self._indexed = indexed
-        channels = {ch: id(by_topic[topic]) for ch, (topic, encoding)
-                    in indexed.channels.items() if topic in by_topic and encoding == "cdr"}
         for batch in indexed.batches(channels):
             yield batch, channels
 
