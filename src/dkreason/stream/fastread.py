@@ -29,9 +29,10 @@ class _Unsupported(Exception):
 
 
 def compile_extractor(fielddefs: Mapping[str, Any], msgtype: str, fields: Sequence[str],
-                      ros1: bool) -> Extractor | None:
+                      ros1: bool, otherwise: Extractor | None = None) -> Extractor | None:
     """A function returning the values of `fields` (in order) from one serialised message,
-    or None when the type's layout is not one it can read."""
+    or None when the type's layout is not one it can read.  A message it cannot read (big
+    endian) goes to `otherwise` (None without it), inside the one call."""
     wanted = {tuple(path(f)): n for n, f in enumerate(fields)}
     lines: list[str] = []
     try:
@@ -42,13 +43,14 @@ def compile_extractor(fielddefs: Mapping[str, Any], msgtype: str, fields: Sequen
         return None  # some field is not in the type (the processor reports it)
     head = ["def extract(raw):"]
     if not ros1:
-        head.append("    if raw[1] != 1:\n        return None  # big-endian CDR")
+        head.append("    if raw[1] != 1:\n        return otherwise(raw)  # big-endian CDR")
     body = "\n".join([*head, f"    o = {0 if ros1 else 4}", *lines,
                       f"    return ({''.join(f'v{n}, ' for n in range(len(fields)))})"])
     scope: dict[str, Any] = {}
     import struct
 
     scope["unpack"] = struct.unpack_from
+    scope["otherwise"] = otherwise or (lambda raw: None)
     exec(compile(body, f"<extract {msgtype}>", "exec"), scope)  # noqa: S102 - our own code
     extract: Extractor = scope["extract"]
     return extract

@@ -139,6 +139,8 @@ class StreamProcessor:
         self.period = _ns(policy.sample_period)
         self.deviation = _ns_given(policy.sample_period_deviation)
         self.max_age = _ns(policy.max_age)
+        # a sample's value grows stale (and a state is due when it does)
+        self.expiring = self.max_age is not None and policy.approximation == "recent"
         self.delay = _ns_given(policy.delay_before_approximation)
         self.start, self.end = _ns(policy.start_time), _ns(policy.end_time)
         self.max_delay = _ns(policy.max_delay)
@@ -330,13 +332,12 @@ class StreamProcessor:
                 heapq.heappush(self.out_of_order, valid)
             if valid + self.delay < self.quiet_until:
                 self.quiet_until = valid + self.delay
-        if self.max_age is not None and self.policy.approximation == "recent" and \
-                hist[-1][0] == valid:
-            q = route.q
-            if 0 <= self.due[q] < valid:  # the value went stale before this sample: keep that
-                heapq.heappush(self.expiries, (self.due[q], q, True))
-                self.quiet_until = min(self.quiet_until, self.due[q] + self.delay)
-            self.due[q] = valid + self.max_age + 1
+        if self.expiring and hist[-1][0] == valid:
+            q, due = route.q, self.due
+            if 0 <= due[q] < valid:  # the value went stale before this sample: keep that
+                heapq.heappush(self.expiries, (due[q], q, True))
+                self.quiet_until = min(self.quiet_until, due[q] + self.delay)
+            due[q] = valid + self.max_age + 1  # type: ignore[operator]
             if not self.queued[q]:
                 self.queued[q] = True
                 heapq.heappush(self.expiries, (self.due[q], q, False))

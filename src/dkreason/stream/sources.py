@@ -138,10 +138,14 @@ class RosbagSource:
                    for c in connections}
         n = 0
         unchecked = set(readers)
+        keyed: dict[Any, Any] = {}
+        last: dict[Any, int] | None = None
         try:
             for batch, by in self._batches(connections):
+                if by is not last:  # the batches' keys, straight to their readers
+                    keyed, last = {key: readers[c] for key, c in by.items()}, by
                 for key, t_ns, raw in batch:
-                    connection, read, stamped = readers[by[key]]
+                    connection, read, stamped = keyed[key]
                     if unchecked and id(connection) in unchecked:  # once a topic: the reference
                         unchecked.discard(id(connection))
                         _decodes(self.reader.deserialize, raw, connection)
@@ -265,20 +269,13 @@ def _ros_reader(fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool,
 
     stamped = fields.check(fielddefs, msgtype, "msg.header.stamp.sec") is None
     names = [*wanted, *(["msg.header.stamp.sec", "msg.header.stamp.nanosec"] if stamped else [])]
-    fast = compile_extractor(fielddefs, msgtype, names, ros1)
     getters = [fields.accessor(f, dicts=False) for f in names]
 
     def slow(raw: Any) -> tuple[Any, ...]:
         msg = deserialize(raw, msgtype)
         return tuple(plain(get(msg)) for get in getters)
 
-    if fast is None:
-        return slow, stamped
-
-    def read(raw: Any) -> tuple[Any, ...]:
-        values = fast(raw)
-        return values if values is not None else slow(raw)
-    return read, stamped
+    return compile_extractor(fielddefs, msgtype, names, ros1, slow) or slow, stamped
 
 
 def dict_reader(name: str, wanted: Wanted) -> Any:
