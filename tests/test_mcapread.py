@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from dkreason.errors import DkError
 from dkreason.stream.damaged import DamagedRecording
 from dkreason.stream.mcapread import open_indexed
 from dkreason.stream.sources import RosbagSource
@@ -124,3 +125,30 @@ def test_a_file_without_a_chunk_index_is_read_by_rosbags(tmp_path: Path) -> None
     assert [v for _, _, _, (v,) in source.messages({"/a": ["msg.data"]})] == \
         [0.0, 1.0, 2.0, 3.0, 4.0]
     source.close()
+
+
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.integers(0, 10_000), st.binary(min_size=1, max_size=8))
+def test_any_corruption_gives_messages_then_one_line_never_a_traceback(
+        tmp_path: Path, at: int, junk: bytes) -> None:
+    """Bytes overwritten anywhere (the index, a chunk header, a record's length): the
+    messages before the damage, then a one-line DkError; never another exception or a hang."""
+    path = tmp_path / "r.mcap"
+    write(path, [(t % 3, t, float(t)) for t in range(150)], chunk_size=400, compression="")
+    data = bytearray(path.read_bytes())
+    at %= len(data)
+    data[at:at + len(junk)] = junk
+    path.write_bytes(bytes(data))
+    try:
+        source = RosbagSource(path)
+    except DkError as exc:
+        assert "\n" not in str(exc)
+        return
+    try:
+        for _ in source.messages({t: ["msg.data"] for t in TOPICS}):
+            pass
+    except DkError as exc:
+        assert "\n" not in str(exc)
+    finally:
+        source.close()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import heapq
 import itertools
+import os
 import struct
 import zlib
 from collections.abc import Callable, Iterable, Iterator
@@ -64,6 +65,7 @@ class IndexedMcap:
     def __init__(self, path: Path, handle: BinaryIO, chunks: list[_Chunk],
                  channels: dict[int, tuple[str, str]]) -> None:
         self.path, self._file, self._chunks = path, handle, chunks
+        self.size = os.fstat(handle.fileno()).st_size
         self.channels = channels  # id → (topic, message encoding)
 
     def close(self) -> None:
@@ -86,6 +88,9 @@ class IndexedMcap:
 
     def _chunk(self, chunk: _Chunk, wanted: frozenset[int]) -> list[Message]:
         handle = self._file
+        if chunk.offset < 0 or chunk.offset + chunk.length > self.size:
+            raise McapDamage(f"the index points past the end of the file ({self.size:,} "
+                             f"bytes) for a chunk at byte {chunk.offset:,}")
         handle.seek(chunk.offset)
         record = handle.read(chunk.length)
         if len(record) != chunk.length:
@@ -118,6 +123,8 @@ def _messages(data: bytes, wanted: frozenset[int]) -> list[Message]:
     while pos < end:
         op, length = record(data, pos)
         if op == 0x05:
+            if length < 22:
+                raise McapDamage("a message record shorter than its own header")
             channel, _, t = message(data, pos + 9)
             if channel in wanted:
                 if t < last:
