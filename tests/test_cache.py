@@ -5,6 +5,7 @@ never with their product."""
 from __future__ import annotations
 
 import os
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -103,6 +104,16 @@ def test_specs_that_fail_their_check_store_no_views(tmp_path: Path,
         with pytest.raises(SortError, match="Relation"):
             KnowledgeManager.from_config(config)
     assert not list(private_cache.glob("views-*"))
+
+
+def test_a_views_entry_of_the_wrong_shape_is_derived_again(tmp_path: Path,
+                                                          private_cache: Path) -> None:
+    config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
+    answer = KnowledgeManager.from_config(config).check_formula("X[b1]")
+    (entry,) = private_cache.glob("views-*")
+    with open(entry, "wb") as handle:  # unpickles, but is not what the rules derive
+        pickle.dump({"member": [("p", "o")]}, handle)
+    assert KnowledgeManager.from_config(config).check_formula("X[b1]") == answer
 
 
 def test_a_damaged_entry_is_parsed_again(tmp_path: Path, private_cache: Path) -> None:
