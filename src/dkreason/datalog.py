@@ -108,7 +108,6 @@ def gc_paused() -> Iterator[None]:
             gc.enable()
 
 
-_NONE: frozenset[object] = frozenset()
 _NO_BODY: list[object] = []  # every fact's body: nothing in pyDatalog adds to a fact's body
 
 

@@ -149,10 +149,11 @@ class KnowledgeBase:
         from . import cache
 
         content = hashlib.sha256()
-        for pred, rows in rows_of(facts):
-            content.update(f"{pred}{rows!r}".encode())
         for pred in list(facts):
-            self.engine.assert_rows(pred, facts.pop(pred))
+            rows = facts.pop(pred)
+            if rows:
+                content.update(f"{pred}{rows!r}".encode())
+                self.engine.assert_rows(pred, rows)
         computed = False
 
         def compute() -> dict[str, list[Row]]:

@@ -56,15 +56,14 @@ class _Chunk:
     end: int
     offset: int
     length: int
-    size: int  # uncompressed
 
 
 class IndexedMcap:
     """The chunks and channels of an MCAP file with a summary (see `open_indexed`)."""
 
-    def __init__(self, path: Path, handle: BinaryIO, chunks: list[_Chunk],
+    def __init__(self, handle: BinaryIO, chunks: list[_Chunk],
                  channels: dict[int, tuple[str, str]]) -> None:
-        self.path, self._file, self._chunks = path, handle, chunks
+        self._file, self._chunks = handle, chunks
         self.size = os.fstat(handle.fileno()).st_size
         self.channels = channels  # id → (topic, message encoding)
 
@@ -171,6 +170,6 @@ def open_indexed(path: Path) -> IndexedMcap | None:
         handle.close()
         return None
     chunks = [_Chunk(c.message_start_time, c.message_end_time, c.chunk_start_offset,
-                     c.chunk_length, c.uncompressed_size) for c in summary.chunk_indexes]
+                     c.chunk_length) for c in summary.chunk_indexes]
     channels = {c.id: (c.topic, c.message_encoding) for c in summary.channels.values()}
-    return IndexedMcap(path, handle, chunks, channels)
+    return IndexedMcap(handle, chunks, channels)

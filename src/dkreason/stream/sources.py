@@ -168,9 +168,11 @@ class RosbagSource:
         and what each key is (the id of its connection).  An indexed MCAP file is read through
         mcapread, a chunk a batch (~5× rosbags' rate); anything else through rosbags."""
         by_topic = {c.topic: c for c in connections}
-        file = _storage_file(self.path)
-        indexed = open_indexed(file) if self.reader.is2 and file is not None and \
-            len(by_topic) == len(connections) else None
+        from .damaged import kind_of
+
+        found = kind_of(self.path)  # a bare file, or a bag folder's only storage file
+        indexed = open_indexed(found[1]) if self.reader.is2 and found is not None and \
+            found[0] == "mcap" and len(by_topic) == len(connections) else None
         channels = {} if indexed is None else {
             ch: id(by_topic[topic]) for ch, (topic, encoding) in indexed.channels.items()
             if topic in by_topic and encoding == "cdr"}
@@ -204,14 +206,6 @@ class RosbagSource:
             self._indexed.close()
         if self.reader.stack is not None:
             self.reader.close()
-
-
-def _storage_file(path: Path) -> Path | None:
-    """The one MCAP file of a recording (a bare file, or a bag folder's only storage file)."""
-    if path.is_dir():
-        files = [*path.glob("*.mcap"), *path.glob("*.db3")]
-        return files[0] if len(files) == 1 and files[0].suffix == ".mcap" else None
-    return path if path.suffix == ".mcap" else None
 
 
 def _ros(connection: Any) -> bool:
