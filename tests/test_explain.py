@@ -16,6 +16,7 @@ from dkreason.cli import main
 from dkreason.explain import Failure, Proof, to_dot, to_json
 
 from .conftest import SCENARIOS
+from .test_expand import km as sea
 from .test_federation import map_car3_to_a_truck
 
 FORMULAS = {
@@ -45,6 +46,21 @@ def test_uastopic5_is_explained_by_the_bridge_the_remote_axiom_and_same_as(
     assert "≡ Alt (platform3 axiom, " in summary and "platform3.owl)" in summary
     assert "uav2 = uas21 (bridge platform1→platform3, " in summary
     assert "platform1-platform3.cowl.xml:29)" in summary
+
+
+def test_a_sort_inherited_through_same_as_cites_the_member_told_so(tmp_path: Path) -> None:
+    """contact3 (a Contact) is sameAs ship7 (a Ship): the sameAs class is a Vessel because of
+    ship7's rdf:type, and the explanation says so rather than calling contact3 a Ship."""
+    km = sea(tmp_path)
+    e = km.explain("Heading[contact3] > 0")
+    told = [leaf for w in e.features[0].why for leaf in w.proof.leaves()
+            if leaf.fact[0] == "class_type"]
+    assert told and {leaf.text for leaf in told} == {
+        "ship7 : Ship (sea axiom), in the sameAs class of contact3"}
+    assert all(leaf.source.startswith("<http://sea.org/o#ship7> rdf:type") for leaf in told)
+    lines = {line for w in e.features[0].why for line in w.summary}
+    assert "argument 1 of track: ship7 : Ship ⊑ Vessel (sea axiom, " \
+        f"{tmp_path / 'sea.ttl'})" in lines
 
 
 def test_why_not_a_topic_whose_argument_names_another_object(federation: KnowledgeManager) -> None:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .datalog import Comparison, Literal, Row, Rule, Term, Value, Var
-from .facts import THING
+from .facts import THING, told_types
 from .kb import KnowledgeBase
 from .match import Match
 from .model import GroundFeature
@@ -105,7 +105,7 @@ _BRIDGE = {"equiv": "≡", "same": "=", "into": "⊑", "onto": "⊒", "incompat"
 _GLOSSES = {
     "equivalent_class": "{Class} ≡ {Other} ({Platform} axiom)",
     "subclass_of": "{Sub} ⊑ {Super} ({Platform} axiom)",
-    "type_of": "{Object} : {Sort} ({Platform} axiom)",
+    "class_type": "{Class} : {Sort} ({Platform} axiom)",
     "same_as": "{Object} = {Other} ({Platform} sameAs)",
     "feature": "{Feature} is a feature of {Platform} with {Arity} argument(s)",
     "feature_arg": "{Feature} argument {Position} takes {Sort} ({Platform})",
@@ -156,6 +156,11 @@ class Reader:
                 return "{Topic} has no argument {Position}".format(**named)
             return ("{Topic} argument {Position}: {Kind} {Entity}".format(**named)
                     + (f" = {named['IdField']}" if c["IdField"] else " (implicit)"))
+        if pred == "class_type" and None not in args:  # the told member, if not the class
+            told = self.typed_member(str(c["Platform"]), str(c["Class"]), str(c["Sort"]))
+            if told != c["Class"]:
+                return "{} : {Sort} ({Platform} axiom), in the sameAs class of {Class}".format(
+                    self.name(told), **named)
         if pred in _GLOSSES and None not in args:
             if pred == "bridge":
                 named["Type"] = _BRIDGE.get(str(c["Type"]), str(c["Type"]))
@@ -192,6 +197,12 @@ class Reader:
             x = a if b == x else b
         return path[::-1]
 
+    def typed_member(self, platform: str, rep: str, sort: str) -> str:
+        """The member of sameAs class `rep` told (or, untyped, taken) to be a `sort`."""
+        members = [str(o) for _, o, _ in self.kb.engine.query("same_rep", platform, None, rep)]
+        told = set(told_types(self.kb.platforms[platform].ontology))
+        return next((o for o in sorted(members) if (o, sort) in told), rep)
+
     def source(self, fact: Row) -> str:
         """Where a told fact comes from: file:line, or the ontology axiom and its file."""
         pred, *args = fact
@@ -222,6 +233,9 @@ class Reader:
         if owner is None:
             return "knowledge base"
         file = owner.ontology.file
+        if pred == "class_type":  # told of the class's member that has that type
+            pred, args = "type_of", [args[0], self.typed_member(*(str(a) for a in args)), args[2]]
+            c = {"Object": args[1], "Sort": args[2]}
         subject = f"<{args[1]}>" if len(args) > 1 else ""
         if pred == "subclass_of" and c["Super"] == THING and \
                 (str(c["Sub"]), THING) not in set(owner.ontology.subclass_of):
@@ -564,7 +578,7 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
             _, _, _, position, obj, topic, _ = node.fact
         sort_args = [leaf for leaf in node.leaves() if leaf.fact[0] == "topic_arg"
                      and leaf.fact[5] in ("some", "every")]
-        for told in (leaf for leaf in node.leaves() if leaf.fact[0] == "type_of"):
+        for told in (leaf for leaf in node.leaves() if leaf.fact[0] == "class_type"):
             if sort_args:
                 chain = _chain(reader, node, str(told.fact[3]), str(sort_args[0].fact[6]),
                                ("subclass_of", "equivalent_class"))

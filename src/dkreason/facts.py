@@ -64,11 +64,11 @@ def ontology_facts(ont: Ontology) -> Facts:
         out["feature_arg"] += [(p, f, i, s) for i, allowed in enumerate(sig.arg_sorts, 1)
                                for s in allowed]
     out["individual"] = [(p, o) for o in sorted(ont.individuals)]
-    typed = {o for o, _ in ont.types}
-    out["type_of"] = [(p, o, c) for o, c in ont.types]
-    out["type_of"] += [(p, o, THING) for o in sorted(ont.individuals - typed)]
+    reps = same_classes(ont)
     out["same_as"] = [(p, a, b) for a, b in ont.same_as]
-    out["same_rep"] = [(p, o, r) for o, r in sorted(same_classes(ont).items())]
+    out["same_rep"] = [(p, o, r) for o, r in sorted(reps.items())]
+    out["class_type"] = [(p, r, c) for r, c in sorted({(reps.get(o, o), c)
+                                                      for o, c in told_types(ont)})]
     steps = [*ont.subclass_of, *((s, THING) for s in sorts - has_super - {THING}),
              *(e for a, b in ont.equivalent for e in ((a, b), (b, a)))]
     out["sort_rep"] = [(p, c, r) for c, r in sorted(equivalent_sorts(sorts, steps).items())]
@@ -76,6 +76,12 @@ def ontology_facts(ont: Ontology) -> Facts:
     out["name_digits"] = [(p, o, d) for o in sorted(ont.individuals)
                           if (d := name_digits(local_name(o))) is not None]
     return out
+
+
+def told_types(ont: Ontology) -> list[tuple[str, str]]:
+    """Each object's told sorts: its rdf:type axioms, or owl:Thing when it has none."""
+    typed = {o for o, _ in ont.types}
+    return [*ont.types, *((o, THING) for o in sorted(ont.individuals - typed))]
 
 
 def _named(members: Iterable[str]) -> str:

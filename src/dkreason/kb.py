@@ -112,6 +112,9 @@ def load_mappings(config: Config) -> tuple[Mapping_, ...]:
                  for m in config.mappings)
 
 
+_CHECK_SLICE = 500
+
+
 class KnowledgeBase:
     def __init__(self, local: str, platforms: dict[str, Platform],
                  mappings: tuple[Mapping_, ...], policy: tuple[Path, ...] | None = None,
@@ -328,10 +331,12 @@ class KnowledgeBase:
                              f"not an object", Span("<api>"))
         if (iri, sort_iri) in p.ontology.types:
             return iri
-        facts: Facts = {"type_of": [(platform, iri, sort_iri)]}
-        if iri not in p.ontology.individuals:
-            facts["individual"] = [(platform, iri)]
-            facts["same_rep"] = [(platform, iri, iri)]  # a new object: a class of its own
+        if iri in p.ontology.individuals:  # a further sort for its sameAs class
+            [(_, _, rep)] = self.engine.query("same_rep", platform, iri, None)
+            facts: Facts = {"class_type": [(platform, rep, sort_iri)]}
+        else:  # a new object: a class of its own
+            facts = {"class_type": [(platform, iri, sort_iri)], "individual": [(platform, iri)],
+                     "same_rep": [(platform, iri, iri)]}
             digits = name_digits(local_name(iri))
             if digits is not None:
                 facts["name_digits"] = [(platform, iri, digits)]
@@ -363,8 +368,12 @@ class KnowledgeBase:
                                   for i, a in enumerate(f.args, 1)))
         if not uses:
             return
-        fitting = set(self.engine.ask("spec_arg_fits", {"spec_arg": uses}, p.name, None, None,
-                                      None, None))
+        # Asked in slices: an ask's tables are ~5 KB a use, and a load's peak memory is the
+        # heap plus the largest of them (5k specs: 34 MB at once, 4 MB a slice).
+        fitting = {row for at in range(0, len(uses), _CHECK_SLICE)
+                   for row in self.engine.ask("spec_arg_fits",
+                                              {"spec_arg": uses[at:at + _CHECK_SLICE]},
+                                              p.name, None, None, None, None)}
         for name in names:
             spec, resolved = p.specs[name], p.resolved[name]
             for feature, rfeature in zip(spec.features, resolved.features, strict=True):
