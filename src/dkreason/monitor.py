@@ -56,6 +56,8 @@ class Monitor:
         # each feature makes due, in the order the groups began.
         self.readers: dict[FeatureKey, list[_Group]] = {}
         self.always: list[_Group] = []
+        # the due groups' step functions by the features a state freshly sampled (`_due`)
+        self.steps: dict[tuple[FeatureKey, ...] | None, list[Callable[..., list[Verdict]]]] = {}
         self.waiting = list(self.plan.formulas)
         if policy.start_time is not None:
             self._begin(self.waiting)
@@ -91,6 +93,7 @@ class Monitor:
                     self.always.append(group)
             group.progressor.add(f.text, f.tree)
             self.waiting.remove(f)
+        self.steps.clear()
 
     def _on_state(self, time: int, values: dict[FeatureKey, Any],
                   fresh: list[FeatureKey] | None = None) -> None:
@@ -98,9 +101,17 @@ class Monitor:
             self.states.append((time, dict(values)))
         if self.waiting:
             self._begin([f for f in self.waiting if all(values[k] is not None for k in f.keys)])
+        signature = None if fresh is None else tuple(fresh)
+        steps = self.steps.get(signature)
+        if steps is None:
+            if len(self.steps) >= 1024:  # many features sampled in many combinations
+                self.steps.clear()
+            steps = self.steps[signature] = [g.progressor.step_state for g in self._due(fresh)]
         decided: list[Verdict] = []
-        for group in self._due(fresh):
-            decided += group.progressor.step_state(time, values)
+        for step in steps:
+            out = step(time, values)
+            if out:
+                decided += out
         if decided:
             decided.sort(key=lambda v: self.order[v.formula])
             self.decided += len(decided)

@@ -315,7 +315,8 @@ class FusedSet:
         self.members: list[Member] = []
         self.on_unknown = on_unknown
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
-        self._step: Callable[[Time, Any], bool] | None = None
+        # the generated step for the current members; None: generate it at the next state
+        self.run: Callable[[Time, Any], bool] | None = None
 
     def add(self, s: Shape, on_false: Callable[[Why], None],
             unit: Fraction | int = 1) -> Member:
@@ -324,17 +325,17 @@ class FusedSet:
         if s.kind == "response":
             assert s.b is not None
             self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo)).add(m)
-        self._step = None
+        self.run = None
         return m
 
     def step(self, t: Time, values: Any) -> bool:
         """Run one state; True when some member was decided (the code is then regenerated)."""
-        if self._step is None:
+        if self.run is None:
             self.members = [m for m in self.members if not m.done]
             self.groups = {k: g for k, g in self.groups.items() if g.members}
-            self._step = _generate(self) if self.members else (lambda t, v: False)
-        if self._step(t, values):
-            self._step = None
+            self.run = _generate(self) if self.members else (lambda t, v: False)
+        if self.run(t, values):
+            self.run = None
             return True
         return False
 
@@ -400,7 +401,9 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
                       "        else:",
                       f"            {me}.unknown = True"]
     for (a, b, _), responses in fs.groups.items():
-        lines += [f"    if {const(responses.step)}(t, {value(a)}, {value(b)}):",
+        # with no position waiting, a trigger known false changes nothing: no call
+        guard = "" if a == TRUE else f"({value(a)} is not False or {const(responses.pending)}) and "
+        lines += [f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
                   "        decided = True"]
     lines.append("    return decided")
     exec(compile("\n".join(lines) + "\n", "<fused monitors>", "exec"), scope)  # noqa: S102

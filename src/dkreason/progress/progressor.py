@@ -180,8 +180,13 @@ class Progressor:
         if self.unstarted:
             for m in self.unstarted:
                 m.started, m.first = True, t
-        if self.fused.members:
-            self.fused.step(t, values)
+        fused = self.fused
+        if fused.members:  # FusedSet.step, inline: the generated step is most of a state
+            run = fused.run
+            if run is None:
+                fused.step(t, values)
+            elif run(t, values):
+                fused.run = None
         for graph in self.graphs:
             ctx = graph.ctx
             if ctx.pos < 0:

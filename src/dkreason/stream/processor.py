@@ -40,6 +40,8 @@ from ..model import FeatureKey, StreamRequest
 from ..numbers import datum
 from .sources import NS, Source
 
+_INF = float("inf")
+
 
 def seconds(ns: int) -> float | int:
     return ns // NS if ns % NS == 0 else ns / NS
@@ -91,11 +93,12 @@ def _ns_given(value: Fraction) -> int:
 class _Route:
     """One topic entry of one feature: a source stream, with its latest valid time."""
 
-    __slots__ = ("q", "get", "prio", "stream", "last", "text")
+    __slots__ = ("q", "get", "rank", "stream", "last", "text")
 
     def __init__(self, q: int, get: Callable[[Any], Any], prio: int, stream: str,
                  text: bool) -> None:
-        self.q, self.get, self.prio, self.stream, self.text = q, get, prio, stream, text
+        self.q, self.get, self.stream, self.text = q, get, stream, text
+        self.rank = -prio  # a feature's history is ordered by (valid, rank)
         self.last: int | None = None
 
 
@@ -141,6 +144,7 @@ class StreamProcessor:
         self.max_age = _ns(policy.max_age)
         # a sample's value grows stale (and a state is due when it does)
         self.expiring = self.max_age is not None and policy.approximation == "recent"
+        self.stale_after = 0 if self.max_age is None else self.max_age + 1  # past its valid time
         self.delay = _ns_given(policy.delay_before_approximation)
         self.start, self.end = _ns(policy.start_time), _ns(policy.end_time)
         self.max_delay = _ns(policy.max_delay)
@@ -167,6 +171,8 @@ class StreamProcessor:
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
         self.guarded = self.start is not None or self.end is not None or \
             self.max_delay is not None  # any check every sample must pass
+        self.strict = self.guarded or self.checks or self.period is not None
+        self.recent = policy.approximation == "recent"
         self.made: int | None = None  # time of the last state made
         self.next_state: int | None = self.start  # next periodic state time
         self.last_seen: int | None = None
@@ -244,7 +250,10 @@ class StreamProcessor:
             self._emit(available, final=False)
 
     def put(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
-        """A message, without making states: a live source says when time has passed."""
+        """A message, without making states: a live source says when time has passed.  Each
+        value it gives a feature is a sample (the replay's hot path, written out in one
+        function: with no constraint set, in valid-time order, a sample costs its history
+        entry, its state time and its expiry)."""
         for group in self.groups[topic]:
             for route in group.routes(values):
                 value = route.get(values)
@@ -257,7 +266,50 @@ class StreamProcessor:
                         value = None
                 elif cls is not int and cls is not bool:
                     value = self._odd(route, valid, value)
-                self._sample(route, available, valid, value)
+                last = route.last
+                if last is None or valid <= last:  # a newer sample than its topic's last is
+                    first = self.first             # not the earliest
+                    if first is None or valid < first:
+                        self.first = valid
+                if self.strict and not self._constrain(route, available, valid, last):
+                    continue
+                if last is None or valid > last:
+                    route.last = valid
+                    if valid > self.max_valid:
+                        self.max_valid = valid
+                made = self.made
+                late = False
+                if made is not None and valid <= made:
+                    late = True
+                    self._violation("late", available, route,
+                                    f"sample valid at {seconds(valid)} s arrived at "
+                                    f"{seconds(available)} s, after the state at "
+                                    f"{seconds(made)} s")
+                q = route.q
+                hist, rank = self.hist[q], route.rank
+                if hist and (valid < hist[-1][0] or valid == hist[-1][0] and rank < hist[-1][1]):
+                    bisect.insort(hist, (valid, rank, value), key=lambda e: e[:2])
+                else:
+                    hist.append((valid, rank, value))
+                if self.period is not None:
+                    if self.next_state is None:
+                        self.next_state = valid
+                        self.quiet_until = valid + self.delay
+                    continue
+                if not late:  # a state is due at its valid time
+                    times = self.times
+                    if not times or valid > times[-1]:
+                        times.append(valid)
+                    elif valid != times[-1]:
+                        heapq.heappush(self.out_of_order, valid)
+                    if valid + self.delay < self.quiet_until:
+                        self.quiet_until = valid + self.delay
+                if self.expiring and hist[-1][0] == valid:
+                    due = self.due
+                    if due[q] >= valid and self.queued[q]:  # its expiry is queued already
+                        due[q] = valid + self.stale_after
+                    else:
+                        self._expires(q, valid)
 
     def _odd(self, route: _Route, valid: int, value: Any,
              wanted: str = "a number or boolean") -> Any:
@@ -291,57 +343,25 @@ class StreamProcessor:
     def _violation(self, kind: str, available: int, route: _Route, detail: str) -> None:
         self.on_violation(Violation(kind, available, self.keys[route.q], route.stream, detail))
 
-    def _sample(self, route: _Route, available: int, valid: int, value: Any) -> None:
-        first = self.first
-        if first is None or valid < first:
-            self.first = valid
+    def _expires(self, q: int, valid: int) -> None:
+        """Feature q's newest sample is valid at `valid`: it grows stale after max_age."""
+        due = self.due
+        if 0 <= due[q] < valid:  # the value went stale before this sample: keep that
+            heapq.heappush(self.expiries, (due[q], q, True))
+            self.quiet_until = min(self.quiet_until, due[q] + self.delay)
+        due[q] = valid + self.stale_after
+        if not self.queued[q]:
+            self.queued[q] = True
+            heapq.heappush(self.expiries, (due[q], q, False))
+            self.quiet_until = min(self.quiet_until, due[q] + self.delay)
+
+    def _constrain(self, route: _Route, available: int, valid: int, last: int | None) -> bool:
+        """The constraints on a sample (`strict`: a policy sets one); False drops it."""
         if self.guarded and not self._guards(route, available, valid):
-            return
-        last = route.last
+            return False
         if last is not None and (valid <= last and self.checks or self.period is not None):
             self._check(route, available, valid, last)
-        if last is None or valid > last:
-            route.last = valid
-            if valid > self.max_valid:
-                self.max_valid = valid
-        made = self.made
-        if made is not None and valid <= made:
-            self._violation("late", available, route,
-                            f"sample valid at {seconds(valid)} s arrived at "
-                            f"{seconds(available)} s, after the state at {seconds(made)} s")
-        hist = self.hist[route.q]
-        rank = -route.prio
-        if hist:
-            newest = hist[-1]
-            if valid > newest[0] or (valid == newest[0] and rank >= newest[1]):
-                hist.append((valid, rank, value))
-            else:
-                bisect.insort(hist, (valid, rank, value), key=lambda e: e[:2])
-        else:
-            hist.append((valid, rank, value))
-        if self.period is not None:
-            if self.next_state is None:
-                self.next_state = valid
-                self.quiet_until = valid + self.delay
-            return
-        if made is None or valid > made:
-            times = self.times
-            if not times or valid > times[-1]:
-                times.append(valid)
-            elif valid != times[-1]:
-                heapq.heappush(self.out_of_order, valid)
-            if valid + self.delay < self.quiet_until:
-                self.quiet_until = valid + self.delay
-        if self.expiring and hist[-1][0] == valid:
-            q, due = route.q, self.due
-            if 0 <= due[q] < valid:  # the value went stale before this sample: keep that
-                heapq.heappush(self.expiries, (due[q], q, True))
-                self.quiet_until = min(self.quiet_until, due[q] + self.delay)
-            due[q] = valid + self.max_age + 1  # type: ignore[operator]
-            if not self.queued[q]:
-                self.queued[q] = True
-                heapq.heappush(self.expiries, (self.due[q], q, False))
-                self.quiet_until = min(self.quiet_until, self.due[q] + self.delay)
+        return True
 
     def _guards(self, route: _Route, available: int, valid: int) -> bool:
         """Start/end time and maximum delay; False drops the sample."""
@@ -385,11 +405,14 @@ class StreamProcessor:
     def _next_due(self) -> float:
         """The recording time after which the next state is due (inf: none is pending)."""
         if self.period is not None:
-            return float("inf") if self.next_state is None else self.next_state + self.delay
-        heads = [h for h in (self.times[0] if self.times else None,
-                             self.out_of_order[0] if self.out_of_order else None,
-                             self.expiries[0][0] if self.expiries else None) if h is not None]
-        return min(heads) + self.delay if heads else float("inf")
+            return _INF if self.next_state is None else self.next_state + self.delay
+        times, late, expiries = self.times, self.out_of_order, self.expiries
+        head = times[0] if times else _INF
+        if late and late[0] < head:
+            head = late[0]
+        if expiries and expiries[0][0] < head:
+            head = expiries[0][0]
+        return head + self.delay
 
     def _make_due(self, now: int, final: bool) -> None:
         if self.period is not None:
@@ -418,7 +441,7 @@ class StreamProcessor:
             while late and late[0] == s:
                 heapq.heappop(late)
                 sampled = True
-            stale = self._expired(s, final)
+            stale = self._expired(s, final) if expiries and expiries[0][0] == s else []
             if (sampled or stale) and (self.made is None or s > self.made):
                 self._state(s, stale)
 
@@ -454,9 +477,8 @@ class StreamProcessor:
         can be judged at its own features' instants."""
         values: dict[FeatureKey, Any] = {}
         fresh: list[FeatureKey] | None = (stale or []) if self.period is None else None
-        recent = self.policy.approximation == "recent"
-        max_age, deviation = self.max_age, self.deviation
-        for q, hist in enumerate(self.hist):
+        recent, max_age, deviation = self.recent, self.max_age, self.deviation
+        for key, hist in zip(self.keys, self.hist, strict=True):
             if hist and hist[-1][0] <= s:  # samples in order: the newest one
                 i = len(hist) - 1
             else:  # the last sample valid at or before s
@@ -465,7 +487,7 @@ class StreamProcessor:
             if i >= 0:
                 valid, _, v = hist[i]
                 if valid == s and fresh is not None:
-                    fresh.append(self.keys[q])
+                    fresh.append(key)
                 if recent:
                     if max_age is None or s - valid <= max_age:
                         value = v
@@ -473,6 +495,6 @@ class StreamProcessor:
                     value = v
                 if i > 32:  # older samples are never read again
                     del hist[:i]
-            values[self.keys[q]] = value
+            values[key] = value
         self.made = s
         self.on_state(s, values, fresh)
