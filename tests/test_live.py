@@ -21,6 +21,7 @@ from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.kb import KnowledgeBase
+from dkreason.live.inbox import Inbox
 
 from .conftest import REPO
 from .test_federation import map_car3_to_a_truck
@@ -597,3 +598,38 @@ def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path) -> 
     (verdict,) = [e for e in seen if "verdict" in e]
     assert verdict["verdict"] is True
     assert "Traceback" not in "".join(log)
+
+
+# ---- the inbox from zenoh's threads -----------------------------------------------------------
+
+def test_the_inbox_loses_nothing_and_keeps_each_threads_order() -> None:
+    inbox, n, threads = Inbox(), 20_000, 4
+    producers = [threading.Thread(target=lambda k=k: [inbox.put((k, i)) for i in range(n)])
+                 for k in range(threads)]
+    for t in producers:
+        t.start()
+    got: list[tuple[int, int]] = []
+    deadline = time.monotonic() + 60
+    while len(got) < n * threads and time.monotonic() < deadline:
+        got += inbox.drain(0.05)
+    for t in producers:
+        t.join()
+    assert len(got) == n * threads
+    for k in range(threads):
+        assert [i for j, i in got if j == k] == list(range(n))
+
+
+def test_a_sleeping_consumer_wakes_for_an_event() -> None:
+    inbox = Inbox()
+    threading.Timer(0.05, inbox.put, ["hello"]).start()
+    assert inbox.drain(60) == ["hello"]  # returns when it arrives, not after 60 s
+    assert inbox.drain(0) == []
+
+
+def test_a_full_inbox_holds_the_producer_then_refuses() -> None:
+    inbox = Inbox(limit=3)
+    assert all(inbox.put(i, timeout=0.01) for i in range(3))
+    assert not inbox.put(3, timeout=0.01)  # no room within the wait: dropped
+    threading.Timer(0.05, inbox.drain, [0]).start()
+    assert inbox.put(4, timeout=60)  # room made by a drain wakes it
+    assert inbox.drain(0) == [4]

@@ -398,3 +398,42 @@ def test_a_formulas_verdict_alone_equals_its_verdict_beside_others(
                         if isinstance(e, Verdict) and e.formula == formula)
 
         assert verdict([formula]) == verdict([*others, formula, *others])
+
+
+# ---- states made from what changed equal states read in full -------------------------------
+
+MERGED = "always (Speed[car1] + Speed[car2] + Speed[car3] + Altitude[uav1] < 1000)"
+FEEDS = {"topic1": 1, "topic2": 1, "topic3": 1, "topic4": 2, "topic5": 3}  # topic → its id
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.sampled_from(sorted(FEEDS)), st.integers(0, 30), st.integers(0, 8),
+                          st.sampled_from([10.0, 55.0, 70.0, float("nan")])), max_size=50),
+       st.sampled_from([None, Fraction(1, 2), Fraction(3)]),
+       st.sampled_from([Fraction(0), Fraction(1, 5)]), st.booleans())
+def test_states_made_from_what_changed_equal_states_read_in_full(
+        single: KnowledgeManager, samples: list[tuple[str, int, int, float]],
+        max_age: Fraction | None, delay: Fraction, ordered: bool) -> None:
+    """A state on every change reads only the features sampled at it, reached by a late
+    sample or expired at it; whatever the arrival order (late samples, equal times, a
+    feature fed by two topics, values gone stale), its states are those of reading every
+    feature's history at every state."""
+    policy = StreamPolicy(max_age=max_age, delay_before_approximation=delay,
+                          ordered_on_valid_time=ordered)
+    arrivals = sorted(((valid + lag) * S // 10, valid * S // 10, topic, speed)
+                      for topic, valid, lag, speed in samples)
+
+    def states(incremental: bool) -> list[Any]:
+        out: list[Any] = []
+        monitor = Monitor(single, [MERGED], policy)
+        processor = monitor.start(PushSource())
+        processor.incremental = incremental
+        processor.on_state = lambda s, values, fresh: out.append(
+            (s, dict(values), None if fresh is None else sorted(set(fresh))))
+        processor.on_violation = lambda v: out.append(v)
+        for available, valid, topic, speed in arrivals:
+            processor.feed(topic, available, valid, (speed, FEEDS[topic]))
+        processor.finish()
+        return out
+
+    assert states(True) == states(False)

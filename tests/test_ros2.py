@@ -718,9 +718,9 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
                               ["always (X[me] < 15)"], StreamPolicy(), watching, store=STORE)
         pub = Ros2Node(publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
         deadline = time.monotonic() + 30
-        while monitor.events.empty() and time.monotonic() < deadline:
+        while not monitor.events.items and time.monotonic() < deadline:
             time.sleep(0.01)  # the publisher's token queues up: nobody takes it yet
-        for event in [monitor.events.get() for _ in range(monitor.events.qsize())]:
+        for event in monitor.events.drain(0):
             monitor._handle(event)  # what the loop does: the publisher is subscribed
         assert monitor.subs
         while not pub.publisher.matching_status.matching and time.monotonic() < deadline:
@@ -729,7 +729,7 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
             pub.put(pose(STORE, (n + 1) * S, 1.0))
         while monitor.dropped < 15 and time.monotonic() < deadline:
             time.sleep(0.01)
-        assert monitor.events.qsize() == 5 and monitor.dropped == 15
+        assert len(monitor.events.items) == 5 and monitor.dropped == 15
         list(monitor.run(duration=1))  # takes the five, reports the fifteen, ends
         assert monitor.received == 5
         assert "15 samples or announcements dropped so far" in caplog.text

@@ -21,9 +21,7 @@ dropped.
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import queue
 import threading
 import time
 from collections.abc import Iterator
@@ -50,10 +48,10 @@ from ..progress import Verdict
 from ..stream.processor import StreamPolicy, Violation, seconds
 from ..stream.sources import NS, Message, Wanted, dict_reader
 from . import wire
+from .inbox import Inbox
 
 log = logging.getLogger("dkreason.live")
 HOLD = 1.0  # wall seconds a new subscription may hold back states before its first tick
-BATCH = 1000  # events handled before the watermark is computed and the stream advanced
 
 
 @dataclass(frozen=True, slots=True)
@@ -130,20 +128,6 @@ class _Live:
         pass
 
 
-def drain(events: queue.Queue[Any], timeout: float) -> list[Any]:
-    """What has arrived, up to BATCH events, waiting up to `timeout` s for the first: the
-    watermark, the processor's advance and the verdicts are paid once a batch, not once a
-    sample."""
-    try:
-        batch = [events.get(timeout=timeout)]
-    except queue.Empty:
-        return []
-    with contextlib.suppress(queue.Empty):
-        while len(batch) < BATCH:
-            batch.append(events.get_nowait())
-    return batch
-
-
 def _logged(n: int) -> bool:
     """1, 10, 100, 1000…: how often a repeated warning is worth a line."""
     return n == 1 or (n % 10 == 0 and _logged(n // 10))
@@ -164,7 +148,7 @@ class LiveMonitor:
         self.known = load_platforms(self.config)  # knowledge at hand, before the KB exists
         self.digests: dict[str, str] = {}  # of the ontology each platform served
         self.mappings = load_mappings(self.config)
-        self.events: queue.Queue[tuple[Any, ...]] = queue.Queue()
+        self.events = Inbox()
         self.present: set[str] = set()
         self.clocks: dict[tuple[str, str], int] = {}  # (platform, topic) → sent up to
         self.ended: dict[tuple[str, str], int] = {}  # (platform, topic) → its replay's end
@@ -285,7 +269,7 @@ class LiveMonitor:
                 mark = self.watermark()
                 if end is not None and mark is not None and mark > end:
                     break
-                batch = drain(self.events, 0.1)
+                batch = self.events.drain(0.1)
                 if not batch:
                     continue
                 for event in batch:
@@ -325,11 +309,8 @@ class LiveMonitor:
             left = deadline - time.monotonic()
             if left <= 0:
                 break
-            try:
-                event = self.events.get(timeout=min(left, 0.1))
-            except queue.Empty:
-                continue
-            yield from self._handle(event)
+            for event in self.events.drain(min(left, 0.1), most=1):  # the rest waits for run
+                yield from self._handle(event)
         if local not in self.known:
             raise DkError(f"the local platform {local} did not appear within {self.wait:g} s "
                           f"(is `dkreason serve` running for it, on a reachable endpoint?)")
@@ -343,7 +324,7 @@ class LiveMonitor:
             return []
         try:
             if kind == "sample":
-                self._sample(p, event[2], event[3], event[4])
+                self._sample(p, event[2], event[3], event[4], event[5])
             elif kind == "alive":
                 return self._alive(p) if event[2] else self._left(p)
             elif kind == "changed" and p in self.present:
@@ -375,15 +356,17 @@ class LiveMonitor:
         if _logged(n):
             log.warning("rejected %s from %s (%s, %d so far): %s", what, p, kind, n, why)
 
-    def _sample(self, p: str, topic: str, payload: bytes, signature: bytes | None) -> None:
-        if p not in self.present or (p, topic) not in self.subs:
+    def _sample(self, p: str, topic: str, payload: bytes, signature: bytes | None,
+                name: str) -> None:
+        """A sample of `name` (`p/topic`)."""
+        pt = (p, topic)
+        if p not in self.present or pt not in self.subs:
             return  # in flight when its subscription was dropped
         if p in self.trust:
             wire.verify(self.trust[p], wire.key(p, "topic", topic), payload, signature)
-        name = f"{p}/{topic}"
         available, valid, msg = wire.topic_message(payload, name)
         if msg is wire.END:
-            self.ended[(p, topic)] = available
+            self.ended[pt] = available
         elif msg is not None and (self.end is None or valid <= self.end):
             try:
                 values = self.read(name, valid, msg)
@@ -394,7 +377,9 @@ class LiveMonitor:
             except DkError as exc:
                 raise wire.WireError(str(exc), "value") from None
             self.received += 1
-        self.clocks[(p, topic)] = max(available, self.clocks.get((p, topic), available))
+        sent = self.clocks.get(pt)
+        if sent is None or available > sent:
+            self.clocks[pt] = available
 
     def _alive(self, p: str) -> list[Event]:
         if p in self.present:
@@ -475,9 +460,9 @@ class LiveMonitor:
             if (q, t) not in self.subs:
                 self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
-                    wire.key(q, "topic", t), lambda s, q=q, t=t: self.events.put(
+                    wire.key(q, "topic", t), lambda s, q=q, t=t, name=f"{q}/{t}": self.events.put(
                         ("sample", q, t, s.payload.to_bytes(),
-                         None if s.attachment is None else s.attachment.to_bytes())))
+                         None if s.attachment is None else s.attachment.to_bytes(), name)))
                 changes.append(Change("subscribed", now, q, feature=str(key), topic=t))
         for (q, t) in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()

@@ -24,7 +24,6 @@ or does not decode is counted and reported (at 1, 10, 100… of a kind), never f
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
@@ -43,7 +42,8 @@ from ..stream.binding import message_type_fits, recording_names
 from ..stream.processor import StreamPolicy
 from ..stream.sources import NS, _ros_reader
 from . import rmw
-from .monitor import Change, Event, _Live, _logged, drain
+from .inbox import Inbox
+from .monitor import Change, Event, _Live, _logged
 from .record import Recorder, RecordError
 from .ros2node import CLOCK, CLOCK_TYPE
 from .wire import WireError, direct
@@ -121,7 +121,7 @@ class Ros2Monitor:
             for m in f.topics:
                 for name in recording_names(m, request.local, namespaces.get(m.platform)):
                     self.wants.setdefault(name, []).append((f.feature.key, m))
-        self.events: queue.Queue[tuple[Any, ...]] = queue.Queue(maxsize=QUEUED)
+        self.events = Inbox(QUEUED)
         self.dropped = 0  # samples the queue had no room for within PUT_WAIT (zenoh threads)
         self.told = 0  # of those, reported
         self.seen: dict[str, rmw.Publisher] = {}  # token → every publisher discovered
@@ -153,9 +153,7 @@ class Ros2Monitor:
         """Memory stays bounded: a full queue holds zenoh's thread back (and so the link and
         a blocking publisher) for up to PUT_WAIT s; only then is the event dropped, and
         counted."""
-        try:
-            self.events.put(event, timeout=PUT_WAIT)
-        except queue.Full:
+        if not self.events.put(event, timeout=PUT_WAIT):
             self.dropped += 1
 
     # ---- the loop ----------------------------------------------------------------------
@@ -195,7 +193,7 @@ class Ros2Monitor:
                     if end is not None and mark is not None and mark > end:
                         break
                     out: list[Event] = []
-                    for event in drain(self.events, self._idle()):
+                    for event in self.events.drain(self._idle()):
                         out += self._handle(event)
                     if self.dropped != self.told:
                         self.told = self.dropped

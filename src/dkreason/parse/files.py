@@ -116,11 +116,19 @@ def lines(path: Path, name: str) -> Iterator[tuple[int, bytes]]:
             yield n, line
 
 
+_EXACT, _FLOAT = json.JSONDecoder(parse_float=Decimal), json.JSONDecoder()
+
+
 def json_value(data: bytes | str, where: Span, exact: bool = True) -> Any:
     """One JSON document (numbers with a fraction or exponent as exact decimals unless not
     `exact`); any failure — syntax, encoding, nesting, a number too long — is a ParseError."""
-    try:
-        return json.loads(data, parse_float=Decimal if exact else float)
+    try:  # json.loads, with its decoder made once, not per document
+        text = data if isinstance(data, str) else data.decode(
+            "utf-8" if data[:1] == b"{" and data[1:2] != b"\0" else json.detect_encoding(data),
+            "surrogatepass")  # an object in UTF-8 (what peers send) needs no sniffing
+        if text.startswith("\ufeff"):
+            raise json.JSONDecodeError("Unexpected UTF-8 BOM (decode using utf-8-sig)", text, 0)
+        return (_EXACT if exact else _FLOAT).decode(text)
     except json.JSONDecodeError as exc:
         why, column = f"not JSON: {exc.msg}", exc.colno
     except UnicodeDecodeError as exc:

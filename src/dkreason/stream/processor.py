@@ -28,7 +28,7 @@ import bisect
 import heapq
 import numbers
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
@@ -41,6 +41,9 @@ from ..numbers import datum
 from .sources import NS, Source
 
 _INF = float("inf")
+_NO_EXPIRY: tuple[list[FeatureKey], list[int]] = ([], [])  # read, never changed
+_NO_QS: list[int] = []
+_VALID_RANK = itemgetter(0, 1)  # a history entry's order: (valid, rank), never its value
 
 
 def seconds(ns: int) -> float | int:
@@ -151,6 +154,7 @@ class StreamProcessor:
         if self.period is not None and self.period <= 0:
             raise DkError("the sample period must be positive")
         self.keys: list[FeatureKey] = []  # the states' keys
+        self.current: dict[FeatureKey, Any] = {}  # the last state's values (on every change)
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
         self.groups: dict[str, list[_Group]] = {}
         self.absent: dict[str, list[str]] = {}  # spec topic in no recording → its features
@@ -160,7 +164,8 @@ class StreamProcessor:
         # heap (the others), and when each feature's latest sample grows stale (rescheduled
         # lazily: `due` holds the newest time, the heap at most one entry per feature)
         self.times: deque[int] = deque()
-        self.out_of_order: list[int] = []
+        self.at: deque[list[int]] = deque()  # beside times: the features sampled at each
+        self.out_of_order: list[tuple[int, int]] = []  # (time, feature sampled at it)
         self.expiries: list[tuple[int, int, bool]] = []  # (time, feature, fixed?)
         self.due: list[int] = []
         self.queued: list[bool] = []
@@ -173,12 +178,16 @@ class StreamProcessor:
             self.max_delay is not None  # any check every sample must pass
         self.strict = self.guarded or self.checks or self.period is not None
         self.recent = policy.approximation == "recent"
+        # on every change with the recent approximation, a state reads only what changed
+        self.incremental = self.period is None and self.recent
+        self.redo: set[int] = set()  # features a late sample reached since the last state
         self.made: int | None = None  # time of the last state made
         self.next_state: int | None = self.start  # next periodic state time
         self.last_seen: int | None = None
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
         for f in request.features:
             self.keys.append(f.feature.key)
+            self.current[f.feature.key] = None
             self.hist.append([])
             self.due.append(-1)
             self.queued.append(False)
@@ -281,6 +290,7 @@ class StreamProcessor:
                 late = False
                 if made is not None and valid <= made:
                     late = True
+                    self.redo.add(route.q)  # the next state may read it: look again then
                     self._violation("late", available, route,
                                     f"sample valid at {seconds(valid)} s arrived at "
                                     f"{seconds(available)} s, after the state at "
@@ -288,7 +298,7 @@ class StreamProcessor:
                 q = route.q
                 hist, rank = self.hist[q], route.rank
                 if hist and (valid < hist[-1][0] or valid == hist[-1][0] and rank < hist[-1][1]):
-                    bisect.insort(hist, (valid, rank, value), key=lambda e: e[:2])
+                    bisect.insort(hist, (valid, rank, value), key=_VALID_RANK)
                 else:
                     hist.append((valid, rank, value))
                 if self.period is not None:
@@ -296,12 +306,15 @@ class StreamProcessor:
                         self.next_state = valid
                         self.quiet_until = valid + self.delay
                     continue
-                if not late:  # a state is due at its valid time
+                if not late:  # a state is due at its valid time, with q sampled at it
                     times = self.times
                     if not times or valid > times[-1]:
                         times.append(valid)
-                    elif valid != times[-1]:
-                        heapq.heappush(self.out_of_order, valid)
+                        self.at.append([q])
+                    elif valid == times[-1]:
+                        self.at[-1].append(q)
+                    else:
+                        heapq.heappush(self.out_of_order, (valid, q))
                     if valid + self.delay < self.quiet_until:
                         self.quiet_until = valid + self.delay
                 if self.expiring and hist[-1][0] == valid:
@@ -408,8 +421,8 @@ class StreamProcessor:
             return _INF if self.next_state is None else self.next_state + self.delay
         times, late, expiries = self.times, self.out_of_order, self.expiries
         head = times[0] if times else _INF
-        if late and late[0] < head:
-            head = late[0]
+        if late and late[0][0] < head:
+            head = late[0][0]
         if expiries and expiries[0][0] < head:
             head = expiries[0][0]
         return head + self.delay
@@ -428,26 +441,28 @@ class StreamProcessor:
         times, late, expiries = self.times, self.out_of_order, self.expiries
         while True:
             s = times[0] if times else None
-            if late and (s is None or late[0] < s):
-                s = late[0]
+            if late and (s is None or late[0][0] < s):
+                s = late[0][0]
             if expiries and (s is None or expiries[0][0] < s):
                 s = expiries[0][0]
             if s is None or (limit is not None and s >= limit):
                 return
-            sampled = False  # everything due at s goes into one state
-            while times and times[0] == s:
+            # everything due at s goes into one state, with the features sampled at s
+            sampled: list[int] = _NO_QS
+            if times and times[0] == s:
                 times.popleft()
-                sampled = True
-            while late and late[0] == s:
-                heapq.heappop(late)
-                sampled = True
-            stale = self._expired(s, final) if expiries and expiries[0][0] == s else []
+                sampled = self.at.popleft()
+            while late and late[0][0] == s:
+                sampled = [*sampled, heapq.heappop(late)[1]]
+            stale, expired = self._expired(s, final) if expiries and expiries[0][0] == s \
+                else _NO_EXPIRY
             if (sampled or stale) and (self.made is None or s > self.made):
-                self._state(s, stale)
+                self._state(s, stale, sampled, expired)
 
-    def _expired(self, s: int, final: bool) -> list[FeatureKey]:
-        """The features whose newest sample grows stale at s (their expiries are taken)."""
-        out = []
+    def _expired(self, s: int, final: bool) -> tuple[list[FeatureKey], list[int]]:
+        """The features whose newest sample grows stale at s, and every feature whose expiry
+        at s was taken (its value is read again)."""
+        out, taken = [], []
         expiries = self.expiries
         while expiries and expiries[0][0] == s:
             _, q, fixed = heapq.heappop(expiries)
@@ -456,9 +471,10 @@ class StreamProcessor:
                     heapq.heappush(expiries, (self.due[q], q, False))
                     continue
                 self.queued[q] = False
+            taken.append(q)
             if not (final and s > self.max_valid) and self._stale(q, s):
                 out.append(self.keys[q])
-        return out
+        return out, taken
 
     def newest(self, key: FeatureKey) -> int | None:
         """The valid time (ns) of the feature's newest sample; None before its first."""
@@ -471,10 +487,43 @@ class StreamProcessor:
         i = bisect.bisect_right(hist, (s, 1)) - 1
         return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
 
-    def _state(self, s: int, stale: list[FeatureKey] | None = None) -> None:
+    def _state(self, s: int, stale: list[FeatureKey] | None = None,
+               sampled: Sequence[int] = (), expired: Sequence[int] = ()) -> None:
         """The state at s; with it, the features sampled at exactly s or gone stale at it
         (None with a sample period: every feature is on the period's grid), so each formula
         can be judged at its own features' instants."""
+        values, fresh = self._changed(s, stale or [], sampled, expired) if self.incremental \
+            else self._every_value(s, stale)
+        self.made = s
+        self.on_state(s, values, fresh)
+
+    def _changed(self, s: int, stale: list[FeatureKey], sampled: Sequence[int],
+                 expired: Sequence[int]) -> tuple[dict[FeatureKey, Any], list[FeatureKey]]:
+        """A state made on every change differs from the one before only in the features
+        sampled at s, those a late sample reached and those whose expiry fell at s (every
+        other value is that of the same newest sample, no older): only they are read, so a
+        state costs what changed, not every feature."""
+        current, hists, keys, max_age, redo = (self.current, self.hist, self.keys, self.max_age,
+                                               self.redo)
+        fresh = stale  # a list of its own (a feature fed by two topics at s appears twice)
+        fresh.extend(map(keys.__getitem__, sampled))
+        for q in (*sampled, *expired, *redo) if expired or redo else sampled:
+            hist = hists[q]
+            i = len(hist) - 1 if hist[-1][0] <= s else bisect.bisect_right(hist, (s, 1)) - 1
+            value = None
+            if i >= 0:
+                valid, _, v = hist[i]
+                if max_age is None or s - valid <= max_age:
+                    value = v
+                if i > 32:  # older samples are never read again
+                    del hist[:i]
+            current[keys[q]] = value
+        redo.clear()
+        return dict(current), fresh
+
+    def _every_value(self, s: int, stale: list[FeatureKey] | None
+                     ) -> tuple[dict[FeatureKey, Any], list[FeatureKey] | None]:
+        """Each feature's value at s, read from its history."""
         values: dict[FeatureKey, Any] = {}
         fresh: list[FeatureKey] | None = (stale or []) if self.period is None else None
         recent, max_age, deviation = self.recent, self.max_age, self.deviation
@@ -496,5 +545,4 @@ class StreamProcessor:
                 if i > 32:  # older samples are never read again
                     del hist[:i]
             values[key] = value
-        self.made = s
-        self.on_state(s, values, fresh)
+        return values, fresh
