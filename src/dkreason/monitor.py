@@ -57,7 +57,7 @@ class Monitor:
         self.readers: dict[FeatureKey, list[_Group]] = {}
         self.always: list[_Group] = []
         # the due groups' step functions by the features a state freshly sampled (`_due`)
-        self.steps: dict[tuple[FeatureKey, ...] | None, list[Callable[..., list[Verdict]]]] = {}
+        self.steps: dict[tuple[FeatureKey, ...] | None, list[Progressor]] = {}
         self.waiting = list(self.plan.formulas)
         if policy.start_time is not None:
             self._begin(self.waiting)
@@ -106,10 +106,10 @@ class Monitor:
         if steps is None:
             if len(self.steps) >= 1024:  # many features sampled in many combinations
                 self.steps.clear()
-            steps = self.steps[signature] = [g.progressor.step_state for g in self._due(fresh)]
+            steps = self.steps[signature] = [g.progressor for g in self._due(fresh)]
         decided: list[Verdict] = []
-        for step in steps:
-            out = step(time, values)
+        for progressor in steps:  # its stepper changes as formulas are decided
+            out = progressor.stepper(time, values)
             if out:
                 decided += out
         if decided:

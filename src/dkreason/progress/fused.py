@@ -311,12 +311,16 @@ class Thresholds:
 class FusedSet:
     """Every fused formula of a progressor, run by one generated step function."""
 
-    def __init__(self, on_unknown: Callable[[list[FeatureKey]], None]) -> None:
+    def __init__(self, on_unknown: Callable[[list[FeatureKey]], None], owner: Any) -> None:
+        """`owner`: the progressor, whose state-keeping `fast` does too."""
         self.members: list[Member] = []
         self.on_unknown = on_unknown
+        self.owner = owner
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
-        # the generated step for the current members; None: generate it at the next state
+        # the generated step for the current members (None: generate it at the next state),
+        # and the same as the owner's whole step_state (when every formula it has is fused)
         self.run: Callable[[Time, Any], bool] | None = None
+        self.fast: Callable[..., list[Any]] | None = None
 
     def add(self, s: Shape, on_false: Callable[[Why], None],
             unit: Fraction | int = 1) -> Member:
@@ -325,7 +329,7 @@ class FusedSet:
         if s.kind == "response":
             assert s.b is not None
             self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo)).add(m)
-        self.run = None
+        self.run = self.fast = None
         return m
 
     def step(self, t: Time, values: Any) -> bool:
@@ -333,9 +337,9 @@ class FusedSet:
         if self.run is None:
             self.members = [m for m in self.members if not m.done]
             self.groups = {k: g for k, g in self.groups.items() if g.members}
-            self.run = _generate(self) if self.members else (lambda t, v: False)
+            self.run, self.fast = _generate(self) if self.members else (_never, None)
         if self.run(t, values):
-            self.run = None
+            self.run = self.fast = None
             return True
         return False
 
@@ -347,8 +351,14 @@ class FusedSet:
         self.on_unknown([k for k in keys if values[k] is None])
 
 
-def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
-    """Source of `step(t, v) -> decided?` for the current members, compiled once."""
+def _never(t: Time, values: Any) -> bool:
+    return False
+
+
+def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool], Callable[..., list[Any]]]:
+    """`step(t, v) -> decided?` for the current members, compiled once; and `fast`, the same
+    as the owning progressor's whole `step_state` (its state kept, its verdicts returned),
+    which it runs in place of its own while every formula it has is fused: one call a state."""
     formulas: dict[Formula, str] = {}
     thresholds: dict[tuple[FeatureKey, str], list[tuple[int | float, Member]]] = {}
     for m in fs.members:
@@ -363,22 +373,26 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
                 formulas.setdefault(f, f"e{len(formulas)}")
     keys = list(dict.fromkeys([*(k for f in formulas for k in features(f)),
                                *(k for k, _ in thresholds)]))
-    consts: list[Any] = []
-    scope: dict[str, Any] = {"fs": fs, "slow": evaluate, "C": consts}
+    scope: dict[str, Any] = {"fs": fs, "slow": evaluate}
     names, reading = reads(keys, "v", scope)
 
-    def const(value: Any) -> str:
-        consts.append(value)
-        return f"C[{len(consts) - 1}]"
+    def const(value: Any) -> str:  # a global of the generated code: one lookup, no index
+        scope[f"c{len(scope)}"] = value
+        return f"c{len(scope) - 1}"
 
-    lines = ["def step(t, v):", *(f"    {line}" for line in reading)]
+    lines = [*(f"    {line}" for line in reading)]
+    by_known: dict[str, list[tuple[Formula, str]]] = {}  # formulas tested alike, tested once
     for f, var in formulas.items():
-        mine, bools = features(f), _boolean_keys(f)
+        bools = _boolean_keys(f)
         known = " and ".join(f"type({names[k]}) is bool" if k in bools else
-                             f"{names[k]} is not None" for k in mine) or "True"
-        lines += [f"    if {known}:", f"        {var} = {_py(f, names)}", "    else:",
-                  f"        {var} = slow({const(f)}, v, t)",
-                  f"        fs.note_unknown(v, {const(mine)})"]
+                             f"{names[k]} is not None" for k in features(f)) or "True"
+        by_known.setdefault(known, []).append((f, var))
+    for known, alike in by_known.items():
+        lines += [f"    if {known}:", *(f"        {var} = {_py(f, names)}" for f, var in alike),
+                  "    else:"]
+        for f, var in alike:
+            lines += [f"        {var} = slow({const(f)}, v, t)",
+                      f"        fs.note_unknown(v, {const(features(f))})"]
     lines.append("    decided = False")
 
     def value(f: Formula) -> str:
@@ -405,7 +419,15 @@ def _generate(fs: FusedSet) -> Callable[[Time, Any], bool]:
         guard = "" if a == TRUE else f"({value(a)} is not False or {const(responses.pending)}) and "
         lines += [f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
                   "        decided = True"]
-    lines.append("    return decided")
-    exec(compile("\n".join(lines) + "\n", "<fused monitors>", "exec"), scope)  # noqa: S102
-    step: Callable[[Time, Any], bool] = scope["step"]
-    return step
+    scope["P"] = fs.owner
+    body = "\n".join(lines)
+    source = (f"def step(t, v):\n{body}\n    return decided\n"
+              "def fast(t, v, given=None):\n"
+              "    P.pos += 1\n    P.last = t\n    P.last_input = t if given is None else given\n"
+              f"{body}\n"
+              "    if decided:  # regenerated at the next state, by the progressor's own step\n"
+              "        fs.run = fs.fast = None\n"
+              "        P.stepper = P.step_state\n"
+              "    return P._decided(False) if P.decided else []\n")
+    exec(compile(source, "<fused monitors>", "exec"), scope)  # noqa: S102 - our own code
+    return scope["step"], scope["fast"]

@@ -13,7 +13,7 @@ Formulas with quantifiers come from a plan (`KnowledgeManager.plan`), already ex
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from decimal import Decimal
 from fractions import Fraction
@@ -122,7 +122,7 @@ class Progressor:
     def __init__(self, unit: Fraction | int = 1) -> None:
         self.unit = unit
         self.monitors: list[_Monitor] = []
-        self.fused = FusedSet(self._note_unknowns)
+        self.fused = FusedSet(self._note_unknowns, self)
         self.unstarted: list[_Monitor] = []
         self.decided: list[_Monitor] = []
         self.graphs: list[Graph] = []
@@ -131,6 +131,9 @@ class Progressor:
         self.last: Time | float = float("-inf")
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
+        # what a state calls: `step_state`, or once every formula is fused and started, the
+        # fused set's `fast` (the same, generated whole: one call a state)
+        self.stepper: Callable[..., list[Verdict]] = self.step_state
 
     def add(self, formula: str, tree: Formula | None = None) -> None:
         """Compile a formula once (its quantifier-free `tree`, or the text parsed); it is
@@ -141,6 +144,7 @@ class Progressor:
                 raise DkError(f"{q.span}: quantifier over {q.sort} needs a knowledge base "
                               f"(give --config)")
         parsed = scaled(tree, Fraction(1) / self.unit)
+        self.stepper = self.step_state  # the general step while this one is new
         monitor = _Monitor(formula, features(parsed))
         monitor.decided = self.decided
         parts = shapes(parsed)
@@ -169,7 +173,7 @@ class Progressor:
                           f"{self.last_input} (times must increase strictly)")
         if not self.keys <= values.keys():
             values = _typed(values, self.keys, time)
-        return self.step_state(t, values, time)  # type: ignore[arg-type]
+        return self.stepper(t, values, time)
 
     def step_state(self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
                    ) -> list[Verdict]:
@@ -186,7 +190,7 @@ class Progressor:
             if run is None:
                 fused.step(t, values)
             elif run(t, values):
-                fused.run = None
+                fused.run = fused.fast = None
         for graph in self.graphs:
             ctx = graph.ctx
             if ctx.pos < 0:
@@ -199,6 +203,8 @@ class Progressor:
                 if m.node is not None:
                     m.start(t)
             self.unstarted = []
+        elif fused.fast is not None and not self.graphs:  # from the next state on, one call
+            self.stepper = fused.fast
         if not self.decided:
             return []
         return self._decided(at_end=False)
@@ -209,6 +215,7 @@ class Progressor:
             for node in sorted(set(graph.cache.values()), key=lambda n: n.level):
                 node.finish()
         self.fused.finish()
+        self.stepper = self.step_state
         for m in self.monitors:
             if m.value is not PENDING:
                 continue

@@ -264,7 +264,11 @@ class StreamProcessor:
         function: with no constraint set, in valid-time order, a sample costs its history
         entry, its state time and its expiry)."""
         for group in self.groups[topic]:
-            for route in group.routes(values):
+            try:  # `_Group.routes`, its common case inline: a hashable id, found as it is
+                routes = group.index.get(group.key(values))
+            except TypeError:
+                routes = None
+            for route in group.routes(values) if routes is None else routes:
                 value = route.get(values)
                 cls = value.__class__
                 if route.text:  # compared with strings: a string or nothing

@@ -133,8 +133,9 @@ class RosbagSource:
         if not connections:
             return
         fielddefs = self.reader.typestore.fielddefs
-        readers = {id(c): (c, *_ros_reader(fielddefs, c.msgtype, wanted[c.topic],
-                                            not self.reader.is2, self.reader.deserialize))
+        readers = {id(c): (c, c.topic, *_ros_reader(fielddefs, c.msgtype, wanted[c.topic],
+                                                     not self.reader.is2,
+                                                     self.reader.deserialize))
                    for c in connections}
         n = 0
         unchecked = set(readers)
@@ -145,14 +146,13 @@ class RosbagSource:
                 if by is not last:  # the batches' keys, straight to their readers
                     keyed, last = {key: readers[c] for key, c in by.items()}, by
                 for key, t_ns, raw in batch:
-                    connection, read, stamped = keyed[key]
+                    connection, topic, read, stamped = keyed[key]
                     if unchecked and id(connection) in unchecked:  # once a topic: the reference
                         unchecked.discard(id(connection))
                         _decodes(self.reader.deserialize, raw, connection)
                     values = read(raw)
                     n += 1
-                    yield (connection.topic, t_ns,
-                           values[-2] * NS + values[-1] if stamped else t_ns, values)
+                    yield topic, t_ns, values[-2] * NS + values[-1] if stamped else t_ns, values
         except DkError:
             raise
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
