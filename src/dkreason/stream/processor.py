@@ -94,7 +94,8 @@ def _ns_given(value: Fraction) -> int:
 
 
 class _Route:
-    """One topic entry of one feature: a source stream, with its latest valid time."""
+    """One topic entry of one feature: a source stream, with its latest valid time (kept when
+    a constraint needs it)."""
 
     __slots__ = ("q", "get", "rank", "stream", "last", "text")
 
@@ -171,7 +172,7 @@ class StreamProcessor:
         self.queued: list[bool] = []
         self.max_valid = -1
         self._anchored = False  # span_from_first: the span was placed at the first sample
-        self.first: int | None = None  # the earliest valid time seen (ns): "t+" counts from it
+        self.earliest: float = _INF  # the earliest valid time seen (ns; `first`)
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
         self.guarded = self.start is not None or self.end is not None or \
@@ -192,6 +193,11 @@ class StreamProcessor:
             self.due.append(-1)
             self.queued.append(False)
         self._route(request, source)
+
+    @property
+    def first(self) -> int | None:
+        """The earliest valid time seen (ns), None before any: "t+" counts from it."""
+        return None if self.earliest == _INF else int(self.earliest)
 
     def reroute(self, request: StreamRequest, source: Source) -> None:
         """New topics for the same features (a live federation changed): what each feature
@@ -279,17 +285,12 @@ class StreamProcessor:
                         value = None
                 elif cls is not int and cls is not bool:
                     value = self._odd(route, valid, value)
-                last = route.last
-                if last is None or valid <= last:  # a newer sample than its topic's last is
-                    first = self.first             # not the earliest
-                    if first is None or valid < first:
-                        self.first = valid
-                if self.strict and not self._constrain(route, available, valid, last):
+                if valid < self.earliest:
+                    self.earliest = valid
+                if self.strict and not self._constrain(route, available, valid):
                     continue
-                if last is None or valid > last:
-                    route.last = valid
-                    if valid > self.max_valid:
-                        self.max_valid = valid
+                if valid > self.max_valid:
+                    self.max_valid = valid
                 made = self.made
                 late = False
                 if made is not None and valid <= made:
@@ -303,8 +304,10 @@ class StreamProcessor:
                 hist, rank = self.hist[q], route.rank
                 if hist and (valid < hist[-1][0] or valid == hist[-1][0] and rank < hist[-1][1]):
                     bisect.insort(hist, (valid, rank, value), key=_VALID_RANK)
+                    newest = hist[-1][0] == valid
                 else:
                     hist.append((valid, rank, value))
+                    newest = True
                 if self.period is not None:
                     if self.next_state is None:
                         self.next_state = valid
@@ -321,7 +324,7 @@ class StreamProcessor:
                         heapq.heappush(self.out_of_order, (valid, q))
                     if valid + self.delay < self.quiet_until:
                         self.quiet_until = valid + self.delay
-                if self.expiring and hist[-1][0] == valid:
+                if self.expiring and newest:
                     due = self.due
                     if due[q] >= valid and self.queued[q]:  # its expiry is queued already
                         due[q] = valid + self.stale_after
@@ -372,12 +375,15 @@ class StreamProcessor:
             heapq.heappush(self.expiries, (due[q], q, False))
             self.quiet_until = min(self.quiet_until, due[q] + self.delay)
 
-    def _constrain(self, route: _Route, available: int, valid: int, last: int | None) -> bool:
+    def _constrain(self, route: _Route, available: int, valid: int) -> bool:
         """The constraints on a sample (`strict`: a policy sets one); False drops it."""
         if self.guarded and not self._guards(route, available, valid):
             return False
+        last = route.last
         if last is not None and (valid <= last and self.checks or self.period is not None):
             self._check(route, available, valid, last)
+        if last is None or valid > last:
+            route.last = valid
         return True
 
     def _guards(self, route: _Route, available: int, valid: int) -> bool:
