@@ -140,9 +140,9 @@ def _lookup(literal: object) -> list[object]:
 
 
 class Datalog:
-    """One engine.  Rule files may declare `# materialized: name/arity, …`: those relations
-    depend only on the knowledge base (not on a formula), so `materialize()` computes them once
-    and keeps their rows as facts; pyDatalog would otherwise re-derive them on every query."""
+    """One engine.  Relations declared `view` depend only on the knowledge base (not on a
+    formula), so `materialize()` computes them once and keeps their rows as facts; pyDatalog
+    would otherwise re-derive them on every query."""
 
     def __init__(self) -> None:
         from pyDatalog import Logic, pyEngine
