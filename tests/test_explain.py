@@ -15,7 +15,7 @@ from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.explain import Failure, Proof, to_dot, to_json
 
-from .conftest import SCENARIOS
+from .conftest import REPO, SCENARIOS
 from .test_expand import km as sea
 from .test_federation import map_car3_to_a_truck
 
@@ -231,3 +231,17 @@ def test_unknown_feature_or_topic_is_a_one_line_error(capsys: pytest.CaptureFixt
                      "Altitude[uav2] > 1", *extra])
         out = capsys.readouterr()
         assert code == 2 and (out.out + out.err).count("\n") == 1
+
+
+def test_the_readmes_explain_example_is_what_the_command_prints(
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """The README shows `dkreason explain` citing rule lines: they follow the rule files."""
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    command = '$ dkreason explain --config examples/federation.toml "always (Altitude[uav2] > 10)"'
+    block = readme[readme.index(command):].split("```")[0].splitlines()[1:]
+    monkeypatch.chdir(REPO)
+    assert main(["explain", "--config", "examples/federation.toml",
+                 "always (Altitude[uav2] > 10)", "--feature", "Altitude[uav2]"]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    shown = [line for line in block if line.strip() and line.strip() != "..."]
+    assert len(shown) > 5 and all(line in printed for line in shown)
