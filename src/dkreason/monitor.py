@@ -56,7 +56,7 @@ class Monitor:
         # each feature makes due, in the order the groups began.
         self.readers: dict[FeatureKey, list[_Group]] = {}
         self.always: list[_Group] = []
-        # the due groups' step functions by the features a state freshly sampled (`_due`)
+        # the due groups' progressors by the features a state freshly sampled (`_due`)
         self.steps: dict[tuple[FeatureKey, ...] | None, list[Progressor]] = {}
         self.waiting = list(self.plan.formulas)
         if policy.start_time is not None:

@@ -358,7 +358,8 @@ def _never(t: Time, values: Any) -> bool:
 def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool], Callable[..., list[Any]]]:
     """`step(t, v) -> decided?` for the current members, compiled once; and `fast`, the same
     as the owning progressor's whole `step_state` (its state kept, its verdicts returned),
-    which it runs in place of its own while every formula it has is fused: one call a state."""
+    which it calls instead (`Progressor.stepper`) while every formula it has is fused and
+    started: one call a state."""
     formulas: dict[Formula, str] = {}
     thresholds: dict[tuple[FeatureKey, str], list[tuple[int | float, Member]]] = {}
     for m in fs.members:
