@@ -52,8 +52,11 @@ def platform_of(key_expr: str) -> str:
     return key_expr.split("/")[1]
 
 
+_ENCODER = json.JSONEncoder(ensure_ascii=False, separators=(",", ":"))  # made once, not per put
+
+
 def encode(value: Any) -> bytes:
-    return json.dumps(value, ensure_ascii=False, separators=(",", ":")).encode()
+    return _ENCODER.encode(value).encode()
 
 
 def decode(payload: bytes, limit: int, what: str) -> Any:
