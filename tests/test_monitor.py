@@ -410,16 +410,18 @@ FEEDS = {"topic1": 1, "topic2": 1, "topic3": 1, "topic4": 2, "topic5": 3}  # top
 @given(st.lists(st.tuples(st.sampled_from(sorted(FEEDS)), st.integers(0, 30), st.integers(0, 8),
                           st.sampled_from([10.0, 55.0, 70.0, float("nan")])), max_size=50),
        st.sampled_from([None, Fraction(1, 2), Fraction(3)]),
-       st.sampled_from([Fraction(0), Fraction(1, 5)]), st.booleans())
+       st.sampled_from([Fraction(0), Fraction(1, 5)]), st.booleans(),
+       st.sampled_from([(None, None), (Fraction(1, 2), None), (None, Fraction(2))]))
 def test_states_made_from_what_changed_equal_states_read_in_full(
         single: KnowledgeManager, samples: list[tuple[str, int, int, float]],
-        max_age: Fraction | None, delay: Fraction, ordered: bool) -> None:
+        max_age: Fraction | None, delay: Fraction, ordered: bool,
+        span: tuple[Fraction | None, Fraction | None]) -> None:
     """A state on every change reads only the features sampled at it, reached by a late
     sample or expired at it; whatever the arrival order (late samples, equal times, a
-    feature fed by two topics, values gone stale), its states are those of reading every
-    feature's history at every state."""
+    feature fed by two topics, values gone stale, samples outside the span dropped), its
+    states are those of reading every feature's history at every state."""
     policy = StreamPolicy(max_age=max_age, delay_before_approximation=delay,
-                          ordered_on_valid_time=ordered)
+                          ordered_on_valid_time=ordered, start_time=span[0], end_time=span[1])
     arrivals = sorted(((valid + lag) * S // 10, valid * S // 10, topic, speed)
                       for topic, valid, lag, speed in samples)
 
