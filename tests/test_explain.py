@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import ast
 import json
+import os
 import re
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -245,3 +248,17 @@ def test_the_readmes_explain_example_is_what_the_command_prints(
     printed = capsys.readouterr().out.splitlines()
     shown = [line for line in block if line.strip() and line.strip() != "..."]
     assert len(shown) > 5 and all(line in printed for line in shown)
+
+
+def test_an_explanation_is_the_same_in_every_process() -> None:
+    """String hashes differ per process, and with them the order of the engine's answers;
+    the proofs and failures an explanation picks must not."""
+    assert SCENARIOS is not None
+    outs = {subprocess.run(
+        [sys.executable, "-m", "dkreason.cli", "explain", "--config",
+         str(SCENARIOS / "federation.toml"), FORMULAS["F3"], "--feature", "Close[uav1, uav1]",
+         "--topic", "uastopic7"],
+        capture_output=True, text=True, check=True,
+        env=os.environ | {"PYTHONHASHSEED": seed, "DKREASON_CACHE": "off"}).stdout
+        for seed in ("1", "2", "3")}
+    assert len(outs) == 1 and "argument 2 is uas21" in next(iter(outs))

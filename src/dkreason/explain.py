@@ -269,10 +269,13 @@ class Replayer:
 
     # engine access, cached for one explanation
     def rows(self, pattern: Pattern) -> list[Row]:
+        """The rows matching `pattern`, in a fixed order (the engine's follows string hashes,
+        which vary per process): the same proof and the same failure every run."""
         if pattern not in self._answers:
             pred, *args = pattern
-            self._answers[pattern] = [
-                (str(pred), *row) for row in self.kb.engine.query(str(pred), *args)]
+            self._answers[pattern] = sorted(
+                ((str(pred), *row) for row in self.kb.engine.query(str(pred), *args)),
+                key=lambda row: [(type(v).__name__, v) for v in row])
         return self._answers[pattern]
 
     def holds(self, fact: Row) -> bool:
