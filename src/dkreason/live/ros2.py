@@ -11,7 +11,7 @@ otherwise the publisher's source time from the attachment (wall clock), or the s
 arrival (`sim_time`).  Its available time is its arrival: the wall clock, or with `sim_time` the
 latest `/clock`.  States are made as that clock passes (on the wall clock held back by each
 topic's lag, `held`; less the policy's delay), so a silent publisher's value turns unknown once
-it is older than the maximum age.  The queue from zenoh's threads is bounded (`QUEUED`): a
+it is older than the maximum age.  The inbox from zenoh's threads is bounded (`QUEUED`): a
 monitor that falls behind holds the link back, and past `PUT_WAIT` drops and says so.
 
 Change.  A publisher that appears later is subscribed when it appears; one whose token goes
