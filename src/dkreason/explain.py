@@ -129,6 +129,7 @@ class Reader:
         self.bridges = {(m.source, r.source, m.target, r.target, r.type): r.span
                         for m in kb.mappings for r in m.rules}
         self.derived = {r.head.predicate for r in kb.engine.rules}
+        self.told: dict[str, set[tuple[str, str]]] = {}  # platform → its objects' told types
 
     def name(self, value: Value | None) -> str:
         if value is None:
@@ -200,8 +201,9 @@ class Reader:
     def typed_member(self, platform: str, rep: str, sort: str) -> str:
         """The member of sameAs class `rep` told (or, untyped, taken) to be a `sort`."""
         members = [str(o) for _, o, _ in self.kb.engine.query("same_rep", platform, None, rep)]
-        told = set(told_types(self.kb.platforms[platform].ontology))
-        return next((o for o in sorted(members) if (o, sort) in told), rep)
+        if platform not in self.told:  # once an explanation, not once a fact shown
+            self.told[platform] = set(told_types(self.kb.platforms[platform].ontology))
+        return next((o for o in sorted(members) if (o, sort) in self.told[platform]), rep)
 
     def source(self, fact: Row) -> str:
         """Where a told fact comes from: file:line, or the ontology axiom and its file."""
