@@ -185,12 +185,8 @@ class Progressor:
             for m in self.unstarted:
                 m.started, m.first = True, t
         fused = self.fused
-        if fused.members:  # FusedSet.step, inline: the generated step is most of a state
-            run = fused.run
-            if run is None:
-                fused.step(t, values)
-            elif run(t, values):
-                fused.run = fused.fast = None
+        if fused.members:
+            fused.step(t, values)
         for graph in self.graphs:
             ctx = graph.ctx
             if ctx.pos < 0:
