@@ -433,8 +433,9 @@ def test_states_made_from_what_changed_equal_states_read_in_full(
         processor.on_state = lambda s, values, fresh: out.append(
             (s, dict(values), None if fresh is None else sorted(set(fresh))))
         processor.on_violation = lambda v: out.append(v)
-        for available, valid, topic, speed in arrivals:
-            processor.feed(topic, available, valid, (speed, FEEDS[topic]))
+        for _ in processor.replay((topic, available, valid, (speed, FEEDS[topic]))
+                                  for available, valid, topic, speed in arrivals):
+            pass
         processor.finish()
         return out
 

@@ -168,10 +168,7 @@ class Monitor:
             raise
         pending = self.pending
         try:
-            feed = processor.feed
-            for n, (topic, available, valid, values) in enumerate(
-                    source.messages(processor.wanted), 1):
-                feed(topic, available, valid, values)
+            for n in processor.replay(source.messages(processor.wanted), pending):
                 if pending:
                     yield from self.events()
                 if progress is not None and not n & 4095:

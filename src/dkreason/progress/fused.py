@@ -47,6 +47,8 @@ from .state import _boolean_keys, _py, evaluate, features, is_state, key, reads,
 
 TRUE = BoolConst(True)
 INF = float("inf")
+Stepper = Callable[..., Any]  # the owner's step for one state: its verdicts (t, values, given)
+Held = Callable[[], tuple[int, Any, Any]]  # the owner's (pos, last, last_input) that it holds
 
 
 @dataclass(frozen=True, slots=True)
@@ -320,7 +322,7 @@ class FusedSet:
         # the generated step for the current members (None: generate it at the next state),
         # and the same as the owner's whole step_state (when every formula it has is fused)
         self.run: Callable[[Time, Any], bool] | None = None
-        self.fast: Callable[..., list[Any]] | None = None
+        self.make: Callable[[int, Any, Any], tuple[Stepper, Held]] | None = None
 
     def add(self, s: Shape, on_false: Callable[[Why], None],
             unit: Fraction | int = 1) -> Member:
@@ -329,7 +331,7 @@ class FusedSet:
         if s.kind == "response":
             assert s.b is not None
             self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo)).add(m)
-        self.run = self.fast = None
+        self.run = self.make = None
         return m
 
     def step(self, t: Time, values: Any) -> bool:
@@ -337,9 +339,9 @@ class FusedSet:
         if self.run is None:
             self.members = [m for m in self.members if not m.done]
             self.groups = {k: g for k, g in self.groups.items() if g.members}
-            self.run, self.fast = _generate(self) if self.members else (_never, None)
+            self.run, self.make = _generate(self) if self.members else (_never, None)
         if self.run(t, values):
-            self.run = self.fast = None
+            self.run = self.make = None
             return True
         return False
 
@@ -355,11 +357,19 @@ def _never(t: Time, values: Any) -> bool:
     return False
 
 
-def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool], Callable[..., list[Any]]]:
-    """`step(t, v) -> decided?` for the current members, compiled once; and `fast`, the same
-    as the owning progressor's whole `step_state` (its state kept, its verdicts returned),
-    which it calls instead (`Progressor.stepper`) while every formula it has is fused and
-    started: one call a state."""
+_SYNC = "\0sync"  # in `fast`: where the owner's position is brought up to date (before calls
+# out to what reads it)
+
+
+def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
+                                      Callable[[int, Any, Any], tuple[Stepper, Held]]]:
+    """`step(t, v) -> decided?` for the current members, compiled once; and `make`, which
+    gives `fast`: the same as the owning progressor's whole `step_state` (its state kept, its
+    verdicts returned), which it calls instead (`Progressor.stepper`) while every formula it
+    has is fused and started: one call a state.  `fast` holds the owner's position, last time
+    and last input in its own closure (no attribute stores a state) and writes them back
+    before anything reads them: a call out that notes an unknown, a decision; `held` reads
+    them for the owner otherwise."""
     formulas: dict[Formula, str] = {}
     thresholds: dict[tuple[FeatureKey, str], list[tuple[int | float, Member]]] = {}
     for m in fs.members:
@@ -391,6 +401,7 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool], Callable[..., 
     for known, alike in by_known.items():
         lines += [f"    if {known}:", *(f"        {var} = {_py(f, names)}" for f, var in alike),
                   "    else:"]
+        lines.append(_SYNC)  # the unknown's span is noted at the owner's position
         for f, var in alike:
             lines += [f"        {var} = slow({const(f)}, v, t)",
                       f"        fs.note_unknown(v, {const(features(f))})"]
@@ -403,7 +414,7 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool], Callable[..., 
         group, x = Thresholds(op, members, functools.partial(fs.on_unknown, [k])), names[k]
         # the first threshold is fixed until one breaks (which regenerates this code): a
         # state that breaks none costs one comparison, not a call
-        lines += [f"    if {x} is None or {const(group.cs[0])} {_BREAKS[op]} {x}:",
+        lines += [f"    if {x} is None or {const(group.cs[0])} {_BREAKS[op]} {x}:", _SYNC,
                   f"        if {const(group.step)}(t, {x}, v):",
                   "            decided = True"]
     for m in fs.members:
@@ -421,14 +432,24 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool], Callable[..., 
         lines += [f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
                   "        decided = True"]
     scope["P"] = fs.owner
-    body = "\n".join(lines)
+    body = "\n".join(line for line in lines if line != _SYNC)
+    fast = "\n".join("            P.pos, P.last, P.last_input = pos, last, last_input"
+                     if line == _SYNC else "    " + line for line in lines)
     source = (f"def step(t, v):\n{body}\n    return decided\n"
-              "def fast(t, v, given=None):\n"
-              "    P.pos += 1\n    P.last = t\n    P.last_input = t if given is None else given\n"
-              f"{body}\n"
-              "    if decided:  # regenerated at the next state, by the progressor's own step\n"
-              "        fs.run = fs.fast = None\n"
-              "        P.stepper = P.step_state\n"
-              "    return P._decided(False) if P.decided else []\n")
+              "def make(pos, last, last_input):\n"
+              "    def fast(t, v, given=None):\n"
+              "        nonlocal pos, last, last_input\n"
+              "        pos += 1\n        last = t\n"
+              "        last_input = t if given is None else given\n"
+              f"{fast}\n"
+              "        if decided:  # regenerated at the next state, by the owner's own step\n"
+              "            P.pos, P.last, P.last_input = pos, last, last_input\n"
+              "            fs.run = fs.make = None\n"
+              "            P.stepper, P.held = P.step_state, None\n"
+              "            return P._decided(False) if P.decided else []\n"
+              "        return ()\n"
+              "    def held():\n"
+              "        return pos, last, last_input\n"
+              "    return fast, held\n")
     exec(compile(source, "<fused monitors>", "exec"), scope)  # noqa: S102 - our own code
-    return scope["step"], scope["fast"]
+    return scope["step"], scope["make"]

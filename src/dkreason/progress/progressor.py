@@ -13,7 +13,7 @@ Formulas with quantifiers come from a plan (`KnowledgeManager.plan`), already ex
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal
 from fractions import Fraction
@@ -24,7 +24,7 @@ from ..model import FeatureKey
 from ..numbers import exact
 from ..parse.formula import Formula, feature_key, parse_formula, quantifiers
 from .compile import Graph, scaled
-from .fused import FusedSet, Member, shapes
+from .fused import FusedSet, Held, Member, shapes
 from .nodes import PENDING, Time, Why, fmt, why_of
 from .state import features
 
@@ -132,8 +132,10 @@ class Progressor:
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
         # what a state calls: `step_state`, or once every formula is fused and started, the
-        # fused set's `fast` (the same, generated whole: one call a state)
-        self.stepper: Callable[..., list[Verdict]] = self.step_state
+        # fused set's `fast` (the same, generated whole: one call a state), which holds
+        # pos, last and last_input meanwhile (`held` reads them)
+        self.stepper: Callable[..., Sequence[Verdict]] = self.step_state
+        self.held: Held | None = None
 
     def add(self, formula: str, tree: Formula | None = None) -> None:
         """Compile a formula once (its quantifier-free `tree`, or the text parsed); it is
@@ -144,7 +146,7 @@ class Progressor:
                 raise DkError(f"{q.span}: quantifier over {q.sort} needs a knowledge base "
                               f"(give --config)")
         parsed = scaled(tree, Fraction(1) / self.unit)
-        self.stepper = self.step_state  # the general step while this one is new
+        self._general()  # the general step while this one is new
         monitor = _Monitor(formula, features(parsed))
         monitor.decided = self.decided
         parts = shapes(parsed)
@@ -168,12 +170,14 @@ class Progressor:
         (as the stream processor makes them); keys written as text (`"Close[uav1, uav2]"`) are
         read at this boundary, once per spelling."""
         t = time if type(time) is int else exact_time(time)
+        if self.held is not None:
+            self.pos, self.last, self.last_input = self.held()
         if not t > self.last:
             raise DkError(f"time {time} is not after the previous state's time "
                           f"{self.last_input} (times must increase strictly)")
         if not self.keys <= values.keys():
             values = _typed(values, self.keys, time)
-        return self.stepper(t, values, time)
+        return [*self.stepper(t, values, time)]
 
     def step_state(self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
                    ) -> list[Verdict]:
@@ -199,8 +203,8 @@ class Progressor:
                 if m.node is not None:
                     m.start(t)
             self.unstarted = []
-        elif fused.fast is not None and not self.graphs:  # from the next state on, one call
-            self.stepper = fused.fast
+        elif fused.make is not None and not self.graphs:  # from the next state on, one call
+            self.stepper, self.held = fused.make(self.pos, self.last, self.last_input)
         if not self.decided:
             return []
         return self._decided(at_end=False)
@@ -211,7 +215,7 @@ class Progressor:
             for node in sorted(set(graph.cache.values()), key=lambda n: n.level):
                 node.finish()
         self.fused.finish()
-        self.stepper = self.step_state
+        self._general()
         for m in self.monitors:
             if m.value is not PENDING:
                 continue
@@ -222,6 +226,12 @@ class Progressor:
                 m.deliver(None, None if unknown else True, None)
         self.fused.members = []
         return self._decided(at_end=True)
+
+    def _general(self) -> None:
+        """Back to `step_state`, with what the fast step held."""
+        if self.held is not None:
+            self.pos, self.last, self.last_input = self.held()
+        self.stepper, self.held = self.step_state, None
 
     def _decided(self, at_end: bool) -> list[Verdict]:
         out = []

@@ -28,7 +28,7 @@ import bisect
 import heapq
 import numbers
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sized
 from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
@@ -38,7 +38,7 @@ from typing import Any, Literal
 from ..errors import DkError
 from ..model import FeatureKey, StreamRequest
 from ..numbers import datum
-from .sources import NS, Source
+from .sources import NS, Message, Source
 
 _INF = float("inf")
 _NO_EXPIRY: tuple[list[FeatureKey], list[int]] = ([], [])  # read, never changed
@@ -182,7 +182,7 @@ class StreamProcessor:
         # on every change with the recent approximation, a state reads only what changed
         self.incremental = self.period is None and self.recent
         self.redo: set[int] = set()  # features a late sample reached since the last state
-        self.made: int | None = None  # time of the last state made
+        self.made: float = -_INF  # time of the last state made (ns)
         self.next_state: int | None = self.start  # next periodic state time
         self.last_seen: int | None = None
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
@@ -256,80 +256,106 @@ class StreamProcessor:
 
     # ---- replay -------------------------------------------------------------------------
 
-    def feed(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
-        """One message's wanted values (see `wanted`), in recording order."""
-        self.put(topic, available, valid, values)
-        if available <= self.quiet_until:  # `advance`, inline: most messages make no state
-            self.last_seen = available
-        else:
-            self._emit(available, final=False)
+    def replay(self, messages: Iterable[Message], watch: Sized = ()) -> Iterator[int]:
+        """Messages in recording order (each with the values `wanted` names): their samples,
+        and the states they make due.  Yields the count of messages so far after one that
+        left `watch` (the caller's pending events) not empty, and after every 4096th."""
+        return self._take(messages, watch)
 
     def put(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
-        """A message, without making states: a live source says when time has passed.  Each
-        value it gives a feature is a sample (the replay's hot path, written out in one
-        function: with no constraint set, in valid-time order, a sample costs its history
-        entry, its state time and its expiry)."""
-        for group in self.groups[topic]:
-            try:  # `_Group.routes`, its common case inline: a hashable id, found as it is
-                routes = group.index.get(group.key(values))
-            except TypeError:
-                routes = None
-            for route in group.routes(values) if routes is None else routes:
-                value = route.get(values)
-                cls = value.__class__
-                if route.text:  # compared with strings: a string or nothing
-                    if cls is not str and value is not None:
-                        self._odd(route, valid, value, "a string")
-                elif cls is float:
-                    if value - value:  # NaN or an infinity: unknown, never compared
-                        value = None
-                elif cls is not int and cls is not bool:
-                    value = self._odd(route, valid, value)
-                if valid < self.earliest:
-                    self.earliest = valid
-                if self.strict and not self._constrain(route, available, valid):
+        """A message, without making states: a live source says when time has passed."""
+        for _ in self._take(((topic, available, valid, values),), None):
+            pass
+
+    def _take(self, messages: Iterable[Message], watch: Sized | None) -> Iterator[int]:
+        """The replay's hot path, written out in one loop with the processor's state in
+        locals between states (`watch` None: make no state).  Each value a message gives a
+        feature is a sample; with no constraint set, in valid-time order, a sample costs its
+        history entry, its state time and its expiry."""
+        groups, hists, times, at, due, queued = (self.groups, self.hist, self.times, self.at,
+                                                 self.due, self.queued)
+        stale_after, delay, expiring, strict = (self.stale_after, self.delay, self.expiring,
+                                                self.strict)
+        periodic = self.period is not None
+        earliest, max_valid, quiet = self.earliest, self.max_valid, self.quiet_until
+        made = self.made
+        n, seen = 0, None
+        try:
+            for topic, available, valid, values in messages:
+                for group in groups[topic]:
+                    try:  # `_Group.routes`, its common case inline: a hashable id, found
+                        routes = group.index.get(group.key(values))
+                    except TypeError:
+                        routes = None
+                    for route in group.routes(values) if routes is None else routes:
+                        value = route.get(values)
+                        cls = value.__class__
+                        if route.text:  # compared with strings: a string or nothing
+                            if cls is not str and value is not None:
+                                self._odd(route, valid, value, "a string")
+                        elif cls is float:
+                            if value - value:  # NaN or an infinity: unknown, never compared
+                                value = None
+                        elif cls is not int and cls is not bool:
+                            value = self._odd(route, valid, value)
+                        if valid < earliest:
+                            earliest = self.earliest = valid
+                        if strict:
+                            kept = self._constrain(route, available, valid)
+                            quiet = self.quiet_until  # a span placed at the first sample
+                            if not kept:
+                                continue
+                        if valid > max_valid:
+                            max_valid = self.max_valid = valid
+                        q = route.q
+                        late = valid <= made
+                        if late:
+                            self.redo.add(q)  # the next state may read it: look again then
+                            self._violation("late", available, route,
+                                            f"sample valid at {seconds(valid)} s arrived at "
+                                            f"{seconds(available)} s, after the state at "
+                                            f"{seconds(int(made))} s")
+                        hist, rank = hists[q], route.rank
+                        if hist and (valid < hist[-1][0] or
+                                     valid == hist[-1][0] and rank < hist[-1][1]):
+                            bisect.insort(hist, (valid, rank, value), key=_VALID_RANK)
+                            newest = hist[-1][0] == valid
+                        else:
+                            hist.append((valid, rank, value))
+                            newest = True
+                        if periodic:
+                            if self.next_state is None:
+                                self.next_state = valid
+                                quiet = self.quiet_until = valid + delay
+                            continue
+                        if not late:  # a state is due at its valid time, with q sampled at it
+                            if not times or valid > times[-1]:
+                                times.append(valid)
+                                at.append([q])
+                            elif valid == times[-1]:
+                                at[-1].append(q)
+                            else:
+                                heapq.heappush(self.out_of_order, (valid, q))
+                            if valid + delay < quiet:
+                                quiet = self.quiet_until = valid + delay
+                        if expiring and newest:
+                            if due[q] >= valid and queued[q]:  # its expiry is queued already
+                                due[q] = valid + stale_after
+                            else:
+                                self._expires(q, valid)
+                                quiet = self.quiet_until
+                if watch is None:
                     continue
-                if valid > self.max_valid:
-                    self.max_valid = valid
-                made = self.made
-                late = False
-                if made is not None and valid <= made:
-                    late = True
-                    self.redo.add(route.q)  # the next state may read it: look again then
-                    self._violation("late", available, route,
-                                    f"sample valid at {seconds(valid)} s arrived at "
-                                    f"{seconds(available)} s, after the state at "
-                                    f"{seconds(made)} s")
-                q = route.q
-                hist, rank = self.hist[q], route.rank
-                if hist and (valid < hist[-1][0] or valid == hist[-1][0] and rank < hist[-1][1]):
-                    bisect.insort(hist, (valid, rank, value), key=_VALID_RANK)
-                    newest = hist[-1][0] == valid
-                else:
-                    hist.append((valid, rank, value))
-                    newest = True
-                if self.period is not None:
-                    if self.next_state is None:
-                        self.next_state = valid
-                        self.quiet_until = valid + self.delay
-                    continue
-                if not late:  # a state is due at its valid time, with q sampled at it
-                    times = self.times
-                    if not times or valid > times[-1]:
-                        times.append(valid)
-                        self.at.append([q])
-                    elif valid == times[-1]:
-                        self.at[-1].append(q)
-                    else:
-                        heapq.heappush(self.out_of_order, (valid, q))
-                    if valid + self.delay < self.quiet_until:
-                        self.quiet_until = valid + self.delay
-                if self.expiring and newest:
-                    due = self.due
-                    if due[q] >= valid and self.queued[q]:  # its expiry is queued already
-                        due[q] = valid + self.stale_after
-                    else:
-                        self._expires(q, valid)
+                n += 1
+                seen = available
+                if available > quiet:
+                    self._emit(available, final=False)
+                    quiet, made = self.quiet_until, self.made
+                if watch or not n & 4095:
+                    yield n
+        finally:
+            if seen is not None:
+                self.last_seen = seen
 
     def _odd(self, route: _Route, valid: int, value: Any,
              wanted: str = "a number or boolean") -> Any:
@@ -421,9 +447,10 @@ class StreamProcessor:
     def _emit(self, now: int, final: bool) -> None:
         self.last_seen = now
         try:
-            self._make_due(now, final)
-        finally:
+            self.quiet_until = self._make_due(now, final)
+        except BaseException:
             self.quiet_until = self._next_due()
+            raise
 
     def _next_due(self) -> float:
         """The recording time after which the next state is due (inf: none is pending)."""
@@ -437,18 +464,23 @@ class StreamProcessor:
             head = expiries[0][0]
         return head + self.delay
 
-    def _make_due(self, now: int, final: bool) -> None:
+    def _make_due(self, now: int, final: bool) -> float:
+        """Make the states due by `now`; returns `_next_due()`."""
         if self.period is not None:
             while self.next_state is not None and (final or self.next_state + self.delay < now):
                 if final and self.next_state > self.max_valid:
                     break
                 if self.end is not None and self.next_state > self.end:
                     break
-                self._state(self.next_state)
+                values, _ = self._every_value(self.next_state, None)
+                self.made = self.next_state
+                self.on_state(self.next_state, values, None)
                 self.next_state += self.period
-            return
+            return self._next_due()
         limit = None if final else now - self.delay  # make states strictly before this
         times, late, expiries = self.times, self.out_of_order, self.expiries
+        current, hists, keys, max_age, redo = (self.current, self.hist, self.keys, self.max_age,
+                                               self.redo)
         while True:
             s = times[0] if times else None
             if late and (s is None or late[0][0] < s):
@@ -456,7 +488,7 @@ class StreamProcessor:
             if expiries and (s is None or expiries[0][0] < s):
                 s = expiries[0][0]
             if s is None or (limit is not None and s >= limit):
-                return
+                return _INF if s is None else s + self.delay
             # everything due at s goes into one state, with the features sampled at s
             sampled: list[int] = _NO_QS
             if times and times[0] == s:
@@ -466,8 +498,32 @@ class StreamProcessor:
                 sampled = [*sampled, heapq.heappop(late)[1]]
             stale, expired = self._expired(s, final) if expiries and expiries[0][0] == s \
                 else _NO_EXPIRY
-            if (sampled or stale) and (self.made is None or s > self.made):
-                self._state(s, stale, sampled, expired)
+            if not (sampled or stale) or s <= self.made:
+                continue
+            if not self.incremental:
+                values, fresh = self._every_value(s, stale)
+            else:
+                # A state made on every change differs from the one before only in the
+                # features sampled at s, those a late sample reached and those whose expiry
+                # fell at s (every other value is that of the same newest sample, no older):
+                # only they are read, so a state costs what changed, not every feature.
+                fresh = [*stale, *map(keys.__getitem__, sampled)]  # a feature fed by two
+                for q in (*sampled, *expired, *redo) if expired or redo else sampled:  # topics
+                    hist = hists[q]  # at s appears twice
+                    i = len(hist) - 1 if hist[-1][0] <= s else \
+                        bisect.bisect_right(hist, (s, 1)) - 1
+                    value = None
+                    if i >= 0:
+                        valid, _, v = hist[i]
+                        if max_age is None or s - valid <= max_age:
+                            value = v
+                        if i > 32:  # older samples are never read again
+                            del hist[:i]
+                    current[keys[q]] = value
+                redo.clear()
+                values = dict(current)
+            self.made = s
+            self.on_state(s, values, fresh)
 
     def _expired(self, s: int, final: bool) -> tuple[list[FeatureKey], list[int]]:
         """The features whose newest sample grows stale at s, and every feature whose expiry
@@ -496,40 +552,6 @@ class StreamProcessor:
         hist = self.hist[q]
         i = bisect.bisect_right(hist, (s, 1)) - 1
         return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
-
-    def _state(self, s: int, stale: list[FeatureKey] | None = None,
-               sampled: Sequence[int] = (), expired: Sequence[int] = ()) -> None:
-        """The state at s; with it, the features sampled at exactly s or gone stale at it
-        (None with a sample period: every feature is on the period's grid), so each formula
-        can be judged at its own features' instants."""
-        values, fresh = self._changed(s, stale or [], sampled, expired) if self.incremental \
-            else self._every_value(s, stale)
-        self.made = s
-        self.on_state(s, values, fresh)
-
-    def _changed(self, s: int, stale: list[FeatureKey], sampled: Sequence[int],
-                 expired: Sequence[int]) -> tuple[dict[FeatureKey, Any], list[FeatureKey]]:
-        """A state made on every change differs from the one before only in the features
-        sampled at s, those a late sample reached and those whose expiry fell at s (every
-        other value is that of the same newest sample, no older): only they are read, so a
-        state costs what changed, not every feature."""
-        current, hists, keys, max_age, redo = (self.current, self.hist, self.keys, self.max_age,
-                                               self.redo)
-        fresh = stale  # a list of its own (a feature fed by two topics at s appears twice)
-        fresh.extend(map(keys.__getitem__, sampled))
-        for q in (*sampled, *expired, *redo) if expired or redo else sampled:
-            hist = hists[q]
-            i = len(hist) - 1 if hist[-1][0] <= s else bisect.bisect_right(hist, (s, 1)) - 1
-            value = None
-            if i >= 0:
-                valid, _, v = hist[i]
-                if max_age is None or s - valid <= max_age:
-                    value = v
-                if i > 32:  # older samples are never read again
-                    del hist[:i]
-            current[keys[q]] = value
-        redo.clear()
-        return dict(current), fresh
 
     def _every_value(self, s: int, stale: list[FeatureKey] | None
                      ) -> tuple[dict[FeatureKey, Any], list[FeatureKey] | None]:
