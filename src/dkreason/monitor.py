@@ -96,28 +96,27 @@ class Monitor:
         self.steps.clear()
 
     def _on_state(self, time: int, values: dict[FeatureKey, Any],
-                  fresh: list[FeatureKey] | None = None) -> None:
+                  fresh: tuple[FeatureKey, ...] | None = None) -> None:
         if self.keep_states:
             self.states.append((time, dict(values)))
         if self.waiting:
             self._begin([f for f in self.waiting if all(values[k] is not None for k in f.keys)])
-        signature = None if fresh is None else tuple(fresh)
-        steps = self.steps.get(signature)
+        steps = self.steps.get(fresh)
         if steps is None:
             if len(self.steps) >= 1024:  # many features sampled in many combinations
                 self.steps.clear()
-            steps = self.steps[signature] = [g.progressor for g in self._due(fresh)]
-        decided: list[Verdict] = []
+            steps = self.steps[fresh] = [g.progressor for g in self._due(fresh)]
+        decided: Sequence[Verdict] = ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
             if out:
-                decided += out
+                decided = [*decided, *out]
         if decided:
-            decided.sort(key=lambda v: self.order[v.formula])
             self.decided += len(decided)
-            self.pending.extend(in_seconds(v) for v in decided)
+            self.pending.extend(in_seconds(v) for v in
+                                sorted(decided, key=lambda v: self.order[v.formula]))
 
-    def _due(self, fresh: list[FeatureKey] | None) -> Iterable[_Group]:
+    def _due(self, fresh: tuple[FeatureKey, ...] | None) -> Iterable[_Group]:
         """The groups whose own state this is, in the order they began."""
         if fresh is None:
             return self.groups.values()

@@ -426,9 +426,12 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
                       "            decided = True",
                       "        else:",
                       f"            {me}.unknown = True"]
-    for (a, b, _), responses in fs.groups.items():
-        # with no position waiting, a trigger known false changes nothing: no call
-        guard = "" if a == TRUE else f"({value(a)} is not False or {const(responses.pending)}) and "
+    for (a, b, lo), responses in fs.groups.items():
+        # with no position waiting, a state changes nothing when the trigger is known false
+        # or, for a window from now on, the target holds: no call
+        idle = [*([f"{value(a)} is False"] if a != TRUE else []),
+                *([f"{value(b)} is True"] if lo == 0 else [])]
+        guard = f"(not ({' or '.join(idle)}) or {const(responses.pending)}) and " if idle else ""
         lines += [f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
                   "        decided = True"]
     scope["P"] = fs.owner

@@ -191,6 +191,8 @@ class Progressor:
         fused = self.fused
         if fused.members:
             fused.step(t, values)
+        if self.graphs:  # their nodes may explain themselves later: a copy of their own
+            values = dict(values)
         for graph in self.graphs:
             ctx = graph.ctx
             if ctx.pos < 0:

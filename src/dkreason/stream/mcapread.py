@@ -28,7 +28,8 @@ BATCH = 4096
 
 _CHUNK_HEAD = struct.Struct("<QQQI")  # start, end, uncompressed size, CRC (after op, length)
 _RECORD = struct.Struct("<BQ")  # opcode, content length
-_MESSAGE = struct.Struct("<HIQ")  # channel id, sequence, log time (then publish time, data)
+_HEAD = struct.Struct("<BQHIQ")  # a message record's opcode, length, channel id, sequence, log
+# time (then publish time, data)
 
 
 class McapDamage(Exception):
@@ -117,14 +118,17 @@ class IndexedMcap:
 def _messages(data: bytes, wanted: frozenset[int]) -> list[Message]:
     """The wanted message records of one chunk's records, by time (stable)."""
     out: list[Message] = []
-    record, message = _RECORD.unpack_from, _MESSAGE.unpack_from
+    record, head = _RECORD.unpack_from, _HEAD.unpack_from
     pos, end, ordered, last = 0, len(data), True, -1
+    whole = end - _HEAD.size  # a record starting at or before this has room for a head
     while pos < end:
-        op, length = record(data, pos)
+        if pos <= whole:  # a message's opcode, length, channel and log time in one call
+            op, length, channel, _, t = head(data, pos)
+        else:
+            (op, length), channel = record(data, pos), None
         if op == 0x05:
             if length < 22:
                 raise McapDamage("a message record shorter than its own header")
-            channel, _, t = message(data, pos + 9)
             if channel in wanted:
                 if t < last:
                     ordered = False

@@ -134,12 +134,15 @@ class _Group:
 
 class StreamProcessor:
     def __init__(self, request: StreamRequest, policy: StreamPolicy, source: Source,
-                 on_state: Callable[[int, dict[FeatureKey, Any], list[FeatureKey] | None],
-                                    None],
+                 on_state: Callable[[int, dict[FeatureKey, Any],
+                                     tuple[FeatureKey, ...] | None], None],
                  on_violation: Callable[[Violation], None],
                  texts: frozenset[FeatureKey] = frozenset()) -> None:
-        """`texts`: the features the formulas compare with strings (their values are kept as
-        strings; any other feature's value must be a number or boolean)."""
+        """`on_state(time, values, fresh)` gets each state: `values` is read during the call
+        only (on every change it is the processor's own dict, changed in place for the next
+        state: a state costs what changed).  `texts`: the features the formulas compare with
+        strings (their values are kept as strings; any other feature's value must be a number
+        or boolean)."""
         self.texts = texts
         self.policy = policy
         self.on_state, self.on_violation = on_state, on_violation
@@ -507,7 +510,7 @@ class StreamProcessor:
                 # features sampled at s, those a late sample reached and those whose expiry
                 # fell at s (every other value is that of the same newest sample, no older):
                 # only they are read, so a state costs what changed, not every feature.
-                fresh = [*stale, *map(keys.__getitem__, sampled)]  # a feature fed by two
+                fresh = (*stale, *map(keys.__getitem__, sampled))  # a feature fed by two
                 for q in (*sampled, *expired, *redo) if expired or redo else sampled:  # topics
                     hist = hists[q]  # at s appears twice
                     i = len(hist) - 1 if hist[-1][0] <= s else \
@@ -521,7 +524,7 @@ class StreamProcessor:
                             del hist[:i]
                     current[keys[q]] = value
                 redo.clear()
-                values = dict(current)
+                values = current
             self.made = s
             self.on_state(s, values, fresh)
 
@@ -554,7 +557,7 @@ class StreamProcessor:
         return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
 
     def _every_value(self, s: int, stale: list[FeatureKey] | None
-                     ) -> tuple[dict[FeatureKey, Any], list[FeatureKey] | None]:
+                     ) -> tuple[dict[FeatureKey, Any], tuple[FeatureKey, ...] | None]:
         """Each feature's value at s, read from its history."""
         values: dict[FeatureKey, Any] = {}
         fresh: list[FeatureKey] | None = (stale or []) if self.period is None else None
@@ -577,4 +580,4 @@ class StreamProcessor:
                 if i > 32:  # older samples are never read again
                     del hist[:i]
             values[key] = value
-        return values, fresh
+        return values, None if fresh is None else tuple(fresh)
