@@ -4,14 +4,18 @@ remapping, message types named with or without their package."""
 from __future__ import annotations
 
 import contextlib
+import heapq
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dkreason.cli import main
+from dkreason.stream.binding import _merged
 from dkreason.stream.recording import Row, write_recording
 
 from .conftest import REPO
@@ -91,6 +95,15 @@ def test_merged_recordings_stream_in_record_time_order(
     code, got, _ = verdicts(capsys, "--config", config, "--source", f"robot1={early}",
                             "--source", f"robot1={late}", "always (X[me] < 15)")
     assert (code, got) == (1, [(False, 0.05)])
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.lists(st.integers(0, 6), max_size=8).map(sorted), min_size=1, max_size=5))
+def test_several_recordings_merge_as_heapq_merge_does(times: list[list[int]]) -> None:
+    """By record time; on equal times the earlier recording's message first."""
+    streams = [[(f"/r{r}", t, t, (n,)) for n, t in enumerate(ts)] for r, ts in enumerate(times)]
+    assert list(_merged([iter(s) for s in streams])) == \
+        list(heapq.merge(*streams, key=lambda m: m[1]))
 
 
 def test_remap_reads_a_recording_topic_under_another_name(
