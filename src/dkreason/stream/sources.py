@@ -10,7 +10,7 @@ field by field where their layout allows (fastread.py) and deserialised in full 
 from __future__ import annotations
 
 import queue
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from decimal import Decimal
 from pathlib import Path
 from typing import Any, Protocol
@@ -163,7 +163,7 @@ class RosbagSource:
                 from None
 
     def _batches(self, connections: list[Any]
-                 ) -> Iterator[tuple[Sequence[tuple[Any, int, bytes]], dict[Any, int]]]:
+                 ) -> Iterator[tuple[Iterable[tuple[Any, int, bytes]], dict[Any, int]]]:
         """Messages in recording order, in batches: (key, record time, serialised message),
         and what each key is (the id of its connection).  An indexed MCAP file is read through
         mcapread, a chunk a batch (~5× rosbags' rate); anything else through rosbags."""
