@@ -179,20 +179,21 @@ def _merged(streams: Sequence[Iterator[Message]]) -> Iterator[Message]:
 
 
 def _two(a: Iterator[Message], b: Iterator[Message]) -> Iterator[Message]:
-    x, y = next(a, None), next(b, None)
-    while x is not None and y is not None:
-        if y[1] < x[1]:
+    y = next(b, None)
+    if y is None:
+        yield from a
+        return
+    for x in a:
+        while y[1] < x[1]:  # b's earlier messages first
             yield y
             y = next(b, None)
-        else:
-            yield x
-            x = next(a, None)
-    if x is not None:
+            if y is None:
+                yield x
+                yield from a
+                return
         yield x
-        yield from a
-    elif y is not None:
-        yield y
-        yield from b
+    yield y
+    yield from b
 
 
 def _slash(name: str) -> str:
