@@ -15,6 +15,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from dkreason.errors import DkError
+from dkreason.model import FeatureKey
+from dkreason.parse.formula import feature_key as parse_key
 from dkreason.parse.formula import parse_formula
 from dkreason.progress import Progressor
 
@@ -183,6 +185,28 @@ def test_feature_keys_ignore_whitespace() -> None:
     p = Progressor()
     p.add("always Close[uav1,uav2]")
     assert p.step(0, {"Close[uav1, uav2]": False})[0].verdict is False
+
+
+def test_text_keys_are_read_once_per_spelling_not_once_a_state(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import dkreason.progress.progressor as progressor
+
+    read: list[str] = []
+
+    def counted(text: str) -> FeatureKey | None:
+        read.append(text)
+        return parse_key(text)
+
+    monkeypatch.setattr(progressor, "feature_key", counted)
+    p = Progressor()
+    p.add("always (X[a] > 1 and Y < 5)")
+    for t in range(100):
+        assert not p.step(t, {"X[a]": 2, "Y": 3, "unused": 0})
+    assert sorted(read) == ["X[a]", "Y", "unused"]
+    mixed: dict[Any, int] = {FeatureKey("X", ("a",)): 2, "Y": 3}  # spelled another way
+    assert not p.step(100, mixed)
+    (v,) = p.step(101, {"X[ a ]": 2, "Y": 9})
+    assert v.verdict is False
 
 
 @pytest.mark.parametrize(("steps", "says"), [

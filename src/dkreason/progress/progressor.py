@@ -107,13 +107,18 @@ class _Monitor:
             self.deliver(None, False, why)
 
 
-def _typed(values: Mapping[Any, Any], keys: set[FeatureKey], time: Any
-           ) -> dict[FeatureKey, Any]:
-    out = {k if isinstance(k, FeatureKey) else feature_key(k): v for k, v in values.items()}
-    missing = sorted(keys - out.keys())
+_UNSEEN: list[tuple[FeatureKey, Any]] = [(FeatureKey(""), object())]  # no state has this key
+
+
+def _spelling(values: Mapping[Any, Any], keys: set[FeatureKey], time: Any
+              ) -> list[tuple[FeatureKey, Any]]:
+    """Each feature in `keys` and the key that stands for it in `values`: itself, or text
+    (`"Close[uav1, uav2]"`), read here once per spelling, not once a state."""
+    spelled = {k if isinstance(k, FeatureKey) else feature_key(k): k for k in values}
+    missing = sorted(keys - spelled.keys())
     if missing:
         raise DkError(f"the state at time {time} has no value for {missing[0]}")
-    return out  # type: ignore[return-value]  # None keys (not features) are never read
+    return [(k, spelled[k]) for k in keys]
 
 
 class Progressor:
@@ -136,6 +141,9 @@ class Progressor:
         # pos, last and last_input meanwhile (`held` reads them)
         self.stepper: Callable[..., Sequence[Verdict]] = self.step_state
         self.held: Held | None = None
+        # `step`: the last time given, and how the caller spells each feature
+        self.stepped: tuple[Time | float, Any] = (float("-inf"), None)
+        self.spelling = _UNSEEN
 
     def add(self, formula: str, tree: Formula | None = None) -> None:
         """Compile a formula once (its quantifier-free `tree`, or the text parsed); it is
@@ -163,6 +171,7 @@ class Progressor:
         self.monitors.append(monitor)
         self.unstarted.append(monitor)
         self.keys.update(monitor.keys)
+        self.spelling = _UNSEEN
 
     def step(self, time: Any, values: Mapping[FeatureKey, Any] | Mapping[str, Any]
              ) -> list[Verdict]:
@@ -170,14 +179,18 @@ class Progressor:
         (as the stream processor makes them); keys written as text (`"Close[uav1, uav2]"`) are
         read at this boundary, once per spelling."""
         t = time if type(time) is int else exact_time(time)
-        if self.held is not None:
-            self.pos, self.last, self.last_input = self.held()
-        if not t > self.last:
+        if not t > self.stepped[0]:
             raise DkError(f"time {time} is not after the previous state's time "
-                          f"{self.last_input} (times must increase strictly)")
-        if not self.keys <= values.keys():
-            values = _typed(values, self.keys, time)
-        return [*self.stepper(t, values, time)]
+                          f"{self.stepped[1]} (times must increase strictly)")
+        self.stepped = (t, time)
+        typed = {}  # the features the formulas read, as the caller spells them
+        try:
+            for k, s in self.spelling:
+                typed[k] = values[s]
+        except KeyError:
+            self.spelling = _spelling(values, self.keys, time)
+            typed = {k: values[s] for k, s in self.spelling}
+        return [*self.stepper(t, typed, time)]
 
     def step_state(self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
                    ) -> list[Verdict]:
