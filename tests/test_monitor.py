@@ -440,3 +440,22 @@ def test_states_made_from_what_changed_equal_states_read_in_full(
         return out
 
     assert states(True) == states(False)
+
+
+@pytest.mark.parametrize("from_first", [False, True])
+def test_periodic_states_from_a_start_time_are_made_as_the_data_passes_them(
+        single: KnowledgeManager, from_first: bool) -> None:
+    """With a sample period and a start time (absolute, or counted from the first sample),
+    a violation is reported when the recording has passed it, not only at the end."""
+    policy = StreamPolicy(sample_period=Fraction(1), start_time=Fraction(0),
+                          span_from_first=from_first)
+    monitor = Monitor(single, ["always (Speed[car1] > 20)"], policy)
+    processor = monitor.start(PushSource())
+    origin = 100 * S if from_first else 0
+    messages = [("topic3", origin + k * S, origin + k * S, (30.0 if k < 5 else 10.0, 1))
+                for k in range(10)]
+    seen: list[Event] = []
+    for _ in processor.replay(iter(messages), monitor.pending):
+        seen += monitor.events()
+    assert [(e.verdict, e.time) for e in seen if isinstance(e, Verdict)] == \
+        [(False, (origin + 5 * S) / S)]

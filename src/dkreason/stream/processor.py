@@ -195,6 +195,7 @@ class StreamProcessor:
             self.hist.append([])
             self.due.append(-1)
             self.queued.append(False)
+        self.quiet_until = self._next_due()  # with a period and a start: its first state
         self._route(request, source)
 
     @property
@@ -423,6 +424,7 @@ class StreamProcessor:
             self.end = None if self.end is None else valid + self.end
             if self.period is not None:
                 self.next_state = self.start
+                self.quiet_until = self._next_due()
         if (self.start is not None and valid < self.start) or \
                 (self.end is not None and valid > self.end):
             self._violation("start_end_time", available, route,
