@@ -6,6 +6,8 @@ strategies mix valid fragments with hostile ones so both paths are exercised."""
 
 from __future__ import annotations
 
+import contextlib
+import math
 import string
 from collections.abc import Callable
 from pathlib import Path
@@ -15,9 +17,10 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from dkreason.errors import DkError
+from dkreason.errors import DkError, Span
 from dkreason.live import wire
 from dkreason.parse.config import read_config
+from dkreason.parse.files import json_value
 from dkreason.parse.formula import parse_formula
 from dkreason.parse.sslt import parse_text, parse_xml
 from dkreason.progress import Progressor
@@ -120,8 +123,68 @@ def test_live_payloads(payload: bytes) -> None:
     _total(wire.decode, payload, wire.MAX_SAMPLE, "p/t")
 
 
+@FAST
+@given(st.one_of(st.binary(max_size=200),
+                 st.lists(st.sampled_from(JSON_PIECES), max_size=12).map(
+                     lambda xs: "".join(xs).encode("utf-8", "surrogateescape"))))
+def test_live_payloads_read_fast_or_not_read_as_before(payload: bytes) -> None:
+    """orjson's reading of a peer's payload is json's (exact=False) wherever it reads one;
+    what it refuses goes to json, so an error says what it said before."""
+    before = _total(json_value, payload, Span("p/t"), False)
+    with contextlib.suppress(DkError):
+        assert _same(wire.decode(payload, wire.MAX_SAMPLE, "p/t"), before)
+
+
+JSON_VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers(-2**63, 2**64 - 1) | st.floats() | st.text(),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(), inner, max_size=4),
+    max_leaves=20)
+
+
+@FAST
+@given(JSON_VALUES)
+def test_live_payloads_written_and_read_back(value: Any) -> None:
+    """What a platform node writes, a monitor reads back: NaN and the infinities as null
+    (unknown either way), lone surrogates and integers past 64 bits through json."""
+    try:
+        payload = wire.encode(value)
+    except (UnicodeEncodeError, ValueError):  # a lone surrogate: json cannot write it either
+        return
+    assert _same(wire.decode(payload, 10**6, "p/t"), _finite(value))
+    assert _same(json_value(payload, Span("p/t"), False), _finite(value))
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, list):
+        return [_finite(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    return value
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal, NaN equal to NaN, and of the same types (1 and 1.0 differ)."""
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    return bool(a == b)
+
+
 def test_the_strategies_reach_valid_input() -> None:
     """The fuzzers are not only testing error paths."""
     assert parse_formula("always (X[a] > 1)")
     assert parse_text("topic t1:Msg contains Speed(car1) = msg.spd for car1 = msg.id")
     assert Path(__file__).exists()
+
+
+def test_an_integer_past_64_bits_arrives_as_a_float_and_a_time_past_them_is_refused() -> None:
+    assert wire.decode(b'{"x": 18446744073709551616}', 100, "p/t") == {"x": 2.0**64}
+    with pytest.raises(wire.WireError, match="integer nanoseconds"):
+        wire.topic_message(b'{"valid": 100000000000000000000, "msg": {}}', "p/t")

@@ -15,7 +15,11 @@ Key expressions, for platform P (every payload is UTF-8 JSON):
 Times are integer nanoseconds on the stream's clock (a replay keeps its recording's times).
 The clock travels on each topic's own key because Zenoh keeps the order of one key's puts,
 not across keys (their callbacks run on different threads).
-A peer's payload is untrusted: `decode` bounds its size and shape.
+A peer's payload is untrusted: `decode` bounds its size and shape.  It is read by orjson
+(a sample in ~0.3 µs, where `json` takes ~2); what orjson refuses (NaN, another encoding than
+UTF-8, nesting past 1,024) goes to `json` as before, so it is read or refused alike; an
+integer past 64 bits (beyond any ROS type) arrives as a float.  Payloads are written by
+orjson too (`encode`).
 """
 
 from __future__ import annotations
@@ -24,6 +28,8 @@ import json
 import re
 from pathlib import Path
 from typing import Any
+
+import orjson
 
 from ..errors import DkError, ParseError, Span
 from ..parse.files import json_value, read_text
@@ -56,7 +62,13 @@ _ENCODER = json.JSONEncoder(ensure_ascii=False, separators=(",", ":"))  # made o
 
 
 def encode(value: Any) -> bytes:
-    return _ENCODER.encode(value).encode()
+    """Compact UTF-8 JSON, by orjson (~0.2 µs a sample; NaN and the infinities become null,
+    which a reader takes as unknown as it does them); what orjson cannot write (an integer
+    past 64 bits, a type of its own) by `json`, as before."""
+    try:
+        return orjson.dumps(value, option=orjson.OPT_NON_STR_KEYS)
+    except TypeError:
+        return _ENCODER.encode(value).encode()
 
 
 def decode(payload: bytes, limit: int, what: str) -> Any:
@@ -64,6 +76,10 @@ def decode(payload: bytes, limit: int, what: str) -> Any:
     is a WireError."""
     if len(payload) > limit:
         raise WireError(f"{what}: {len(payload)} bytes, more than the {limit} allowed", "size")
+    try:
+        return orjson.loads(payload)
+    except orjson.JSONDecodeError:
+        pass  # not strict UTF-8 JSON: read (or refused, saying why) as it always was
     try:
         return json_value(payload, Span(what), exact=False)
     except ParseError as exc:
