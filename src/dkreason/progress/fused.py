@@ -48,7 +48,7 @@ from .state import _boolean_keys, _py, evaluate, features, is_state, key, reads,
 TRUE = BoolConst(True)
 INF = float("inf")
 Stepper = Callable[..., Any]  # the owner's step for one state: its verdicts (t, values, given)
-Held = Callable[[], tuple[int, Any, Any]]  # the owner's (pos, last, last_input) that it holds
+Held = Callable[[], tuple[int, Any]]  # the owner's (pos, last_input) that it holds
 
 
 @dataclass(frozen=True, slots=True)
@@ -322,7 +322,7 @@ class FusedSet:
         # the generated step for the current members (None: generate it at the next state),
         # and the same as the owner's whole step_state (when every formula it has is fused)
         self.run: Callable[[Time, Any], bool] | None = None
-        self.make: Callable[[int, Any, Any], tuple[Stepper, Held]] | None = None
+        self.make: Callable[[int, Any], tuple[Stepper, Held]] | None = None
 
     def add(self, s: Shape, on_false: Callable[[Why], None],
             unit: Fraction | int = 1) -> Member:
@@ -362,12 +362,12 @@ _SYNC = "\0sync"  # in `fast`: where the owner's position is brought up to date 
 
 
 def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
-                                      Callable[[int, Any, Any], tuple[Stepper, Held]]]:
+                                      Callable[[int, Any], tuple[Stepper, Held]]]:
     """`step(t, v) -> decided?` for the current members, compiled once; and `make`, which
     gives `fast`: the same as the owning progressor's whole `step_state` (its state kept, its
     verdicts returned), which it calls instead (`Progressor.stepper`) while every formula it
-    has is fused and started: one call a state.  `fast` holds the owner's position, last time
-    and last input in its own closure (no attribute stores a state) and writes them back
+    has is fused and started: one call a state.  `fast` holds the owner's position and
+    last input in its own closure (no attribute stores a state) and writes them back
     before anything reads them: a call out that notes an unknown, a decision; `held` reads
     them for the owner otherwise."""
     formulas: dict[Formula, str] = {}
@@ -436,23 +436,23 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
                   "        decided = True"]
     scope["P"] = fs.owner
     body = "\n".join(line for line in lines if line != _SYNC)
-    fast = "\n".join("            P.pos, P.last, P.last_input = pos, last, last_input"
+    fast = "\n".join("            P.pos, P.last_input = pos, last_input"
                      if line == _SYNC else "    " + line for line in lines)
     source = (f"def step(t, v):\n{body}\n    return decided\n"
-              "def make(pos, last, last_input):\n"
+              "def make(pos, last_input):\n"
               "    def fast(t, v, given=None):\n"
-              "        nonlocal pos, last, last_input\n"
-              "        pos += 1\n        last = t\n"
+              "        nonlocal pos, last_input\n"
+              "        pos += 1\n"
               "        last_input = t if given is None else given\n"
               f"{fast}\n"
               "        if decided:  # regenerated at the next state, by the owner's own step\n"
-              "            P.pos, P.last, P.last_input = pos, last, last_input\n"
+              "            P.pos, P.last_input = pos, last_input\n"
               "            fs.run = fs.make = None\n"
               "            P.stepper, P.held = P.step_state, None\n"
               "            return P._decided(False) if P.decided else []\n"
               "        return ()\n"
               "    def held():\n"
-              "        return pos, last, last_input\n"
+              "        return pos, last_input\n"
               "    return fast, held\n")
     exec(compile(source, "<fused monitors>", "exec"), scope)  # noqa: S102 - our own code
     return scope["step"], scope["make"]

@@ -133,12 +133,11 @@ class Progressor:
         self.graphs: list[Graph] = []
         self.keys: set[FeatureKey] = set()
         self.pos = -1
-        self.last: Time | float = float("-inf")
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
         # what a state calls: `step_state`, or once every formula is fused and started, the
         # fused set's `fast` (the same, generated whole: one call a state), which holds
-        # pos, last and last_input meanwhile (`held` reads them)
+        # pos and last_input meanwhile (`held` reads them)
         self.stepper: Callable[..., Sequence[Verdict]] = self.step_state
         self.held: Held | None = None
         # `step`: the last time given, and how the caller spells each feature
@@ -197,7 +196,7 @@ class Progressor:
         """`step` for the stream processor's states, checked already: exact times that
         increase, every feature a value (`given`: the time as the caller wrote it)."""
         self.pos += 1
-        self.last, self.last_input = t, t if given is None else given
+        self.last_input = t if given is None else given
         if self.unstarted:
             for m in self.unstarted:
                 m.started, m.first = True, t
@@ -219,7 +218,7 @@ class Progressor:
                     m.start(t)
             self.unstarted = []
         elif fused.make is not None and not self.graphs:  # from the next state on, one call
-            self.stepper, self.held = fused.make(self.pos, self.last, self.last_input)
+            self.stepper, self.held = fused.make(self.pos, self.last_input)
         if not self.decided:
             return []
         return self._decided(at_end=False)
@@ -245,7 +244,7 @@ class Progressor:
     def _general(self) -> None:
         """Back to `step_state`, with what the fast step held."""
         if self.held is not None:
-            self.pos, self.last, self.last_input = self.held()
+            self.pos, self.last_input = self.held()
         self.stepper, self.held = self.step_state, None
 
     def _decided(self, at_end: bool) -> list[Verdict]:
