@@ -47,12 +47,16 @@ def main(argv: list[str] | None = None) -> int:
         subprocess.run(match, check=True, stdout=subprocess.DEVNULL, env=warm)  # fill it
         rows = {
             "python -c pass": (wall([sys.executable, "-c", "pass"], warm), None),
-            "python -c 'import dkreason'": (wall([sys.executable, "-c", "import dkreason"],
-                                                 warm), None),
+            "python -c 'import dkreason'": (
+                wall([sys.executable, "-c", "import dkreason"], warm),
+                None,
+            ),
             "dkreason --help": (wall([*CLI, "--help"], warm), 0.120),
             "dkreason match (federation, cached)": (wall(match, warm), 0.250),
             "dkreason match (federation, no cache)": (
-                wall(match, os.environ | {"DKREASON_CACHE": "off"}), 0.250),
+                wall(match, os.environ | {"DKREASON_CACHE": "off"}),
+                0.250,
+            ),
         }
     if args.json:
         print(json.dumps({name: seconds for name, (seconds, _) in rows.items()}))
@@ -60,8 +64,11 @@ def main(argv: list[str] | None = None) -> int:
     floor = rows["python -c 'import dkreason'"][0]
     print(f"wall time of a fresh process, median of {ROUNDS} (ms)")
     for name, (seconds, target) in rows.items():
-        verdict = "" if target is None else \
-            f"  target {target * 1e3:.0f}: {'met' if seconds <= target else 'MISSED'}"
+        verdict = (
+            ""
+            if target is None
+            else f"  target {target * 1e3:.0f}: {'met' if seconds <= target else 'MISSED'}"
+        )
         print(f"  {name:<40}{seconds * 1e3:>8.1f}  {seconds / floor:>5.1f}× import{verdict}")
     return 0
 

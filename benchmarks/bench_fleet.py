@@ -37,26 +37,37 @@ from .chapter7.workload import Workload, nine, write
 NS = "http://example.org/fleet/p{}#"
 FEATURES = ("Battery", "Speed", "Temperature")
 # name: (target load s, target cold load s, target MB, before: load s, MB)
-TARGETS = {"fleet": (None, None, None, None, None),
-           "sorts": (2.0, 2.0, 300, 61.0, 4500),
-           "objects": (1.0, 3.0, 150, 9.5, 481)}
-FORMULAS = {"fleet": "forall r in Drone: always (Battery[r] > 20 and Speed[r] < 10)",
-            "sorts": " and ".join(nine()),
-            "objects": " and ".join(nine())}
+TARGETS = {
+    "fleet": (None, None, None, None, None),
+    "sorts": (2.0, 2.0, 300, 61.0, 4500),
+    "objects": (1.0, 3.0, 150, 9.5, 481),
+}
+FORMULAS = {
+    "fleet": "forall r in Drone: always (Battery[r] > 20 and Speed[r] < 10)",
+    "sorts": " and ".join(nine()),
+    "objects": " and ".join(nine()),
+}
 
 
 def _ontology(p: int, objects: int, rnd: random.Random) -> str:
     ns = NS.format(p)
-    out = [f"@prefix : <{ns}> .", "@prefix owl: <http://www.w3.org/2002/07/owl#> .",
-           "@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .",
-           f"<{ns[:-1]}> a owl:Ontology .", ":arg1 a owl:ObjectProperty .",
-           ":UnaryRelation a owl:Class .", ":Robot a owl:Class .",
-           ":Drone a owl:Class ; rdfs:subClassOf :Robot .",
-           ":Rover a owl:Class ; rdfs:subClassOf :Robot ."]
+    out = [
+        f"@prefix : <{ns}> .",
+        "@prefix owl: <http://www.w3.org/2002/07/owl#> .",
+        "@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .",
+        f"<{ns[:-1]}> a owl:Ontology .",
+        ":arg1 a owl:ObjectProperty .",
+        ":UnaryRelation a owl:Class .",
+        ":Robot a owl:Class .",
+        ":Drone a owl:Class ; rdfs:subClassOf :Robot .",
+        ":Rover a owl:Class ; rdfs:subClassOf :Robot .",
+    ]
     for f in FEATURES:
-        out.append(f":{f} a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf "
-                   f"( :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; "
-                   f"owl:allValuesFrom :Robot ] ) ] .")
+        out.append(
+            f":{f} a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf "
+            f"( :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; "
+            f"owl:allValuesFrom :Robot ] ) ] ."
+        )
     for j in range(objects):
         out.append(f":r{p}_{j} a owl:NamedIndividual, :{rnd.choice(('Drone', 'Rover'))} .")
     return "\n".join(out) + "\n"
@@ -68,8 +79,9 @@ def _specs(p: int, objects: int, count: int, rnd: random.Random) -> str:
         f = FEATURES[n % len(FEATURES)]
         if n % 2:
             sort = rnd.choice(("Drone", "Rover", "Robot"))
-            lines.append(f"topic /p{p}/t{n}:M contains {f}({sort}) = msg.v for some {sort} "
-                         f"= msg.id")
+            lines.append(
+                f"topic /p{p}/t{n}:M contains {f}({sort}) = msg.v for some {sort} = msg.id"
+            )
         else:
             obj = f"r{p}_{rnd.randrange(objects)}"
             lines.append(f"topic /p{p}/t{n}:M contains {f}({obj}) = msg.v for {obj} = msg.id")
@@ -80,19 +92,24 @@ def _bridges(p: int) -> str:
     local, remote = NS.format(0), NS.format(p)
     rules = [("equiv", f"{local}{x}", f"{remote}{x}") for x in (*FEATURES, "Robot", "Drone")]
     rules.append(("same", f"{local}r0_{p % 100}", f"{remote}r{p}_0"))
-    body = "".join(f'  <cowl:bridgeRule cowl:br-type="{t}">\n'
-                   f'    <cowl:source{"Individual" if t == "same" else "Concept"} '
-                   f'rdf:resource="{a}"/>\n'
-                   f'    <cowl:target{"Individual" if t == "same" else "Concept"} '
-                   f'rdf:resource="{b}"/>\n  </cowl:bridgeRule>\n' for t, a, b in rules)
-    return ('<?xml version="1.0" encoding="UTF-8"?>\n<cowl:mapping '
-            'xmlns:cowl="http://www.itc.it/cowl#" '
-            'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n' + body +
-            "</cowl:mapping>\n")
+    body = "".join(
+        f'  <cowl:bridgeRule cowl:br-type="{t}">\n'
+        f"    <cowl:source{'Individual' if t == 'same' else 'Concept'} "
+        f'rdf:resource="{a}"/>\n'
+        f"    <cowl:target{'Individual' if t == 'same' else 'Concept'} "
+        f'rdf:resource="{b}"/>\n  </cowl:bridgeRule>\n'
+        for t, a, b in rules
+    )
+    return (
+        '<?xml version="1.0" encoding="UTF-8"?>\n<cowl:mapping '
+        'xmlns:cowl="http://www.itc.it/cowl#" '
+        'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n' + body + "</cowl:mapping>\n"
+    )
 
 
-def write_fleet(folder: Path, platforms: int = 100, objects: int = 100,
-                specs: int = 50, seed: int = 7) -> Path:
+def write_fleet(
+    folder: Path, platforms: int = 100, objects: int = 100, specs: int = 50, seed: int = 7
+) -> Path:
     """The fleet workload as ordinary files; the config's path."""
     rnd = random.Random(seed)
     folder.mkdir(parents=True, exist_ok=True)
@@ -103,8 +120,12 @@ def write_fleet(folder: Path, platforms: int = 100, objects: int = 100,
         config += [f"[platforms.p{p}]", f'ontology = "p{p}.ttl"', f'specs = "p{p}.sslt"']
     for p in range(1, platforms):
         (folder / f"p0-p{p}.cowl.xml").write_text(_bridges(p), encoding="utf-8")
-        config += ["[[mappings]]", 'source = "p0"', f'target = "p{p}"',
-                   f'file = "p0-p{p}.cowl.xml"']
+        config += [
+            "[[mappings]]",
+            'source = "p0"',
+            f'target = "p{p}"',
+            f'file = "p0-p{p}.cowl.xml"',
+        ]
     (folder / "fleet.toml").write_text("\n".join(config) + "\n", encoding="utf-8")
     return folder / "fleet.toml"
 
@@ -124,8 +145,11 @@ def one_process(config: Path, formula: str) -> dict[str, float]:
 
     c0, t0 = time.process_time(), time.perf_counter()
     km = KnowledgeManager.from_config(config)
-    out = {"load_s": time.perf_counter() - t0, "load_cpu_s": time.process_time() - c0,
-           "load_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+    out = {
+        "load_s": time.perf_counter() - t0,
+        "load_cpu_s": time.process_time() - c0,
+        "load_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
     times = []
     for _ in range(6):
         t0 = time.perf_counter()
@@ -142,10 +166,21 @@ def measure(name: str, folder: Path) -> dict[str, float]:
     cache = folder / "cache"
     figures: dict[str, float] = {}
     for run in ("cold", "cached"):
-        done = subprocess.run([sys.executable, "-m", "benchmarks.bench_fleet", "--point",
-                               str(config), "--workload", name], capture_output=True,
-                              text=True, env=os.environ | {"DKREASON_CACHE": str(cache)},
-                              check=False)
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "benchmarks.bench_fleet",
+                "--point",
+                str(config),
+                "--workload",
+                name,
+            ],
+            capture_output=True,
+            text=True,
+            env=os.environ | {"DKREASON_CACHE": str(cache)},
+            check=False,
+        )
         if done.returncode:
             raise SystemExit(f"bench_fleet: {name} failed: {done.stderr.strip()[-500:]}")
         point = json.loads(done.stdout)
@@ -170,17 +205,23 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(rows, indent=1))
         return 0
-    print("fresh process per figure; load in s, formulas in ms; memory: the process' peak after "
-          "the load (cold, cached) and after the formulas")
-    print(f"{'workload':<9}{'cold load':>10}{'cached':>8}{'MB cold':>9}{'cached':>8}{'formulas':>9}"
-          f"{'first':>9}{'later':>9}{'topics':>8}  targets (cached s, cold s, MB) · before (s, MB)")
+    print(
+        "fresh process per figure; load in s, formulas in ms; memory: the process' peak after "
+        "the load (cold, cached) and after the formulas"
+    )
+    print(
+        f"{'workload':<9}{'cold load':>10}{'cached':>8}{'MB cold':>9}{'cached':>8}{'formulas':>9}"
+        f"{'first':>9}{'later':>9}{'topics':>8}  targets (cached s, cold s, MB) · before (s, MB)"
+    )
     for name, r in rows.items():
         cached, cold, mb, before_s, before_mb = TARGETS[name]
         target = f"{cached}, {cold}, {mb} · {before_s}, {before_mb}" if cold else "-"
-        print(f"{name:<9}{r['cold_load_s']:>10.2f}{r['cached_load_s']:>8.2f}"
-              f"{r['cold_load_mb']:>9.0f}{r['cached_load_mb']:>8.0f}"
-              f"{max(r['cold_peak_mb'], r['cached_peak_mb']):>9.0f}{r['cached_first_ms']:>9.1f}"
-              f"{r['cached_later_ms']:>9.1f}{r['cached_topics']:>8.0f}  {target}")
+        print(
+            f"{name:<9}{r['cold_load_s']:>10.2f}{r['cached_load_s']:>8.2f}"
+            f"{r['cold_load_mb']:>9.0f}{r['cached_load_mb']:>8.0f}"
+            f"{max(r['cold_peak_mb'], r['cached_peak_mb']):>9.0f}{r['cached_first_ms']:>9.1f}"
+            f"{r['cached_later_ms']:>9.1f}{r['cached_topics']:>8.0f}  {target}"
+        )
     return 0
 
 

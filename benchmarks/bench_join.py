@@ -47,14 +47,17 @@ def write(folder: Path, nodes: int) -> None:
     """The monitor's platform knows every sensor; node n knows its own and carries its topic."""
     (folder / "m.ttl").write_text(_turtle(list(range(1, nodes + 1))))
     (folder / "monitor.toml").write_text(
-        'local = "m"\n[platforms.m]\nontology = "m.ttl"\n' +
-        "".join(f"[platforms.p{n}]\n" for n in range(1, nodes + 1)))
+        'local = "m"\n[platforms.m]\nontology = "m.ttl"\n'
+        + "".join(f"[platforms.p{n}]\n" for n in range(1, nodes + 1))
+    )
     for n in range(1, nodes + 1):
         (folder / f"p{n}.ttl").write_text(_turtle([n]))
         (folder / f"p{n}.sslt").write_text(
-            f"topic t{n}:Reading contains Reading(s{n}) = msg.value for s{n} = msg.id\n")
-        (folder / f"p{n}.toml").write_text(f'[platforms.p{n}]\nontology = "p{n}.ttl"\n'
-                                           f'specs = "p{n}.sslt"\n')
+            f"topic t{n}:Reading contains Reading(s{n}) = msg.value for s{n} = msg.id\n"
+        )
+        (folder / f"p{n}.toml").write_text(
+            f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n'
+        )
 
 
 def node(folder: str, n: int, endpoint: str, until: float, arrived: Any) -> None:
@@ -88,9 +91,13 @@ def run(nodes: int, every: float) -> dict[str, Any]:
             port = s.getsockname()[1]
         endpoint = f"tcp/127.0.0.1:{port}"
         session = open_session([], [endpoint])
-        monitor = LiveMonitor(folder / "monitor.toml",
-                              ["forall s in Sensor: always (Reading[s] < 1000)"],
-                              StreamPolicy(max_age=Fraction(2)), session, wait=30)
+        monitor = LiveMonitor(
+            folder / "monitor.toml",
+            ["forall s in Sensor: always (Reading[s] < 1000)"],
+            StreamPolicy(max_age=Fraction(2)),
+            session,
+            wait=30,
+        )
         ctx = mp.get_context("spawn")
         arrived = ctx.Queue()
         until = time.time() + 6 + nodes * every
@@ -98,8 +105,7 @@ def run(nodes: int, every: float) -> dict[str, Any]:
 
         def launch() -> None:
             for n in range(1, nodes + 1):
-                procs.append(ctx.Process(target=node, args=(str(tmp), n, endpoint, until,
-                                                            arrived)))
+                procs.append(ctx.Process(target=node, args=(str(tmp), n, endpoint, until, arrived)))
                 procs[-1].start()
                 time.sleep(every)
 
@@ -119,11 +125,15 @@ def run(nodes: int, every: float) -> dict[str, Any]:
         arrivals = dict(arrived.get(timeout=5) for _ in procs)
     joins = sorted((arrivals[p], subscribed[p]) for p in subscribed if p in arrivals)
     ms = [(sub - arr) * 1e3 for arr, sub in joins]
-    return {"nodes": nodes, "subscribed": len(subscribed), "every_s": every,
-            "join_to_subscription_ms": [round(x, 1) for x in ms],
-            "p50_ms": round(statistics.median(ms), 1) if ms else None,
-            "max_ms": round(max(ms), 1) if ms else None,
-            "last_ms": round(ms[-1], 1) if ms else None}
+    return {
+        "nodes": nodes,
+        "subscribed": len(subscribed),
+        "every_s": every,
+        "join_to_subscription_ms": [round(x, 1) for x in ms],
+        "p50_ms": round(statistics.median(ms), 1) if ms else None,
+        "max_ms": round(max(ms), 1) if ms else None,
+        "last_ms": round(ms[-1], 1) if ms else None,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -136,11 +146,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps(result))
         return 0
-    print(f"{result['subscribed']} of {args.nodes} nodes subscribed, one joining every "
-          f"{args.every} s")
-    print(f"  arrival → subscription: p50 {result['p50_ms']} ms, max {result['max_ms']} ms; "
-          f"the last (with {args.nodes - 1} present) {result['last_ms']} ms "
-          f"(target: within 200 ms with 20 present)")
+    print(
+        f"{result['subscribed']} of {args.nodes} nodes subscribed, one joining every {args.every} s"
+    )
+    print(
+        f"  arrival → subscription: p50 {result['p50_ms']} ms, max {result['max_ms']} ms; "
+        f"the last (with {args.nodes - 1} present) {result['last_ms']} ms "
+        f"(target: within 200 ms with 20 present)"
+    )
     return 0
 
 

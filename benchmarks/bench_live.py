@@ -53,34 +53,53 @@ def _turtle(n: int) -> str:
 
 def _mapping(n: int) -> str:
     def rule(kind: str, a: str, b: str) -> str:
-        return (f'<cowl:bridgeRule cowl:br-type="{kind}"><cowl:sourceConcept rdf:resource='
-                f'"http://example.org/bench/p1#{a}"/><cowl:targetConcept rdf:resource='
-                f'"http://example.org/bench/p{n}#{b}"/></cowl:bridgeRule>')
+        return (
+            f'<cowl:bridgeRule cowl:br-type="{kind}"><cowl:sourceConcept rdf:resource='
+            f'"http://example.org/bench/p1#{a}"/><cowl:targetConcept rdf:resource='
+            f'"http://example.org/bench/p{n}#{b}"/></cowl:bridgeRule>'
+        )
+
     rules = [rule("equiv", "Reading", "Reading"), rule("equiv", "Sensor", "Sensor")]
     rules += [rule("same", f"p1s{k}", f"p{n}s{k}") for k in range(1, 11)]
-    return ('<cowl:mapping xmlns:cowl="http://www.itc.it/cowl#" '
-            'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">'
-            + "".join(rules) + "</cowl:mapping>\n")
+    return (
+        '<cowl:mapping xmlns:cowl="http://www.itc.it/cowl#" '
+        'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">'
+        + "".join(rules)
+        + "</cowl:mapping>\n"
+    )
 
 
 def write(folder: Path) -> None:
     monitor = ['local = "p1"'] + [f"[platforms.p{n}]" for n in range(1, PLATFORMS + 1)]
     for n in range(1, PLATFORMS + 1):
         (folder / f"p{n}.ttl").write_text(_turtle(n))
-        (folder / f"p{n}.sslt").write_text("".join(
-            f"topic t{k}:Reading contains Reading(p{n}s{k}) = msg.value for p{n}s{k} = msg.id\n"
-            for k in range(1, TOPICS + 1)))
-        (folder / f"p{n}.toml").write_text(f'[platforms.p{n}]\nontology = "p{n}.ttl"\n'
-                                           f'specs = "p{n}.sslt"\n')
+        (folder / f"p{n}.sslt").write_text(
+            "".join(
+                f"topic t{k}:Reading contains Reading(p{n}s{k}) = msg.value for p{n}s{k} = msg.id\n"
+                for k in range(1, TOPICS + 1)
+            )
+        )
+        (folder / f"p{n}.toml").write_text(
+            f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n'
+        )
         if n > 1:
             (folder / f"p1-p{n}.cowl.xml").write_text(_mapping(n))
-            monitor.append(f'[[mappings]]\nsource = "p1"\ntarget = "p{n}"\n'
-                           f'file = "p1-p{n}.cowl.xml"')
+            monitor.append(
+                f'[[mappings]]\nsource = "p1"\ntarget = "p{n}"\nfile = "p1-p{n}.cowl.xml"'
+            )
     (folder / "monitor.toml").write_text("\n".join(monitor) + "\n")
 
 
-def publisher(folder: str, n: int, endpoint: str, start: float, seconds: float, hz: float,
-              done: Any, finished: Any) -> None:
+def publisher(
+    folder: str,
+    n: int,
+    endpoint: str,
+    start: float,
+    seconds: float,
+    hz: float,
+    done: Any,
+    finished: Any,
+) -> None:
     """One platform: 10 topics at `hz` from `start` for `seconds`; platform 3 then sends the
     violating reading.  Puts (published, wall ns of the bad reading) on `done`, and keeps its
     session (and what is still queued in it) until `finished`."""
@@ -119,13 +138,16 @@ class Fleet:
     stopped once it has taken every sample they published (or a minute after they are done):
     a flood's backlog is drained, not cut off when its publishers stop."""
 
-    def __init__(self, target: Any, args: list[tuple[Any, ...]], seconds: float, hz: float,
-                 monitor: Any) -> None:
+    def __init__(
+        self, target: Any, args: list[tuple[Any, ...]], seconds: float, hz: float, monitor: Any
+    ) -> None:
         ctx = mp.get_context("spawn")
         self.done, self.finished = ctx.Queue(), ctx.Event()
         start = time.time() + 4
-        self.procs = [ctx.Process(target=target, args=(*a, start, seconds, hz, self.done,
-                                                       self.finished)) for a in args]
+        self.procs = [
+            ctx.Process(target=target, args=(*a, start, seconds, hz, self.done, self.finished))
+            for a in args
+        ]
         for p in self.procs:
             p.start()
         self.results: list[tuple[int, int | None]] = []
@@ -199,8 +221,13 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
         session = open_session([], [endpoint])
         policy = StreamPolicy(max_age=Fraction(1))
         monitor = LiveMonitor(folder / "monitor.toml", FORMULAS, policy, session, wait=30)
-        fleet = Fleet(publisher, [(str(folder), n, endpoint) for n in range(1, PLATFORMS + 1)],
-                      seconds, hz, monitor)
+        fleet = Fleet(
+            publisher,
+            [(str(folder), n, endpoint) for n in range(1, PLATFORMS + 1)],
+            seconds,
+            hz,
+            monitor,
+        )
         meter = Meter()
         verdict_at = None
         try:
@@ -212,44 +239,67 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
         finally:
             results = fleet.stop()
             session.close()
-    return {"platforms": PLATFORMS, "topics_per_platform": TOPICS, "hz": hz,
-            "seconds": seconds, **figures(results, monitor.received, meter, verdict_at)}
+    return {
+        "platforms": PLATFORMS,
+        "topics_per_platform": TOPICS,
+        "hz": hz,
+        "seconds": seconds,
+        **figures(results, monitor.received, meter, verdict_at),
+    }
 
 
-def figures(results: list[tuple[int, int | None]], received: int, meter: Meter,
-            verdict_at: int | None) -> dict[str, Any]:
+def figures(
+    results: list[tuple[int, int | None]], received: int, meter: Meter, verdict_at: int | None
+) -> dict[str, Any]:
     """Samples published (each publisher's count, and the wall ns of the bad reading) and
     taken, the rate, publish → state latencies, and the bad reading's publish → verdict."""
     published = sum(r[0] for r in results)
     bad_at = next((r[1] for r in results if r[1] is not None), None)
     ms = sorted(x / 1e6 for x in meter.latencies if x > 0)
-    return {"published": published, "received": received, "lost": published - received,
-            "samples_per_s": meter.rate(received), "states": len(ms),
-            "p50_ms": round(statistics.median(ms), 2),
-            "p99_ms": round(ms[int(0.99 * (len(ms) - 1))], 2), "max_ms": round(ms[-1], 2),
-            "violation_to_verdict_ms": None if verdict_at is None or bad_at is None else
-            round((verdict_at - bad_at) / 1e6, 2)}
+    return {
+        "published": published,
+        "received": received,
+        "lost": published - received,
+        "samples_per_s": meter.rate(received),
+        "states": len(ms),
+        "p50_ms": round(statistics.median(ms), 2),
+        "p99_ms": round(ms[int(0.99 * (len(ms) - 1))], 2),
+        "max_ms": round(ms[-1], 2),
+        "violation_to_verdict_ms": None
+        if verdict_at is None or bad_at is None
+        else round((verdict_at - bad_at) / 1e6, 2),
+    }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seconds", type=float, default=10.0)
-    parser.add_argument("--hz", type=float, default=100.0,
-                        help="rate of each topic (0: as fast as each publisher can)")
+    parser.add_argument(
+        "--hz",
+        type=float,
+        default=100.0,
+        help="rate of each topic (0: as fast as each publisher can)",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     r = run(args.seconds, args.hz)
     if args.json:
         print(json.dumps(r))
         return
-    print(f"{r['platforms']} platforms x {r['topics_per_platform']} topics at {r['hz']:g} Hz, "
-          f"{r['seconds']:g} s over loopback Zenoh")
-    print(f"  samples: {r['published']} published, {r['received']} received, {r['lost']} lost "
-          f"({'target: none lost ✓' if r['lost'] == 0 else 'target: none lost ✗'})")
+    print(
+        f"{r['platforms']} platforms x {r['topics_per_platform']} topics at {r['hz']:g} Hz, "
+        f"{r['seconds']:g} s over loopback Zenoh"
+    )
+    print(
+        f"  samples: {r['published']} published, {r['received']} received, {r['lost']} lost "
+        f"({'target: none lost ✓' if r['lost'] == 0 else 'target: none lost ✗'})"
+    )
     print(f"  sustained: {r['samples_per_s']} samples/s received")
-    print(f"  publish → state progressed: p50 {r['p50_ms']} ms, p99 {r['p99_ms']} ms, "
-          f"max {r['max_ms']} ms over {r['states']} states "
-          f"(target p99 < 20 ms {'✓' if r['p99_ms'] < 20 else '✗'})")
+    print(
+        f"  publish → state progressed: p50 {r['p50_ms']} ms, p99 {r['p99_ms']} ms, "
+        f"max {r['max_ms']} ms over {r['states']} states "
+        f"(target p99 < 20 ms {'✓' if r['p99_ms'] < 20 else '✗'})"
+    )
     print(f"  publish → violation verdict: {r['violation_to_verdict_ms']} ms")
 
 

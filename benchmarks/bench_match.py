@@ -44,9 +44,16 @@ def measure() -> list[dict[str, object]]:
                 t0 = time.perf_counter()
                 km.check_formula(formula)
                 times.append((time.perf_counter() - t0) * 1000)
-            rows.append({"scenario": scenario, "formula": name, "load_ms": round(load_ms, 1),
-                         "median_ms": round(statistics.median(times), 3),
-                         "best_ms": round(min(times), 3), "target_ms": TARGET_MS[scenario]})
+            rows.append(
+                {
+                    "scenario": scenario,
+                    "formula": name,
+                    "load_ms": round(load_ms, 1),
+                    "median_ms": round(statistics.median(times), 3),
+                    "best_ms": round(min(times), 3),
+                    "target_ms": TARGET_MS[scenario],
+                }
+            )
     return rows
 
 
@@ -62,14 +69,21 @@ def main() -> None:
     print(f"{'scenario':<11}{'formula':<10}{'median':>9}{'best':>9}{'target':>8}  within")
     for r in rows:
         ok = "yes" if float(r["median_ms"]) < float(r["target_ms"]) else "NO"  # type: ignore[arg-type]
-        print(f"{r['scenario']:<11}{r['formula']:<10}{r['median_ms']:>9}{r['best_ms']:>9}"
-              f"{r['target_ms']:>8}  {ok}")
+        print(
+            f"{r['scenario']:<11}{r['formula']:<10}{r['median_ms']:>9}{r['best_ms']:>9}"
+            f"{r['target_ms']:>8}  {ok}"
+        )
     for scenario in TARGET_MS:
-        medians = [float(r["median_ms"]) for r in rows  # type: ignore[arg-type]
-                   if r["scenario"] == scenario]
+        medians = [
+            float(r["median_ms"])  # type: ignore[arg-type]
+            for r in rows
+            if r["scenario"] == scenario
+        ]
         load = next(r["load_ms"] for r in rows if r["scenario"] == scenario)
-        print(f"{scenario}: mean of medians {statistics.mean(medians):.2f} ms per formula; "
-              f"loading took {load} ms")
+        print(
+            f"{scenario}: mean of medians {statistics.mean(medians):.2f} ms per formula; "
+            f"loading took {load} ms"
+        )
 
 
 if __name__ == "__main__":

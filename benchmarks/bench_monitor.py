@@ -64,8 +64,8 @@ def recording(messages: int, cars: tuple[int, ...] = (1, 2, 3)) -> Path:
             speeding = car == 2 and k % 2000 < 1000 and k < per_car - 1000
             speed = 65.0 if speeding else 40.0 + (k % 1000) / 50
             if car in cars:
-                yield (f"/platform1/topic{car + 2}", CAR, k * 10_000_000,
-                       {"id": car, "spd": speed})
+                yield (f"/platform1/topic{car + 2}", CAR, k * 10_000_000, {"id": car, "spd": speed})
+
     write_recording(path, "bare-mcap", {CAR: "int32 id\nfloat64 spd\n"}, rows())
     return path
 
@@ -90,14 +90,18 @@ def raw_rate(path: Path, deserialise: bool = True) -> float:
             n += 1
         source.close()
         return n
+
     return best(run)
 
 
 def many(n: int) -> list[str]:
     """n formulas over the three cars, none violated (car2 speeds 10 s in every 20)."""
-    shapes = ["always (Speed[car{c}] > -{k})", "always (Speed[car{c}] < 200 + {k})",
-              "always (Speed[car{c}] > 60 -> eventually[0, {w}] Speed[car{c}] <= 60)",
-              "always not (always[0, {w}] Speed[car2] > 60)"]
+    shapes = [
+        "always (Speed[car{c}] > -{k})",
+        "always (Speed[car{c}] < 200 + {k})",
+        "always (Speed[car{c}] > 60 -> eventually[0, {w}] Speed[car{c}] <= 60)",
+        "always not (always[0, {w}] Speed[car2] > 60)",
+    ]
     return [shapes[i % 4].format(c=i % 3 + 1, k=i, w=30 + i) for i in range(n)]
 
 
@@ -111,6 +115,7 @@ def end_to_end(*paths: Path, formulas: list[str] = FORMULAS) -> tuple[float, lis
         n = source.count(None) or 0
         verdicts[:] = [e for e in monitor.run(source) if isinstance(e, Verdict)]
         return n
+
     return best(run), verdicts
 
 
@@ -122,11 +127,13 @@ def heap_by_quarter(path: Path) -> list[int]:
     points: list[tuple[int, int]] = []
     tracemalloc.start()
     for _ in Monitor(km, FORMULAS, StreamPolicy()).run(
-            source, lambda n: points.append((n, tracemalloc.get_traced_memory()[0]))):
+        source, lambda n: points.append((n, tracemalloc.get_traced_memory()[0]))
+    ):
         pass
     tracemalloc.stop()
-    return [max((p for p in points if p[0] <= total * q // 4), default=(0, 0))[1]
-            for q in (1, 2, 3, 4)]
+    return [
+        max((p for p in points if p[0] <= total * q // 4), default=(0, 0))[1] for q in (1, 2, 3, 4)
+    ]
 
 
 def main() -> None:
@@ -138,31 +145,50 @@ def main() -> None:
     bare, raw = raw_rate(path, deserialise=False), raw_rate(path)
     e2e, verdicts = end_to_end(path)
     assert all(v.verdict is True for v in verdicts), "a benchmark formula failed"
-    split, merged_verdicts = end_to_end(recording(args.messages, (1, 2)),
-                                        recording(args.messages, (3,)))
+    split, merged_verdicts = end_to_end(
+        recording(args.messages, (1, 2)), recording(args.messages, (3,))
+    )
     assert merged_verdicts == verdicts, "two recordings gave other verdicts than one"
     thousand, judged = end_to_end(path, formulas=many(1000))
     assert all(v.verdict is True for v in judged), "a benchmark formula failed"
     heap = heap_by_quarter(path)
-    result = {"messages": args.messages, "formulas": len(FORMULAS), "bare_read": round(bare),
-              "raw_read": round(raw), "end_to_end": round(e2e), "ratio": round(e2e / raw, 3),
-              "ratio_bare": round(e2e / bare, 3), "two_recordings": round(split),
-              "two_vs_one": round(split / e2e, 3), "thousand": round(thousand),
-              "thousand_vs_ten": round(thousand / e2e, 3), "heap_by_quarter": heap,
-              "targets_met": e2e >= raw and e2e >= 0.6 * bare and split >= 0.95 * e2e
-              and thousand >= 0.8 * e2e and heap[-1] <= 1.1 * heap[0] + 1e6}
+    result = {
+        "messages": args.messages,
+        "formulas": len(FORMULAS),
+        "bare_read": round(bare),
+        "raw_read": round(raw),
+        "end_to_end": round(e2e),
+        "ratio": round(e2e / raw, 3),
+        "ratio_bare": round(e2e / bare, 3),
+        "two_recordings": round(split),
+        "two_vs_one": round(split / e2e, 3),
+        "thousand": round(thousand),
+        "thousand_vs_ten": round(thousand / e2e, 3),
+        "heap_by_quarter": heap,
+        "targets_met": e2e >= raw
+        and e2e >= 0.6 * bare
+        and split >= 0.95 * e2e
+        and thousand >= 0.8 * e2e
+        and heap[-1] <= 1.1 * heap[0] + 1e6,
+    }
     if args.json:
         print(json.dumps(result))
         return
     print(f"{args.messages:,} messages (CPU, best of {ROUNDS})")
     print(f"  rosbags, iterate only:            {bare:>9,.0f} msgs/s")
     print(f"  rosbags, iterate + deserialise:   {raw:>9,.0f} msgs/s")
-    print(f"  dkreason end to end, 10 formulas: {e2e:>9,.0f} msgs/s  ({e2e / raw:.2f} of "
-          f"iterate + deserialise, target 1.0; {e2e / bare:.2f} of iterate, target 0.6)")
-    print(f"  the same in two recordings:       {split:>9,.0f} msgs/s  ({split / e2e:.2f} of one, "
-          f"target 0.95)")
-    print(f"  1,000 formulas:                   {thousand:>9,.0f} msgs/s  ({thousand / e2e:.2f} "
-          f"of 10, target 0.8)")
+    print(
+        f"  dkreason end to end, 10 formulas: {e2e:>9,.0f} msgs/s  ({e2e / raw:.2f} of "
+        f"iterate + deserialise, target 1.0; {e2e / bare:.2f} of iterate, target 0.6)"
+    )
+    print(
+        f"  the same in two recordings:       {split:>9,.0f} msgs/s  ({split / e2e:.2f} of one, "
+        f"target 0.95)"
+    )
+    print(
+        f"  1,000 formulas:                   {thousand:>9,.0f} msgs/s  ({thousand / e2e:.2f} "
+        f"of 10, target 0.8)"
+    )
     print(f"  heap after each quarter (bytes):  {', '.join(f'{b:,}' for b in heap)}")
     print(f"  targets {'met' if result['targets_met'] else 'MISSED (see above)'}")
 

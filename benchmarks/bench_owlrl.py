@@ -33,14 +33,18 @@ def _configs(folder: Path) -> dict[str, tuple[Path, list[Path]]]:
     """Per workload: a config with reasoning on, and the ontology files with their imports."""
     sosa = REPO / "tests" / "data" / "sosa-ssn"
     weather = folder / "weather.toml"
-    weather.write_text(f'[platforms.w]\nontology = "{sosa / "weather.ttl"}"\n'
-                       'reasoning = "owl-rl"\n', encoding="utf-8")
+    weather.write_text(
+        f'[platforms.w]\nontology = "{sosa / "weather.ttl"}"\nreasoning = "owl-rl"\n',
+        encoding="utf-8",
+    )
     case = next(c for c in CASES if c.name == "1.3")
     workload, _ = case.point(len(case.xs) - 1, 1)
     ch7 = write(workload, folder / "ch7")
     ch7.write_text(ch7.read_text() + 'reasoning = "owl-rl"\n', encoding="utf-8")
-    return {"SOSA/SSN": (weather, [sosa / "weather.ttl", sosa / "ssn.ttl", sosa / "sosa.ttl"]),
-            "chapter 7 (1.3, 200/200)": (ch7, [folder / "ch7" / "ch7.owl"])}
+    return {
+        "SOSA/SSN": (weather, [sosa / "weather.ttl", sosa / "ssn.ttl", sosa / "sosa.ttl"]),
+        "chapter 7 (1.3, 200/200)": (ch7, [folder / "ch7" / "ch7.owl"]),
+    }
 
 
 def _point(what: str, config: Path, files: list[Path]) -> float:
@@ -60,8 +64,12 @@ def _point(what: str, config: Path, files: list[Path]) -> float:
         if what == "owlrl":
             import owlrl
 
-            owlrl.DeductiveClosure(owlrl.OWLRL_Semantics, rdfs_closure=False,
-                                   axiomatic_triples=False, datatype_axioms=False).expand(graph)
+            owlrl.DeductiveClosure(
+                owlrl.OWLRL_Semantics,
+                rdfs_closure=False,
+                axiomatic_triples=False,
+                datatype_axioms=False,
+            ).expand(graph)
         else:
             import reasonable
 
@@ -90,9 +98,20 @@ def measure() -> dict[str, dict[str, float | None]]:
                 best = None
                 for _ in range(ROUNDS):
                     done = subprocess.run(
-                        [sys.executable, "-m", "benchmarks.bench_owlrl", "--point", what,
-                         str(config), *map(str, files)], capture_output=True, text=True,
-                        env=env, check=False)
+                        [
+                            sys.executable,
+                            "-m",
+                            "benchmarks.bench_owlrl",
+                            "--point",
+                            what,
+                            str(config),
+                            *map(str, files),
+                        ],
+                        capture_output=True,
+                        text=True,
+                        env=env,
+                        check=False,
+                    )
                     if done.returncode:  # `reasonable` not installed: no figure
                         break
                     value = float(done.stdout)
@@ -120,13 +139,17 @@ def main(argv: list[str] | None = None) -> int:
         return "-" if value is None else f"{value * 1e3:.0f}"
 
     print(f"best of {ROUNDS} fresh processes, ms; cache off")
-    print(f"{'workload':<26}{'parse':>7}{'load':>7}{'+owl-rl':>9}{'step':>7}{'owlrl':>7}"
-          f"{'reasonable':>11}  step / parse (target <= 1)")
+    print(
+        f"{'workload':<26}{'parse':>7}{'load':>7}{'+owl-rl':>9}{'step':>7}{'owlrl':>7}"
+        f"{'reasonable':>11}  step / parse (target <= 1)"
+    )
     for name, r in rows.items():
         step = (r["load+owl-rl"] or 0) - (r["load"] or 0)
-        print(f"{name:<26}{ms(r['parse']):>7}{ms(r['load']):>7}{ms(r['load+owl-rl']):>9}"
-              f"{ms(step):>7}{ms(r['owlrl']):>7}{ms(r['reasonable']):>11}  "
-              f"{step / (r['parse'] or 1):.1f}")
+        print(
+            f"{name:<26}{ms(r['parse']):>7}{ms(r['load']):>7}{ms(r['load+owl-rl']):>9}"
+            f"{ms(step):>7}{ms(r['owlrl']):>7}{ms(r['reasonable']):>11}  "
+            f"{step / (r['parse'] or 1):.1f}"
+        )
     return 0
 
 

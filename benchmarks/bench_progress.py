@@ -46,26 +46,33 @@ class Spec(NamedTuple):
 def spec(kind: str, k: int) -> Spec:
     c, w = 10 - k / 10, 10 + k
     if kind == "P1":
-        return Spec(f"always (X > {c})", (f"historically(x > {c})", ["x"]),
-                    f"historically{{x > {c}}}")
+        return Spec(
+            f"always (X > {c})", (f"historically(x > {c})", ["x"]), f"historically{{x > {c}}}"
+        )
     if kind == "P2":
-        return Spec(f"always (A > {c} and B > C)",
-                    (f"historically(a > {c} and b > c)", ["a", "b", "c"]),
-                    f"historically({{a > {c}}} and {{d > 0}})")
+        return Spec(
+            f"always (A > {c} and B > C)",
+            (f"historically(a > {c} and b > c)", ["a", "b", "c"]),
+            f"historically({{a > {c}}} and {{d > 0}})",
+        )
     if kind == "P3":
-        return Spec(f"always (P -> eventually[0,{w}] Q)",
-                    (f"historically((once[{w},{w}] (p > 0)) -> once[0,{w}] (q > 0))",
-                     ["p", "q"]),
-                    f"historically((once[{w}:{w}]{{p}}) -> once[0:{w}]{{q}})")
+        return Spec(
+            f"always (P -> eventually[0,{w}] Q)",
+            (f"historically((once[{w},{w}] (p > 0)) -> once[0,{w}] (q > 0))", ["p", "q"]),
+            f"historically((once[{w}:{w}]{{p}}) -> once[0:{w}]{{q}})",
+        )
     if kind == "P4":
-        return Spec(f"always not (always[0,{300 + k}] S > 60)",
-                    (f"historically(not(historically[0,{300 + k}](spd > 60)))", ["spd"]),
-                    f"historically(not (historically[0:{300 + k}]{{spd > 60}}))")
+        return Spec(
+            f"always not (always[0,{300 + k}] S > 60)",
+            (f"historically(not(historically[0,{300 + k}](spd > 60)))", ["spd"]),
+            f"historically(not (historically[0:{300 + k}]{{spd > 60}}))",
+        )
     xs = range(27)
-    return Spec("always (" + " and ".join(f"X{i} > {c}" for i in xs) + ")",
-                ("historically(" + " and ".join(f"x{i} > {c}" for i in xs) + ")",
-                 [f"x{i}" for i in xs]),
-                "historically(" + " and ".join(f"{{x{i} > {c}}}" for i in xs) + ")")
+    return Spec(
+        "always (" + " and ".join(f"X{i} > {c}" for i in xs) + ")",
+        ("historically(" + " and ".join(f"x{i} > {c}" for i in xs) + ")", [f"x{i}" for i in xs]),
+        "historically(" + " and ".join(f"{{x{i} > {c}}}" for i in xs) + ")",
+    )
 
 
 def specs(kind: str, n: int) -> list[Spec]:
@@ -123,7 +130,9 @@ def ours(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float, int]:
                 if step(t, values):
                     raise AssertionError("a benchmark formula was decided early")
             return len(states)
+
         return run
+
     return best(prepare)
 
 
@@ -148,6 +157,7 @@ def with_rtamt(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float, 
             for monitor in monitors:
                 monitor.update(t, row)
         return len(rows)
+
     return best(lambda: run)
 
 
@@ -170,6 +180,7 @@ def with_reelay(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float,
             for m in monitors:
                 m.update(row)
         return len(rows)
+
     return best(lambda: run)
 
 
@@ -201,10 +212,16 @@ def main() -> None:
         full = trace(kind, args.states)
         for n in (1, 10, 100):
             mine, count = ours(kind, n, full[: max(args.states // n, 10_000)])
-            row: dict[str, Any] = {"row": kind, "formulas": n, "ours": round(mine),
-                                   "ours_states": count}
-            for name, runner, cost in (("rtamt", with_rtamt, 100e-6), ("reelay", with_reelay,
-                                                                          1.5e-6)):
+            row: dict[str, Any] = {
+                "row": kind,
+                "formulas": n,
+                "ours": round(mine),
+                "ours_states": count,
+            }
+            for name, runner, cost in (
+                ("rtamt", with_rtamt, 100e-6),
+                ("reelay", with_reelay, 1.5e-6),
+            ):
                 peer_states = max(200, min(len(full), int(PEER_BUDGET / (cost * n))))
                 got = runner(kind, n, full[:peer_states])
                 if got is not None:
@@ -216,18 +233,24 @@ def main() -> None:
         print(json.dumps({"rows": results, "memory": mem}, indent=1))
         return
     print("states/s (CPU, best of 3); ours/peer ratio; [states per run]")
-    print(f"{'row':<4}{'n':>4}{'dkreason':>12}{'rtamt':>10}{'x rtamt':>9}{'reelay':>11}"
-          f"{'x reelay':>10}  target")
+    print(
+        f"{'row':<4}{'n':>4}{'dkreason':>12}{'rtamt':>10}{'x rtamt':>9}{'reelay':>11}"
+        f"{'x reelay':>10}  target"
+    )
     for r in results:
         ok_rtamt = r.get("x_rtamt", TARGET_RTAMT) >= TARGET_RTAMT
         ok_reelay = r["row"] == "P5" or r.get("x_reelay", 1.0) >= 1.0
         verdict = "met" if ok_rtamt and ok_reelay else "MISSED"
-        print(f"{r['row']:<4}{r['formulas']:>4}{r['ours']:>12,}{r.get('rtamt', 0):>10,}"
-              f"{r.get('x_rtamt', '-'):>9}{r.get('reelay', 0):>11,}{r.get('x_reelay', '-'):>10}"
-              f"  {verdict}  [{r['ours_states']:,} / {r.get('rtamt_states', '-')} / "
-              f"{r.get('reelay_states', '-')}]")
-    print("memory of P3 over a long run (states: traced bytes): " +
-          ", ".join(f"{n:,}: {b:,}" for n, b in mem))
+        print(
+            f"{r['row']:<4}{r['formulas']:>4}{r['ours']:>12,}{r.get('rtamt', 0):>10,}"
+            f"{r.get('x_rtamt', '-'):>9}{r.get('reelay', 0):>11,}{r.get('x_reelay', '-'):>10}"
+            f"  {verdict}  [{r['ours_states']:,} / {r.get('rtamt_states', '-')} / "
+            f"{r.get('reelay_states', '-')}]"
+        )
+    print(
+        "memory of P3 over a long run (states: traced bytes): "
+        + ", ".join(f"{n:,}: {b:,}" for n, b in mem)
+    )
 
 
 if __name__ == "__main__":

@@ -42,18 +42,23 @@ def write(folder: Path) -> None:
     bench_live.write(folder)
     config = ['local = "p1"']
     for n in range(1, PLATFORMS + 1):
-        (folder / f"p{n}-ros2.sslt").write_text("".join(
-            f"topic /p{n}/t{k}:{TYPE} contains Reading(p{n}s{k}) = msg.temperature\n"
-            for k in range(1, TOPICS + 1)))
+        (folder / f"p{n}-ros2.sslt").write_text(
+            "".join(
+                f"topic /p{n}/t{k}:{TYPE} contains Reading(p{n}s{k}) = msg.temperature\n"
+                for k in range(1, TOPICS + 1)
+            )
+        )
         config.append(f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}-ros2.sslt"')
         if n > 1:
-            config.append(f'[[mappings]]\nsource = "p1"\ntarget = "p{n}"\n'
-                          f'file = "p1-p{n}.cowl.xml"')
+            config.append(
+                f'[[mappings]]\nsource = "p1"\ntarget = "p{n}"\nfile = "p1-p{n}.cowl.xml"'
+            )
     (folder / "ros2.toml").write_text("\n".join(config) + "\n")
 
 
-def ros2_publisher(n: int, endpoint: str, start: float, seconds: float, hz: float,
-                   done: Any, finished: Any) -> None:
+def ros2_publisher(
+    n: int, endpoint: str, start: float, seconds: float, hz: float, done: Any, finished: Any
+) -> None:
     """Platform n as a ROS 2 node: ten topics at `hz` from `start` for `seconds` (as fast as
     it can with hz 0); platform 3 then publishes the violating reading."""
     import struct
@@ -67,8 +72,12 @@ def ros2_publisher(n: int, endpoint: str, start: float, seconds: float, hz: floa
 
     def message(value: float) -> bytes:  # Temperature: header, temperature, variance
         t = time.time_ns()
-        return b"\x00\x01\x00\x00" + struct.pack("<iII", t // 10**9, t % 10**9, 1) + \
-            b"\x00\x00\x00\x00" + struct.pack("<dd", value, 0.0)
+        return (
+            b"\x00\x01\x00\x00"
+            + struct.pack("<iII", t // 10**9, t % 10**9, 1)
+            + b"\x00\x00\x00\x00"
+            + struct.pack("<dd", value, 0.0)
+        )
 
     time.sleep(max(0.0, start - time.time()))
     published, tick = 0, start
@@ -104,14 +113,18 @@ def run_ros2(folder: Path, seconds: float, hz: float, delay: Fraction) -> dict[s
         s.bind(("127.0.0.1", 0))
         endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
     session = open_session([], [endpoint])
-    monitor = Ros2Monitor(KnowledgeManager.from_config(folder / "ros2.toml"),
-                          list(bench_live.FORMULAS),
-                          StreamPolicy(max_age=Fraction(1), delay_before_approximation=delay),
-                          session, store=_typestore({}, False, "ros2_jazzy"))
+    monitor = Ros2Monitor(
+        KnowledgeManager.from_config(folder / "ros2.toml"),
+        list(bench_live.FORMULAS),
+        StreamPolicy(max_age=Fraction(1), delay_before_approximation=delay),
+        session,
+        store=_typestore({}, False, "ros2_jazzy"),
+    )
     meter = bench_live.Meter()
     meter.attach(monitor.processor)
-    fleet = bench_live.Fleet(ros2_publisher, [(n, endpoint) for n in range(1, PLATFORMS + 1)],
-                             seconds, hz, monitor)
+    fleet = bench_live.Fleet(
+        ros2_publisher, [(n, endpoint) for n in range(1, PLATFORMS + 1)], seconds, hz, monitor
+    )
     verdict_at, late = None, 0
     try:
         for event in monitor.run(duration=seconds + 60):
@@ -122,9 +135,13 @@ def run_ros2(folder: Path, seconds: float, hz: float, delay: Fraction) -> dict[s
     finally:
         results = fleet.stop()
         session.close()
-    return {"hz": hz, "seconds": seconds,
-            **bench_live.figures(results, monitor.received, meter, verdict_at),
-            "late_samples": late, "delay_ms": float(delay * 1000)}
+    return {
+        "hz": hz,
+        "seconds": seconds,
+        **bench_live.figures(results, monitor.received, meter, verdict_at),
+        "late_samples": late,
+        "delay_ms": float(delay * 1000),
+    }
 
 
 def main() -> None:
@@ -132,8 +149,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--hz", type=float, default=100.0, help="paced rate of each topic")
     parser.add_argument("--flood", type=float, default=3.0, help="seconds of the flood run")
-    parser.add_argument("--delay", type=float, default=0.005,
-                        help="ROS 2 side: seconds a state waits for its samples")
+    parser.add_argument(
+        "--delay",
+        type=float,
+        default=0.005,
+        help="ROS 2 side: seconds a state waits for its samples",
+    )
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     delay = Fraction(args.delay).limit_denominator(10**9)
@@ -147,22 +168,45 @@ def main() -> None:
     if args.json:
         print(json.dumps(rows))
         return
-    print(f"{PLATFORMS} platforms x {TOPICS} topics over loopback Zenoh; paced: {args.hz:g} Hz "
-          f"a topic for {args.seconds:g} s; flood: as fast as each publisher can for "
-          f"{args.flood:g} s")
-    cols = ("published", "received", "lost", "samples_per_s", "p50_ms", "p99_ms",
-            "violation_to_verdict_ms")
-    print(f"{'':<18}" + "".join(f"{c:>14}" for c in ("published", "received", "lost",
-                                                      "samples/s", "p50 ms", "p99 ms",
-                                                      "violation ms")))
+    print(
+        f"{PLATFORMS} platforms x {TOPICS} topics over loopback Zenoh; paced: {args.hz:g} Hz "
+        f"a topic for {args.seconds:g} s; flood: as fast as each publisher can for "
+        f"{args.flood:g} s"
+    )
+    cols = (
+        "published",
+        "received",
+        "lost",
+        "samples_per_s",
+        "p50_ms",
+        "p99_ms",
+        "violation_to_verdict_ms",
+    )
+    print(
+        f"{'':<18}"
+        + "".join(
+            f"{c:>14}"
+            for c in (
+                "published",
+                "received",
+                "lost",
+                "samples/s",
+                "p50 ms",
+                "p99 ms",
+                "violation ms",
+            )
+        )
+    )
     for name, r in rows.items():
         print(f"{name:<18}" + "".join(f"{r[c]!s:>14}" for c in cols))
     for mode in ("paced", "flood"):
         cdr, js = rows[f"ros2 cdr {mode}"], rows[f"serve json {mode}"]
-        print(f"{mode}: CDR/JSON samples/s {cdr['samples_per_s'] / js['samples_per_s']:.2f}, "
-              f"p99 {cdr['p99_ms']} vs {js['p99_ms']} ms; ROS 2 late samples "
-              f"{cdr['late_samples']} (delay {cdr['delay_ms']:g} ms)  "
-              f"(target: CDR no slower than JSON)")
+        print(
+            f"{mode}: CDR/JSON samples/s {cdr['samples_per_s'] / js['samples_per_s']:.2f}, "
+            f"p99 {cdr['p99_ms']} vs {js['p99_ms']} ms; ROS 2 late samples "
+            f"{cdr['late_samples']} (delay {cdr['delay_ms']:g} ms)  "
+            f"(target: CDR no slower than JSON)"
+        )
 
 
 if __name__ == "__main__":

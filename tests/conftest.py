@@ -41,16 +41,27 @@ def formulas() -> dict[str, str]:
 def entity_bomb(root: str) -> str:
     """A billion-laughs document: nine levels of ten-fold entity expansion."""
     levels = "".join(f'<!ENTITY l{i} "{f"&l{i - 1};" * 10}">' for i in range(1, 10))
-    return (f'<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY l0 "lol">{levels}]>\n'
-            f"<{root}>&l9;</{root}>\n")
+    return (
+        f'<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY l0 "lol">{levels}]>\n<{root}>&l9;</{root}>\n'
+    )
 
 
 def topic_sets(request_json: dict[str, Any]) -> dict[tuple[str, tuple[str, ...]], set[Any]]:
     """Per (feature, args): the set of (platform, topic, msgtype, field, filter), as the
     scenario README says outputs are compared."""
-    return {(f["feature"], tuple(f["args"])): {
-        (t["platform"], t["topic"], t["msgtype"], t["field"], tuple(sorted(t["filter"].items())))
-        for t in f["topics"]} for f in request_json["features"]}
+    return {
+        (f["feature"], tuple(f["args"])): {
+            (
+                t["platform"],
+                t["topic"],
+                t["msgtype"],
+                t["field"],
+                tuple(sorted(t["filter"].items())),
+            )
+            for t in f["topics"]
+        }
+        for f in request_json["features"]
+    }
 
 
 @pytest.fixture
@@ -70,6 +81,9 @@ def traffic(tmp_path_factory: pytest.TempPathFactory) -> Path:
     import sys
 
     target = tmp_path_factory.mktemp("traffic") / "recording"
-    subprocess.run([sys.executable, str(REPO / "examples" / "traffic" / "simulate.py"),
-                    str(target)], check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, str(REPO / "examples" / "traffic" / "simulate.py"), str(target)],
+        check=True,
+        capture_output=True,
+    )
     return target

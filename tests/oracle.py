@@ -80,14 +80,19 @@ def holds(f: Formula, tr: Trace, i: int, prefix: bool = False) -> bool | None:
         a, b = num(f.left, tr[i][1]), num(f.right, tr[i][1])
         if a is None or b is None:
             return None
-        return bool({"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b,
-                     "!=": a != b}[f.op])
+        return bool(
+            {"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b, "!=": a != b}[f.op]
+        )
     if isinstance(f, Not):
         return k_not(holds(f.arg, tr, i, prefix))
     if isinstance(f, Connective):
         a, b = holds(f.left, tr, i, prefix), holds(f.right, tr, i, prefix)
-        return {"and": k_and(a, b), "or": k_or(a, b), "->": k_or(k_not(a), b),
-                "<->": None if a is None or b is None else a == b}[f.op]
+        return {
+            "and": k_and(a, b),
+            "or": k_or(a, b),
+            "->": k_or(k_not(a), b),
+            "<->": None if a is None or b is None else a == b,
+        }[f.op]
     assert isinstance(f, Temporal | Until), f
     out: bool | None
     phi: bool | None

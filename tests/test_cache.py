@@ -33,7 +33,8 @@ def _entries(folder: Path) -> set[str]:
 
 
 def test_a_second_load_reads_the_cache_and_a_changed_file_is_parsed_again(
-        tmp_path: Path, private_cache: Path) -> None:
+    tmp_path: Path, private_cache: Path
+) -> None:
     config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
     first = KnowledgeManager.from_config(config).list_topics()
     (entry,) = _entries(private_cache)
@@ -54,7 +55,8 @@ def test_a_second_load_reads_the_cache_and_a_changed_file_is_parsed_again(
 
 
 def test_the_derived_views_come_from_the_cache_row_for_row(
-        tmp_path: Path, private_cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, private_cache: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The views and the spec checks are a function of the facts and the rules: a second load
     takes the rows the first one derived (and answers alike) without asking the engine."""
     config = write(Workload(30, 5, 5, 10, 5, nine(), sort_share=0.8), tmp_path / "w")
@@ -74,8 +76,7 @@ def test_the_derived_views_come_from_the_cache_row_for_row(
     assert "topic_objects" in again.kb.rederived
 
 
-def test_changed_specs_or_rules_derive_the_views_again(tmp_path: Path,
-                                                       private_cache: Path) -> None:
+def test_changed_specs_or_rules_derive_the_views_again(tmp_path: Path, private_cache: Path) -> None:
     config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
     KnowledgeManager.from_config(config)
     assert len(list(private_cache.glob("views-*"))) == 1
@@ -87,27 +88,30 @@ def test_changed_specs_or_rules_derive_the_views_again(tmp_path: Path,
 
     rules = tmp_path / "w" / "extra.dl"
     rules.write_text("# no rule, but another policy text\n")
-    config.write_text(config.read_text().replace('local = ', 'rules = ["extra.dl"]\nlocal = ', 1)
-                      if 'local = ' in config.read_text()
-                      else 'rules = ["extra.dl"]\n' + config.read_text())
+    config.write_text(
+        config.read_text().replace("local = ", 'rules = ["extra.dl"]\nlocal = ', 1)
+        if "local = " in config.read_text()
+        else 'rules = ["extra.dl"]\n' + config.read_text()
+    )
     KnowledgeManager.from_config(config)
     assert len(list(private_cache.glob("views-*"))) == 3
 
 
-def test_specs_that_fail_their_check_store_no_views(tmp_path: Path,
-                                                    private_cache: Path) -> None:
+def test_specs_that_fail_their_check_store_no_views(tmp_path: Path, private_cache: Path) -> None:
     config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
     specs = tmp_path / "w" / "ch7.sslt"
-    specs.write_text(specs.read_text()
-                     + "topic bad:M contains X(Relation as a) = msg.v for some a = msg.id\n")
+    specs.write_text(
+        specs.read_text() + "topic bad:M contains X(Relation as a) = msg.v for some a = msg.id\n"
+    )
     for _ in range(2):  # refused again: nothing was kept that would let it through
         with pytest.raises(SortError, match="Relation"):
             KnowledgeManager.from_config(config)
     assert not list(private_cache.glob("views-*"))
 
 
-def test_a_views_entry_of_the_wrong_shape_is_derived_again(tmp_path: Path,
-                                                          private_cache: Path) -> None:
+def test_a_views_entry_of_the_wrong_shape_is_derived_again(
+    tmp_path: Path, private_cache: Path
+) -> None:
     config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
     answer = KnowledgeManager.from_config(config).check_formula("X[b1]")
     (entry,) = private_cache.glob("views-*")
@@ -131,8 +135,9 @@ def test_caching_can_be_turned_off(tmp_path: Path, monkeypatch: pytest.MonkeyPat
     assert KnowledgeManager.from_config(config).list_topics()
 
 
-def test_an_unwritable_cache_costs_only_the_parse(tmp_path: Path,
-                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+def test_an_unwritable_cache_costs_only_the_parse(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     blocker = tmp_path / "file"
     blocker.write_text("")
     monkeypatch.setenv("DKREASON_CACHE", str(blocker / "cache"))  # under a regular file
@@ -142,9 +147,22 @@ def test_an_unwritable_cache_costs_only_the_parse(tmp_path: Path,
 
 def _stored(config: Path) -> dict[str, int]:
     """Rows per stored relation, as `dkreason match --stats` prints them."""
-    done = subprocess.run([sys.executable, "-m", "dkreason.cli", "match", "--stats", "--config",
-                           str(config), "X[b1]"], capture_output=True, text=True, check=True,
-                          env=os.environ | {"PYTHONPATH": str(REPO / "src")})
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "dkreason.cli",
+            "match",
+            "--stats",
+            "--config",
+            str(config),
+            "X[b1]",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+        env=os.environ | {"PYTHONPATH": str(REPO / "src")},
+    )
     rows = {}
     for line in done.stderr.splitlines():
         words = line.split()
@@ -153,15 +171,16 @@ def _stored(config: Path) -> dict[str, int]:
     return rows
 
 
-def test_stored_relations_grow_with_specs_plus_objects_not_their_product(
-        tmp_path: Path) -> None:
+def test_stored_relations_grow_with_specs_plus_objects_not_their_product(tmp_path: Path) -> None:
     """Ten times the sorts, objects and specs (most specs over sorts): every relation holds
     at most ten times the rows, times 1.5 for the closures (a sort's ancestors, an object's
     sorts: the random hierarchy grows deeper, logarithmically), plus slack for the fixed part.
     The materialized sort × instance view this replaced held a hundred times the rows."""
+
     def workload(scale: int) -> Workload:
-        return Workload(20 * scale, 30 * scale, 10 * scale, 30 * scale, 5 * scale, nine(),
-                        sort_share=0.8)
+        return Workload(
+            20 * scale, 30 * scale, 10 * scale, 30 * scale, 5 * scale, nine(), sort_share=0.8
+        )
 
     small = _stored(write(workload(1), tmp_path / "small"))
     large = _stored(write(workload(10), tmp_path / "large"))
@@ -178,7 +197,8 @@ def test_what_the_cli_loads_is_what_the_api_loads(tmp_path: Path) -> None:
 
 
 def test_the_cache_stays_under_its_limit_dropping_what_was_used_longest_ago(
-        tmp_path: Path, private_cache: Path) -> None:
+    tmp_path: Path, private_cache: Path
+) -> None:
     entries: list[set[str]] = []  # each workload's own entries
     for n in (5, 6, 7):
         before = {p.name for p in private_cache.glob("*-*")}
@@ -197,5 +217,7 @@ def test_the_cache_stays_under_its_limit_dropping_what_was_used_longest_ago(
     assert entries[0] <= left  # used last
     assert not entries[1] & left  # used longest ago
     assert grammar.exists()
-    assert sum((private_cache / n).stat().st_size for n in left
-               if not n.endswith(".lark-cache")) <= size * 2 // 3
+    assert (
+        sum((private_cache / n).stat().st_size for n in left if not n.endswith(".lark-cache"))
+        <= size * 2 // 3
+    )

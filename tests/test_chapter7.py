@@ -15,8 +15,9 @@ from benchmarks.chapter7.__main__ import CASES, main
 from benchmarks.chapter7.workload import QUANTIFIED, Workload, expanded, formula, nine, write
 from dkreason import KnowledgeManager
 
-SMALL = Workload(concepts=30, relevant=5, irrelevant=20, relevant_specs=0, irrelevant_specs=15,
-                 features=nine())
+SMALL = Workload(
+    concepts=30, relevant=5, irrelevant=20, relevant_specs=0, irrelevant_specs=15, features=nine()
+)
 
 
 def test_a_workload_is_the_same_for_the_same_seed(tmp_path: Path) -> None:
@@ -29,8 +30,9 @@ def test_a_workload_is_the_same_for_the_same_seed(tmp_path: Path) -> None:
 def test_each_feature_of_the_nine_finds_exactly_its_relevant_topic(tmp_path: Path) -> None:
     km = KnowledgeManager.from_config(write(SMALL, tmp_path))
     request = km.check_formula(formula(nine()))
-    assert [[t.topic for t in f.topics] for f in request.features] == \
-        [[f"rel{n}"] for n in range(9)]
+    assert [[t.topic for t in f.topics] for f in request.features] == [
+        [f"rel{n}"] for n in range(9)
+    ]
 
 
 @pytest.mark.parametrize("n", [3, 9, 27])
@@ -39,8 +41,9 @@ def test_a_quantified_formula_expands_to_its_written_out_twin(tmp_path: Path, n:
     km = KnowledgeManager.from_config(write(w, tmp_path))
     quantified = km.check_formula(QUANTIFIED[n])
     written = km.check_formula(formula(expanded(n)))
-    assert sorted(f.feature.key for f in quantified.features) == \
-        sorted(f.feature.key for f in written.features)
+    assert sorted(f.feature.key for f in quantified.features) == sorted(
+        f.feature.key for f in written.features
+    )
     assert all(len(f.topics) == 1 for f in quantified.features)
 
 
@@ -57,12 +60,16 @@ def test_the_runner_rejects_an_unknown_test_case(capsys: pytest.CaptureFixture[s
     assert "unknown test case '9.9'" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize(("argv", "says"), [
-    (["--processes", "0"], "expected a whole number of at least 1, got '0'"),
-    (["--growth", "--scales", "10,10"], "needs two different scales"),
-])
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--processes", "0"], "expected a whole number of at least 1, got '0'"),
+        (["--growth", "--scales", "10,10"], "needs two different scales"),
+    ],
+)
 def test_the_runner_rejects_bad_options_with_exit_2(
-        capsys: pytest.CaptureFixture[str], argv: list[Any], says: str) -> None:
+    capsys: pytest.CaptureFixture[str], argv: list[Any], says: str
+) -> None:
     try:
         code = main(argv)
     except SystemExit as exc:  # argparse's own errors
@@ -74,13 +81,18 @@ ANSWERS = Path(__file__).parent / "data" / "chapter7" / "answers.json"
 
 
 def _points() -> list[tuple[str, int, float]]:
-    return [(case.name, i, share) for case in CASES for i in (0, len(case.xs) - 1)
-            for share in (0.0, 0.8)]
+    return [
+        (case.name, i, share)
+        for case in CASES
+        for i in (0, len(case.xs) - 1)
+        for share in (0.0, 0.8)
+    ]
 
 
 @pytest.mark.parametrize(("case", "point", "share"), _points())
 def test_symbolic_sorts_give_the_answers_of_materialized_ones(
-        tmp_path: Path, case: str, point: int, share: float) -> None:
+    tmp_path: Path, case: str, point: int, share: float
+) -> None:
     """Differential: every seeded chapter 7 workload, as the thesis writes it (share 0) and
     with 80% of the further relevant specs over `some B`, matches exactly the topics and
     filters the matcher gave when sort arguments were materialized per object
@@ -89,6 +101,8 @@ def test_symbolic_sorts_give_the_answers_of_materialized_ones(
     w, text = setup(point, 1)
     w = replace(w, sort_share=share, relevant_specs=max(w.relevant_specs, 20))
     request = KnowledgeManager.from_config(write(w, tmp_path)).check_formula(text)
-    got = {str(f.feature.key): sorted([t.topic, sorted(map(list, t.filter))]
-                                      for t in f.topics) for f in request.features}
+    got = {
+        str(f.feature.key): sorted([t.topic, sorted(map(list, t.filter))] for t in f.topics)
+        for f in request.features
+    }
     assert got == json.loads(ANSWERS.read_text(encoding="utf-8"))[f"{case}/{point}/{share}"]

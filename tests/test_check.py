@@ -18,19 +18,26 @@ def single() -> KnowledgeManager:
     return KnowledgeManager.from_config(SCENARIOS / "single.toml")
 
 
-@pytest.mark.parametrize(("formula", "error", "column", "says"), [
-    ("always (Altitud[uav1] > 3)", NameError_, 9, "unknown feature 'Altitud'"),
-    ("Altitude[uav9] > 3", NameError_, 10, "unknown object 'uav9'"),
-    ("Close[uav1]", SortError, 1, "Close takes 2 arguments, not 1"),
-    ("Altitude[car1] > 3", SortError, 10, "car1 is a Car, Altitude needs AerialVehicle"),
-    ("forall x in Trucks: Speed[x] > 3", NameError_, 13, "unknown sort 'Trucks'"),
-    ("forall x in Vehicle: GroundSpeed[x] > 3", SortError, 34,
-     "variable x ranges over Vehicle, which is not subsumed by UAV"),
-    ("Altitude[UAV] > 3", NameError_, 10, "'UAV' is a sort on platform1, not an object"),
-])
+@pytest.mark.parametrize(
+    ("formula", "error", "column", "says"),
+    [
+        ("always (Altitud[uav1] > 3)", NameError_, 9, "unknown feature 'Altitud'"),
+        ("Altitude[uav9] > 3", NameError_, 10, "unknown object 'uav9'"),
+        ("Close[uav1]", SortError, 1, "Close takes 2 arguments, not 1"),
+        ("Altitude[car1] > 3", SortError, 10, "car1 is a Car, Altitude needs AerialVehicle"),
+        ("forall x in Trucks: Speed[x] > 3", NameError_, 13, "unknown sort 'Trucks'"),
+        (
+            "forall x in Vehicle: GroundSpeed[x] > 3",
+            SortError,
+            34,
+            "variable x ranges over Vehicle, which is not subsumed by UAV",
+        ),
+        ("Altitude[UAV] > 3", NameError_, 10, "'UAV' is a sort on platform1, not an object"),
+    ],
+)
 def test_bad_formulas_are_errors_pointing_into_the_formula(
-        single: KnowledgeManager, formula: str, error: type[SourceError], column: int,
-        says: str) -> None:
+    single: KnowledgeManager, formula: str, error: type[SourceError], column: int, says: str
+) -> None:
     with pytest.raises(error) as err:
         single.check_formula(formula)
     assert err.value.span.column == column and says in str(err.value)
@@ -56,13 +63,20 @@ ESCORT = """
 """
 
 
-@pytest.mark.parametrize(("formula", "column", "says"), [
-    ("Escorts[ship1, ship1]", 16, "argument 2 of Escorts: ship1 is a Ship, Escorts needs Boat"),
-    ("Escorts[ship1, boat1] and Escorts[boat1, boat1]", 35,
-     "argument 1 of Escorts: boat1 is a Boat, Escorts needs Ship"),
-])
+@pytest.mark.parametrize(
+    ("formula", "column", "says"),
+    [
+        ("Escorts[ship1, ship1]", 16, "argument 2 of Escorts: ship1 is a Ship, Escorts needs Boat"),
+        (
+            "Escorts[ship1, boat1] and Escorts[boat1, boat1]",
+            35,
+            "argument 1 of Escorts: boat1 is a Boat, Escorts needs Ship",
+        ),
+    ],
+)
 def test_every_argument_must_fit_not_just_one(
-        tmp_path: Path, formula: str, column: int, says: str) -> None:
+    tmp_path: Path, formula: str, column: int, says: str
+) -> None:
     (tmp_path / "sea.ttl").write_text(ESCORT)
     (tmp_path / "sea.toml").write_text('[platforms.sea]\nontology = "sea.ttl"\n')
     km = KnowledgeManager.from_config(tmp_path / "sea.toml")

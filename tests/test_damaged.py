@@ -25,14 +25,18 @@ from dkreason.stream.sources import JsonlSource, open_source
 
 REPO = Path(__file__).resolve().parents[1]
 TRAFFIC = "forall c in Car: always (Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)"
-FORMATS = {"mcap": "rec", "bare-mcap": "rec.mcap", "sqlite3": "rec", "ros1": "rec.bag",
-           "jsonl": "rec.jsonl"}
+FORMATS = {
+    "mcap": "rec",
+    "bare-mcap": "rec.mcap",
+    "sqlite3": "rec",
+    "ros1": "rec.bag",
+    "jsonl": "rec.jsonl",
+}
 CUTS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.75, 0.93, 0.97)  # of the data file's bytes
 
 
 def _simulate() -> ModuleType:  # examples/traffic/simulate.py, the traffic example's own recorder
-    spec = importlib.util.spec_from_file_location("simulate",
-                                                  REPO / "examples/traffic/simulate.py")
+    spec = importlib.util.spec_from_file_location("simulate", REPO / "examples/traffic/simulate.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -47,8 +51,9 @@ def _jsonl(path: Path, rows: Iterable[tuple[str, str, int, dict[str, Any]]]) -> 
             body = {k: v for k, v in msg.items() if k != "header"}
             time = f"{t_ns // 10**9}.{t_ns % 10**9:09d}"
             stamp = f', "header": {{"stamp": {valid}}}' if valid is not None else ""
-            out.write(f'{{"topic": "{name}", "time": {time}, "msg": '
-                      f'{json.dumps(body)[:-1]}{stamp}}}}}\n')
+            out.write(
+                f'{{"topic": "{name}", "time": {time}, "msg": {json.dumps(body)[:-1]}{stamp}}}}}\n'
+            )
 
 
 @pytest.fixture(scope="module")
@@ -74,8 +79,9 @@ def km() -> KnowledgeManager:
 
 def data_file(path: Path) -> Path:
     """The file holding the messages (a bag folder's storage file)."""
-    return next(p for p in path.iterdir() if p.suffix in (".mcap", ".db3")) \
-        if path.is_dir() else path
+    return (
+        next(p for p in path.iterdir() if p.suffix in (".mcap", ".db3")) if path.is_dir() else path
+    )
 
 
 def monitor(km: KnowledgeManager, path: Path) -> tuple[list[Event], DkError | None]:
@@ -93,8 +99,11 @@ def last_time(path: Path) -> int:
     """The record time of the last message before the damage (ns)."""
     source, last = open_source(path), 0
     try:
-        rows = source.records() if isinstance(source, JsonlSource) else \
-            source.messages({t: [] for t in source.types()})
+        rows = (
+            source.records()
+            if isinstance(source, JsonlSource)
+            else source.messages({t: [] for t in source.types()})
+        )
         for _, available, _, _ in rows:
             last = max(last, available)
     except DkError:
@@ -108,7 +117,8 @@ def violated(events: list[Event]) -> bool:
 
 @pytest.mark.parametrize("fmt", FORMATS)
 def test_a_cut_recording_reports_what_the_data_before_the_cut_decides(
-        tmp_path: Path, km: KnowledgeManager, recordings: dict[str, Path], fmt: str) -> None:
+    tmp_path: Path, km: KnowledgeManager, recordings: dict[str, Path], fmt: str
+) -> None:
     intact, _ = monitor(km, recordings[fmt])
     assert violated(intact)
     sides = set()
@@ -137,7 +147,8 @@ def test_a_cut_recording_reports_what_the_data_before_the_cut_decides(
 
 @pytest.mark.parametrize("fmt", ["mcap", "sqlite3"])
 def test_a_bag_folder_without_metadata_is_read(
-        tmp_path: Path, km: KnowledgeManager, recordings: dict[str, Path], fmt: str) -> None:
+    tmp_path: Path, km: KnowledgeManager, recordings: dict[str, Path], fmt: str
+) -> None:
     copy = tmp_path / "rec"
     shutil.copytree(recordings[fmt], copy)
     (copy / "metadata.yaml").unlink()
@@ -149,12 +160,24 @@ def test_a_bag_folder_without_metadata_is_read(
 
 
 def test_the_cli_prints_the_verdict_then_one_error_line(
-        capsys: pytest.CaptureFixture[str], tmp_path: Path, recordings: dict[str, Path]) -> None:
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, recordings: dict[str, Path]
+) -> None:
     cut = tmp_path / "cut.bag"
     data = recordings["ros1"].read_bytes()
     cut.write_bytes(data[: int(len(data) * 0.95)])
-    code = main(["monitor", "--config", str(REPO / "examples" / "federation.toml"), "--source",
-                 str(cut), "--delay", "0.1", "--json", TRAFFIC])
+    code = main(
+        [
+            "monitor",
+            "--config",
+            str(REPO / "examples" / "federation.toml"),
+            "--source",
+            str(cut),
+            "--delay",
+            "0.1",
+            "--json",
+            TRAFFIC,
+        ]
+    )
     out = capsys.readouterr()
     verdicts = [json.loads(line) for line in out.out.splitlines()]
     assert code == 2 and verdicts[0]["verdict"] is False and verdicts[0]["time"] == 300.02

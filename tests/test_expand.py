@@ -36,19 +36,22 @@ topic own:Own contains Heading(ship7) = msg.hdg
 def km(tmp_path: Path, specs: str = SPECS) -> KnowledgeManager:
     (tmp_path / "sea.ttl").write_text(ONTOLOGY)
     (tmp_path / "sea.sslt").write_text(specs)
-    (tmp_path / "sea.toml").write_text('[platforms.sea]\nontology = "sea.ttl"\n'
-                                       'specs = "sea.sslt"\n')
+    (tmp_path / "sea.toml").write_text(
+        '[platforms.sea]\nontology = "sea.ttl"\nspecs = "sea.sslt"\n'
+    )
     return KnowledgeManager.from_config(tmp_path / "sea.toml")
 
 
 def test_objects_that_are_same_as_each_other_expand_once_under_the_smallest_name(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     request = km(tmp_path, "").check_formula("forall v in Vessel: Heading[v] > 0")
     assert [f.feature.args for f in request.features] == [("contact3",), ("raft",), ("skiff",)]
 
 
 def test_expansion_includes_subsorts_equivalent_sorts_and_sorts_inherited_through_same_as(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     manager = km(tmp_path, "")
     assert manager.list_sort("Boat") == ["raft", "skiff"]  # Boat ≡ Dinghy
     assert manager.list_sort("Ship") == ["contact3", "ship7"]  # contact3 sameAs ship7
@@ -56,7 +59,8 @@ def test_expansion_includes_subsorts_equivalent_sorts_and_sorts_inherited_throug
 
 
 def test_a_sort_topic_appears_once_per_same_as_candidate_with_its_own_filter(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     request = km(tmp_path).check_formula("Heading[ship7] > 0").to_json()
     got = {(t["topic"], tuple(t["filter"].items())) for t in request["features"][0]["topics"]}
     assert got == {("track", (("msg.id", 7),)), ("track", (("msg.id", 3),)), ("own", ())}

@@ -36,13 +36,22 @@ def federation() -> KnowledgeManager:
 
 
 def test_uastopic5_is_explained_by_the_bridge_the_remote_axiom_and_same_as(
-        capsys: pytest.CaptureFixture[str]) -> None:
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     assert SCENARIOS is not None
-    code = main(["explain", "--config", str(SCENARIOS / "federation.toml"),
-                 "always (Altitude[uav2] > 10)", "--feature", "Altitude[uav2]"])
+    code = main(
+        [
+            "explain",
+            "--config",
+            str(SCENARIOS / "federation.toml"),
+            "always (Altitude[uav2] > 10)",
+            "--feature",
+            "Altitude[uav2]",
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0
-    block = out[out.index("✔ uastopic5"):]
+    block = out[out.index("✔ uastopic5") :]
     summary = block.split("proof:")[0]
     assert "Altitude ≡ Height (bridge platform1→platform3, " in summary
     assert "platform1-platform3.cowl.xml:21)" in summary
@@ -56,14 +65,17 @@ def test_a_sort_inherited_through_same_as_cites_the_member_told_so(tmp_path: Pat
     ship7's rdf:type, and the explanation says so rather than calling contact3 a Ship."""
     km = sea(tmp_path)
     e = km.explain("Heading[contact3] > 0")
-    told = [leaf for w in e.features[0].why for leaf in w.proof.leaves()
-            if leaf.fact[0] == "class_type"]
+    told = [
+        leaf for w in e.features[0].why for leaf in w.proof.leaves() if leaf.fact[0] == "class_type"
+    ]
     assert told and {leaf.text for leaf in told} == {
-        "ship7 : Ship (sea axiom), in the sameAs class of contact3"}
+        "ship7 : Ship (sea axiom), in the sameAs class of contact3"
+    }
     assert all((leaf.source or "").startswith("<http://sea.org/o#ship7> rdf:type") for leaf in told)
     lines = {line for w in e.features[0].why for line in w.summary}
-    assert "argument 1 of track: ship7 : Ship ⊑ Vessel (sea axiom, " \
-        f"{tmp_path / 'sea.ttl'})" in lines
+    assert (
+        f"argument 1 of track: ship7 : Ship ⊑ Vessel (sea axiom, {tmp_path / 'sea.ttl'})" in lines
+    )
 
 
 def test_why_not_a_topic_whose_argument_names_another_object(federation: KnowledgeManager) -> None:
@@ -76,7 +88,8 @@ def test_why_not_a_topic_whose_argument_names_another_object(federation: Knowled
 
 
 def test_why_not_a_platform_where_the_object_has_no_counterpart(
-        federation: KnowledgeManager) -> None:
+    federation: KnowledgeManager,
+) -> None:
     e = federation.explain("always (Speed[car3] > 60)", topic="carstopic1")
     (why_not,) = e.features[0].why_not
     check_failure(federation, why_not.trace)
@@ -95,18 +108,21 @@ def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path) -> None:
     km = KnowledgeManager.from_config(scenario / "federation.toml")
     e = km.explain("always (Speed[car3] > 60)", topic="carstopic1")
     (why_not,) = e.features[0].why_not
-    assert why_not.reason == ("Speed[truck1] rejected: truck1 is a GroundVehicle, "
-                              "Speed needs Automobile")
+    assert why_not.reason == (
+        "Speed[truck1] rejected: truck1 is a GroundVehicle, Speed needs Automobile"
+    )
 
 
 def test_a_rule_from_an_extension_file_is_cited_with_its_file_and_line(scenario: Path) -> None:
     extension = scenario / "alias.dl"
-    extension.write_text("# my policy: Altitude also reads Size topics\n"
-                         ".decl alias(Feature, Other)\n"
-                         "feature_candidate(L, F, G) <= local(L) & feature(L, F, _N) & "
-                         "feature(L, G, _M) & alias(F, G)\n"
-                         "alias('http://www.example.com/ontology#Altitude', "
-                         "'http://www.example.com/ontology#Size') <= local(_L)\n")
+    extension.write_text(
+        "# my policy: Altitude also reads Size topics\n"
+        ".decl alias(Feature, Other)\n"
+        "feature_candidate(L, F, G) <= local(L) & feature(L, F, _N) & "
+        "feature(L, G, _M) & alias(F, G)\n"
+        "alias('http://www.example.com/ontology#Altitude', "
+        "'http://www.example.com/ontology#Size') <= local(_L)\n"
+    )
     with (scenario / "specs" / "platform1.sslt").open("a") as specs:
         specs.write("topic topic10:UavMsg contains Size(uav1) = msg.size for uav1 = msg.id\n")
     config = scenario / "single.toml"
@@ -124,6 +140,7 @@ def _nodes(p: Proof) -> Iterator[Proof]:
 
 
 # ---- the mechanical check: leaves are told facts, inner steps are instances of rules --------
+
 
 def _rule_at(file: str, line: int) -> ast.Compare:
     text = Path(file).read_text(encoding="utf-8")  # `.decl` lines blanked, numbers kept
@@ -197,8 +214,9 @@ def check_failure(km: KnowledgeManager, f: Failure) -> None:
 
 @pytest.mark.parametrize("config", ["single.toml", "federation.toml"])
 @pytest.mark.parametrize("name", list(FORMULAS))
-def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(config: str,
-                                                                          name: str) -> None:
+def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(
+    config: str, name: str
+) -> None:
     assert SCENARIOS is not None
     km = KnowledgeManager.from_config(SCENARIOS / config)
     request = km.check_formula(FORMULAS[name])
@@ -208,7 +226,8 @@ def test_every_explanation_tree_is_made_of_told_facts_and_rule_instances(config:
     assert len(proofs) == sum(len(f.topics) for f in request.features)
     wanted: list[tuple[str | int, ...]] = [
         (q, g.feature.iri, *g.feature.arg_iris, *[""] * (3 - len(g.feature.arg_iris)))
-        for q, g in enumerate(request.features)]
+        for q, g in enumerate(request.features)
+    ]
     km.kb.engine.assert_rows("wanted", wanted)  # the formula's facts, as during explanation
     try:
         steps = sum(check_proof(km, w.proof, derived) for w in proofs)
@@ -230,21 +249,40 @@ def test_json_and_dot_forms(federation: KnowledgeManager) -> None:
 def test_unknown_feature_or_topic_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
     assert SCENARIOS is not None
     for extra in (["--feature", "Altitude[uav9]"], ["--topic", "nope"]):
-        code = main(["explain", "--config", str(SCENARIOS / "federation.toml"),
-                     "Altitude[uav2] > 1", *extra])
+        code = main(
+            [
+                "explain",
+                "--config",
+                str(SCENARIOS / "federation.toml"),
+                "Altitude[uav2] > 1",
+                *extra,
+            ]
+        )
         out = capsys.readouterr()
         assert code == 2 and (out.out + out.err).count("\n") == 1
 
 
 def test_the_readmes_explain_example_is_what_the_command_prints(
-        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The README shows `dkreason explain` citing rule lines: they follow the rule files."""
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     command = '$ dkreason explain --config examples/federation.toml "always (Altitude[uav2] > 10)"'
-    block = readme[readme.index(command):].split("```")[0].splitlines()[1:]
+    block = readme[readme.index(command) :].split("```")[0].splitlines()[1:]
     monkeypatch.chdir(REPO)
-    assert main(["explain", "--config", "examples/federation.toml",
-                 "always (Altitude[uav2] > 10)", "--feature", "Altitude[uav2]"]) == 0
+    assert (
+        main(
+            [
+                "explain",
+                "--config",
+                "examples/federation.toml",
+                "always (Altitude[uav2] > 10)",
+                "--feature",
+                "Altitude[uav2]",
+            ]
+        )
+        == 0
+    )
     printed = capsys.readouterr().out.splitlines()
     shown = [line for line in block if line.strip() and line.strip() != "..."]
     assert len(shown) > 5 and all(line in printed for line in shown)
@@ -254,11 +292,26 @@ def test_an_explanation_is_the_same_in_every_process() -> None:
     """String hashes differ per process, and with them the order of the engine's answers;
     the proofs and failures an explanation picks must not."""
     assert SCENARIOS is not None
-    outs = {subprocess.run(
-        [sys.executable, "-m", "dkreason.cli", "explain", "--config",
-         str(SCENARIOS / "federation.toml"), FORMULAS["F3"], "--feature", "Close[uav1, uav1]",
-         "--topic", "uastopic7"],
-        capture_output=True, text=True, check=True,
-        env=os.environ | {"PYTHONHASHSEED": seed, "DKREASON_CACHE": "off"}).stdout
-        for seed in ("1", "2", "3")}
+    outs = {
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "dkreason.cli",
+                "explain",
+                "--config",
+                str(SCENARIOS / "federation.toml"),
+                FORMULAS["F3"],
+                "--feature",
+                "Close[uav1, uav1]",
+                "--topic",
+                "uastopic7",
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+            env=os.environ | {"PYTHONHASHSEED": seed, "DKREASON_CACHE": "off"},
+        ).stdout
+        for seed in ("1", "2", "3")
+    }
     assert len(outs) == 1 and "argument 2 is uas21" in next(iter(outs))

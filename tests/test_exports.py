@@ -5,8 +5,24 @@ import dkreason
 
 def test_public_names_are_pinned() -> None:
     assert dkreason.__all__ == [
-        "DkError", "FeatureKey", "FeatureRequest", "FormulaPlan", "GroundFeature",
-        "KnowledgeManager", "Monitor", "ParseError", "Plan", "SourceError", "Span",
-        "StreamPolicy", "StreamRequest", "TopicArg", "TopicFeature", "TopicMatch", "TopicSpec",
-        "Verdict", "Violation"]
+        "DkError",
+        "FeatureKey",
+        "FeatureRequest",
+        "FormulaPlan",
+        "GroundFeature",
+        "KnowledgeManager",
+        "Monitor",
+        "ParseError",
+        "Plan",
+        "SourceError",
+        "Span",
+        "StreamPolicy",
+        "StreamRequest",
+        "TopicArg",
+        "TopicFeature",
+        "TopicMatch",
+        "TopicSpec",
+        "Verdict",
+        "Violation",
+    ]
     assert all(hasattr(dkreason, name) for name in dkreason.__all__)

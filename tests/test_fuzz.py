@@ -27,22 +27,113 @@ from dkreason.progress import Progressor
 from dkreason.progress.states import read_states
 from dkreason.stream.sources import JsonlSource
 
-FAST = settings(max_examples=150, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+FAST = settings(
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 
-FORMULA_TOKENS = ["always", "eventually", "next", "historically", "once", "previous", "not",
-                  "and", "or", "->", "<->", "until", "since", "forall x in Car:",
-                  "exists y in UAV:", "(", ")", "[", "]", ",", "0", "1.5", "2e3", "inf", "oo",
-                  "300ms", "2min", "٣", "9" * 50, "X[a]", "P[x]", "Speed[car1]", ">", "<=",
-                  "==", "+", "-", "*", "/", "true", "false", "□", "◇", "∀", "<http://e.org/#A>"]
+FORMULA_TOKENS = [
+    "always",
+    "eventually",
+    "next",
+    "historically",
+    "once",
+    "previous",
+    "not",
+    "and",
+    "or",
+    "->",
+    "<->",
+    "until",
+    "since",
+    "forall x in Car:",
+    "exists y in UAV:",
+    "(",
+    ")",
+    "[",
+    "]",
+    ",",
+    "0",
+    "1.5",
+    "2e3",
+    "inf",
+    "oo",
+    "300ms",
+    "2min",
+    "٣",
+    "9" * 50,
+    "X[a]",
+    "P[x]",
+    "Speed[car1]",
+    ">",
+    "<=",
+    "==",
+    "+",
+    "-",
+    "*",
+    "/",
+    "true",
+    "false",
+    "□",
+    "◇",
+    "∀",
+    "<http://e.org/#A>",
+]
 
-SSLT_TOKENS = ["topic", "t1", "t2", ":", "Msg", "contains", "Speed", "(", ")", "car1", "=",
-               "msg.spd", "msg.id", "for", "some", "every", "sort", "Car", ",", "as", "a1",
-               "#c\n", "\n", "\r", "\x0c", "hr:Heading", "<http://e.org/#A>", "msg.a[1]"]
+SSLT_TOKENS = [
+    "topic",
+    "t1",
+    "t2",
+    ":",
+    "Msg",
+    "contains",
+    "Speed",
+    "(",
+    ")",
+    "car1",
+    "=",
+    "msg.spd",
+    "msg.id",
+    "for",
+    "some",
+    "every",
+    "sort",
+    "Car",
+    ",",
+    "as",
+    "a1",
+    "#c\n",
+    "\n",
+    "\r",
+    "\x0c",
+    "hr:Heading",
+    "<http://e.org/#A>",
+    "msg.a[1]",
+]
 
-JSON_PIECES = ['{"topic": "topic3", "time": 1, "msg": {"id": 1, "spd": 2}}', "{", "}", "[",
-               "]", '"time"', ": ", "1e999999999", "NaN", "Infinity", "-0", '"x"', "null",
-               "true", "9" * 5000, ",", '{"a":', "\xff", "\x00", '"values": {"P[a]": 1}']
+JSON_PIECES = [
+    '{"topic": "topic3", "time": 1, "msg": {"id": 1, "spd": 2}}',
+    "{",
+    "}",
+    "[",
+    "]",
+    '"time"',
+    ": ",
+    "1e999999999",
+    "NaN",
+    "Infinity",
+    "-0",
+    '"x"',
+    "null",
+    "true",
+    "9" * 5000,
+    ",",
+    '{"a":',
+    "\xff",
+    "\x00",
+    '"values": {"P[a]": 1}',
+]
 
 
 def _total(call: Callable[..., Any], *args: Any) -> Any:
@@ -73,11 +164,24 @@ def test_sslt(text: str) -> None:
     _total(parse_text, text, "f.sslt")
 
 
-XML_PIECES = ['<?xml version="1.0"?>', "<Topic_specs>", "</Topic_specs>", "<Topic_specs/>",
-              '<Topic name="t" msgtype="M">', "</Topic>", '<feature name="F" value="msg.a">',
-              "</feature>", '<object name="o" value="msg.id"/>',
-              '<sort all_objects="true" name="S" value="msg.id"/>', "<!DOCTYPE r [",
-              '<!ENTITY x SYSTEM "file:///etc/passwd">', "]>", "&x;", "&amp;", "<SSL/>"]
+XML_PIECES = [
+    '<?xml version="1.0"?>',
+    "<Topic_specs>",
+    "</Topic_specs>",
+    "<Topic_specs/>",
+    '<Topic name="t" msgtype="M">',
+    "</Topic>",
+    '<feature name="F" value="msg.a">',
+    "</feature>",
+    '<object name="o" value="msg.id"/>',
+    '<sort all_objects="true" name="S" value="msg.id"/>',
+    "<!DOCTYPE r [",
+    '<!ENTITY x SYSTEM "file:///etc/passwd">',
+    "]>",
+    "&x;",
+    "&amp;",
+    "<SSL/>",
+]
 
 
 @FAST
@@ -86,10 +190,23 @@ def test_specs_xml(text: str) -> None:
     _total(parse_xml, text.encode(), "f.xml")
 
 
-CONFIG_PIECES = ['local = "p"\n', "[platforms.p]\n", 'ontology = "o.owl"\n',
-                 'specs = "s.sslt"\n', "[[mappings]]\n", 'source = "p"\n', 'target = "q"\n',
-                 'file = "m.xml"\n', "mappings = 5\n", 'rules = ["x.dl"]\n', "rules = [[[]]]\n",
-                 'ontology = "a\\u0000b"\n', "[platforms]\n", "x = {\n", "= 1\n"]
+CONFIG_PIECES = [
+    'local = "p"\n',
+    "[platforms.p]\n",
+    'ontology = "o.owl"\n',
+    'specs = "s.sslt"\n',
+    "[[mappings]]\n",
+    'source = "p"\n',
+    'target = "q"\n',
+    'file = "m.xml"\n',
+    "mappings = 5\n",
+    'rules = ["x.dl"]\n',
+    "rules = [[[]]]\n",
+    'ontology = "a\\u0000b"\n',
+    "[platforms]\n",
+    "x = {\n",
+    "= 1\n",
+]
 
 
 @FAST
@@ -101,8 +218,11 @@ def test_configs(tmp_path_factory: pytest.TempPathFactory, text: str) -> None:
 
 
 @FAST
-@given(st.lists(st.one_of(st.sampled_from(JSON_PIECES), st.text(string.printable, max_size=5)),
-                max_size=12).map("".join))
+@given(
+    st.lists(
+        st.one_of(st.sampled_from(JSON_PIECES), st.text(string.printable, max_size=5)), max_size=12
+    ).map("".join)
+)
 @example("1e" + "9" * 5000)
 def test_json_lines(tmp_path_factory: pytest.TempPathFactory, line: str) -> None:
     folder = tmp_path_factory.mktemp("j")
@@ -115,18 +235,28 @@ def test_json_lines(tmp_path_factory: pytest.TempPathFactory, line: str) -> None
 
 
 @FAST
-@given(st.one_of(st.binary(max_size=200),
-                 st.lists(st.sampled_from(JSON_PIECES), max_size=12).map(
-                     lambda xs: "".join(xs).encode("utf-8", "surrogateescape"))))
+@given(
+    st.one_of(
+        st.binary(max_size=200),
+        st.lists(st.sampled_from(JSON_PIECES), max_size=12).map(
+            lambda xs: "".join(xs).encode("utf-8", "surrogateescape")
+        ),
+    )
+)
 def test_live_payloads(payload: bytes) -> None:
     _total(wire.topic_message, payload, "p/t")
     _total(wire.decode, payload, wire.MAX_SAMPLE, "p/t")
 
 
 @FAST
-@given(st.one_of(st.binary(max_size=200),
-                 st.lists(st.sampled_from(JSON_PIECES), max_size=12).map(
-                     lambda xs: "".join(xs).encode("utf-8", "surrogateescape"))))
+@given(
+    st.one_of(
+        st.binary(max_size=200),
+        st.lists(st.sampled_from(JSON_PIECES), max_size=12).map(
+            lambda xs: "".join(xs).encode("utf-8", "surrogateescape")
+        ),
+    )
+)
 def test_live_payloads_read_fast_or_not_read_as_before(payload: bytes) -> None:
     """orjson's reading of a peer's payload is json's (exact=False) wherever it reads one;
     what it refuses goes to json, so an error says what it said before."""
@@ -136,9 +266,10 @@ def test_live_payloads_read_fast_or_not_read_as_before(payload: bytes) -> None:
 
 
 JSON_VALUES = st.recursive(
-    st.none() | st.booleans() | st.integers(-2**63, 2**64 - 1) | st.floats() | st.text(),
+    st.none() | st.booleans() | st.integers(-(2**63), 2**64 - 1) | st.floats() | st.text(),
     lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(), inner, max_size=4),
-    max_leaves=20)
+    max_leaves=20,
+)
 
 
 @FAST

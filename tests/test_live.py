@@ -54,8 +54,14 @@ class Processes:
         self.all: list[subprocess.Popen[str]] = []
 
     def start(self, *args: str, stdin: Any = None) -> subprocess.Popen[str]:
-        proc = subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                stdin=stdin, text=True, cwd=REPO)
+        proc = subprocess.Popen(
+            [*CLI, *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=stdin,
+            text=True,
+            cwd=REPO,
+        )
         self.all.append(proc)
         return proc
 
@@ -118,8 +124,13 @@ def logged(lines: list[str], *needles: str, timeout: float = 30.0) -> None:
         time.sleep(0.02)
 
 
-def wait_for(events: queue.Queue[dict[str, Any] | None], seen: list[dict[str, Any]],
-             timeout: float = 15.0, since: int = 0, **fields: Any) -> dict[str, Any]:
+def wait_for(
+    events: queue.Queue[dict[str, Any] | None],
+    seen: list[dict[str, Any]],
+    timeout: float = 15.0,
+    since: int = 0,
+    **fields: Any,
+) -> dict[str, Any]:
     """The first event from `seen[since]` on with these fields, reading more as needed."""
     deadline = time.monotonic() + timeout
     for event in seen[since:]:
@@ -155,31 +166,59 @@ def subscription_known(port: int, key: str) -> None:
         probe.close()
 
 
-def serve(procs: Processes, site: Path, n: int, port: int, recording: Path, origin: float,
-          speed: float) -> subprocess.Popen[str]:
-    return procs.start("serve", "--config", str(site / f"platform{n}.toml"),
-                       "--connect", f"tcp/127.0.0.1:{port}", "--source", str(recording),
-                       "--origin", str(origin), "--speed", str(speed))
+def serve(
+    procs: Processes, site: Path, n: int, port: int, recording: Path, origin: float, speed: float
+) -> subprocess.Popen[str]:
+    return procs.start(
+        "serve",
+        "--config",
+        str(site / f"platform{n}.toml"),
+        "--connect",
+        f"tcp/127.0.0.1:{port}",
+        "--source",
+        str(recording),
+        "--origin",
+        str(origin),
+        "--speed",
+        str(speed),
+    )
 
 
-def federation(procs: Processes, site: Path, traffic: Path, speed: float, *monitor_args: str
-               ) -> tuple[subprocess.Popen[str], queue.Queue[dict[str, Any] | None],
-                          list[dict[str, Any]], dict[int, subprocess.Popen[str]], float, int]:
+def federation(
+    procs: Processes, site: Path, traffic: Path, speed: float, *monitor_args: str
+) -> tuple[
+    subprocess.Popen[str],
+    queue.Queue[dict[str, Any] | None],
+    list[dict[str, Any]],
+    dict[int, subprocess.Popen[str]],
+    float,
+    int,
+]:
     """A live monitor and the three platform nodes replaying the traffic example in step,
     started over with a larger margin until everything is in place before the replay starts
     (on a loaded machine the first samples could otherwise go out before anyone listens)."""
     for margin in (6.0, 20.0, 60.0):
         port = free_port()
-        monitor = procs.start("monitor", "--live", "--config", str(site / "monitor.toml"),
-                              "--listen", f"tcp/127.0.0.1:{port}", "--wait", "20", "--json",
-                              *monitor_args)
+        monitor = procs.start(
+            "monitor",
+            "--live",
+            "--config",
+            str(site / "monitor.toml"),
+            "--listen",
+            f"tcp/127.0.0.1:{port}",
+            "--wait",
+            "20",
+            "--json",
+            *monitor_args,
+        )
         events, seen = lines_of(monitor), list[dict[str, Any]]()
         origin = time.time() + margin
         nodes = {n: serve(procs, site, n, port, traffic, origin, speed) for n in (1, 2, 3)}
         for n in (1, 2, 3):
             wait_for(events, seen, event="joined", platform=f"platform{n}", timeout=60)
-        wait_for(events, seen, event="subscribed", platform="platform2", topic="carstopic3",
-                 timeout=60)
+        wait_for(
+            events, seen, event="subscribed", platform="platform2", topic="carstopic3", timeout=60
+        )
         subscription_known(port, "dkreason/platform2/topic/carstopic3")
         if time.time() < origin - 1:
             break
@@ -189,15 +228,40 @@ def federation(procs: Processes, site: Path, traffic: Path, speed: float, *monit
 
 
 def test_live_federation_adapts_and_gives_the_recorded_verdict(
-        procs: Processes, site: Path, traffic: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["monitor", "--config", str(REPO / "examples" / "federation.toml"), "--source",
-                 str(traffic), "--delay", "0.1", "--json", SPEEDING]) == 1
+    procs: Processes, site: Path, traffic: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert (
+        main(
+            [
+                "monitor",
+                "--config",
+                str(REPO / "examples" / "federation.toml"),
+                "--source",
+                str(traffic),
+                "--delay",
+                "0.1",
+                "--json",
+                SPEEDING,
+            ]
+        )
+        == 1
+    )
     recorded = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
 
     speed = 20.0
     monitor, events, seen, nodes, origin, port = federation(
-        procs, site, traffic, speed, "--delay", "0.1", "--until", "330", SPEEDING, POSITION,
-        ALTITUDE)
+        procs,
+        site,
+        traffic,
+        speed,
+        "--delay",
+        "0.1",
+        "--until",
+        "330",
+        SPEEDING,
+        POSITION,
+        ALTITUDE,
+    )
 
     # platform 2 crashes at about 60 s of stream time: Position[car2] loses its only topic
     time.sleep(max(0.0, origin + 60 / speed - time.time()))
@@ -210,16 +274,31 @@ def test_live_federation_adapts_and_gives_the_recorded_verdict(
     nodes[2] = serve(procs, site, 2, port, traffic, origin, speed)
     back = len(seen)
     wait_for(events, seen, since=back, event="joined", platform="platform2", timeout=20)
-    wait_for(events, seen, since=back, event="subscribed", platform="platform2",
-             topic="carstopic3")
+    wait_for(events, seen, since=back, event="subscribed", platform="platform2", topic="carstopic3")
 
     # a topic specification added on platform 3 while running brings a new subscription
-    added = subprocess.run([*CLI, "specs", "add", "--config", str(site / "platform3.toml"),
-                            "topic uastopic9:UasMsg contains Height(uas21) = msg.height "
-                            "for uas21 = msg.id"], capture_output=True, text=True, cwd=REPO)
+    added = subprocess.run(
+        [
+            *CLI,
+            "specs",
+            "add",
+            "--config",
+            str(site / "platform3.toml"),
+            "topic uastopic9:UasMsg contains Height(uas21) = msg.height for uas21 = msg.id",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert added.returncode == 0, added.stderr
-    wait_for(events, seen, event="subscribed", platform="platform3", topic="uastopic9",
-             feature="Altitude[uav2]")
+    wait_for(
+        events,
+        seen,
+        event="subscribed",
+        platform="platform3",
+        topic="uastopic9",
+        feature="Altitude[uav2]",
+    )
 
     assert monitor.wait(timeout=40) == 1
     while (event := events.get(timeout=5)) is not None:
@@ -238,12 +317,26 @@ def test_live_federation_adapts_and_gives_the_recorded_verdict(
 
 
 def test_live_gives_the_offline_verdicts_when_the_replays_end(
-        procs: Processes, site: Path, traffic: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    procs: Processes, site: Path, traffic: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Three nodes replay the traffic example to its end; the monitor, given no --until,
     ends with them, and every verdict equals `monitor --source` on the same recording (a
     feature is not left to go stale on a clock that outlives the replay)."""
-    assert main(["monitor", "--config", str(REPO / "examples" / "federation.toml"), "--source",
-                 str(traffic), "--json", SPEEDING, POSITION]) == 1
+    assert (
+        main(
+            [
+                "monitor",
+                "--config",
+                str(REPO / "examples" / "federation.toml"),
+                "--source",
+                str(traffic),
+                "--json",
+                SPEEDING,
+                POSITION,
+            ]
+        )
+        == 1
+    )
     offline = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     monitor, events, seen, _, _, _ = federation(procs, site, traffic, 60.0, SPEEDING, POSITION)
     assert monitor.wait(timeout=120) == 1
@@ -251,25 +344,40 @@ def test_live_gives_the_offline_verdicts_when_the_replays_end(
         seen.append(event)
     live = {e["formula"]: e for e in seen if "verdict" in e}
     # `t` counts from the first sample each monitor saw; the verdicts themselves are equal
-    assert [{**live[v["formula"]], "t": None} for v in offline] == \
-        [{**v, "t": None} for v in offline]
+    assert [{**live[v["formula"]], "t": None} for v in offline] == [
+        {**v, "t": None} for v in offline
+    ]
 
 
 def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
-        procs: Processes, tmp_path: Path, traffic: Path) -> None:
+    procs: Processes, tmp_path: Path, traffic: Path
+) -> None:
     import zenoh
 
     from dkreason.live.wire import open_session
 
     (tmp_path / "monitor.toml").write_text(
-        'local = "platform1"\n[platforms.platform1]\n[platforms.platform9]\n')
+        'local = "platform1"\n[platforms.platform1]\n[platforms.platform9]\n'
+    )
     (tmp_path / "platform1.toml").write_text(
         f'[platforms.platform1]\nontology = "{REPO}/ontologies/platform1.owl"\n'
-        f'specs = "{REPO}/specs/platform1.sslt"\n')
+        f'specs = "{REPO}/specs/platform1.sslt"\n'
+    )
     port = free_port()
-    monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
-                          "--listen", f"tcp/127.0.0.1:{port}", "--until", "200", "--wait", "20",
-                          "--json", "always (Speed[car1] < 100)")
+    monitor = procs.start(
+        "monitor",
+        "--live",
+        "--config",
+        str(tmp_path / "monitor.toml"),
+        "--listen",
+        f"tcp/127.0.0.1:{port}",
+        "--until",
+        "200",
+        "--wait",
+        "20",
+        "--json",
+        "always (Speed[car1] < 100)",
+    )
     events, seen = lines_of(monitor), list[dict[str, Any]]()
     rogue = open_session([f"tcp/127.0.0.1:{port}"], [])
     try:
@@ -277,24 +385,48 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
         # a configured platform whose node answers with a broken ontology
         broken = rogue.declare_queryable(
             "dkreason/platform9/ontology",
-            lambda q: q.reply("dkreason/platform9/ontology",
-                              b'{"file": "p9.owl", "turtle": "@prefix broken"}'))
+            lambda q: q.reply(
+                "dkreason/platform9/ontology", b'{"file": "p9.owl", "turtle": "@prefix broken"}'
+            ),
+        )
         token9 = rogue.liveliness().declare_token("dkreason/platform9/alive")
         origin = time.time() + 4
-        procs.start("serve", "--config", str(tmp_path / "platform1.toml"), "--connect",
-                    f"tcp/127.0.0.1:{port}", "--source", str(traffic), "--origin", str(origin),
-                    "--speed", "60")
+        procs.start(
+            "serve",
+            "--config",
+            str(tmp_path / "platform1.toml"),
+            "--connect",
+            f"tcp/127.0.0.1:{port}",
+            "--source",
+            str(traffic),
+            "--origin",
+            str(origin),
+            "--speed",
+            "60",
+        )
         wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
-        bad = heard(rogue.declare_publisher("dkreason/platform1/topic/topic3",
-                                            congestion_control=zenoh.CongestionControl.BLOCK))
-        for payload in (b"not json", b"[" * 100_000, b'{"valid": "soon", "msg": {}}',
-                        b'{"valid": 1, "msg": {"id": 1}}', bytes([0xff, 0xfe]),
-                        b"[" * 30_000, b'{"valid": 1, "msg": {"id": 1, "spd": ' + b"9" * 5000
-                        + b"}}", b'{"valid": 1, "msg": {"id": 1, "spd": "far"}}',
-                        b'{"valid": 1, "msg": {"id": [1], "spd": 3}}'):
+        bad = heard(
+            rogue.declare_publisher(
+                "dkreason/platform1/topic/topic3", congestion_control=zenoh.CongestionControl.BLOCK
+            )
+        )
+        for payload in (
+            b"not json",
+            b"[" * 100_000,
+            b'{"valid": "soon", "msg": {}}',
+            b'{"valid": 1, "msg": {"id": 1}}',
+            bytes([0xFF, 0xFE]),
+            b"[" * 30_000,
+            b'{"valid": 1, "msg": {"id": 1, "spd": ' + b"9" * 5000 + b"}}",
+            b'{"valid": 1, "msg": {"id": 1, "spd": "far"}}',
+            b'{"valid": 1, "msg": {"id": [1], "spd": 3}}',
+        ):
             bad.put(payload)
-        rogue.put("dkreason/intruder/topic/topic3", b'{"valid": 1, "msg": {"id": 1}}',
-                  congestion_control=zenoh.CongestionControl.BLOCK)
+        rogue.put(
+            "dkreason/intruder/topic/topic3",
+            b'{"valid": 1, "msg": {"id": 1}}',
+            congestion_control=zenoh.CongestionControl.BLOCK,
+        )
         assert monitor.wait(timeout=30) == 0
         for entity in (token, token9, broken):
             entity.undeclare()
@@ -313,43 +445,88 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
     assert not any(e.get("platform") == "intruder" for e in seen)
 
 
-def test_monitor_without_its_local_platform_says_so(tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_monitor_without_its_local_platform_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
-    code = main(["monitor", "--live", "--config", str(tmp_path / "monitor.toml"), "--listen",
-                 f"tcp/127.0.0.1:{free_port()}", "--wait", "0.5", "always (Speed[car1] < 1)"])
+    code = main(
+        [
+            "monitor",
+            "--live",
+            "--config",
+            str(tmp_path / "monitor.toml"),
+            "--listen",
+            f"tcp/127.0.0.1:{free_port()}",
+            "--wait",
+            "0.5",
+            "always (Speed[car1] < 1)",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2
-    assert err[-1] == ("error: the local platform platform1 did not appear within 0.5 s (is "
-                       "`dkreason serve` running for it, on a reachable endpoint?)")
+    assert err[-1] == (
+        "error: the local platform platform1 did not appear within 0.5 s (is "
+        "`dkreason serve` running for it, on a reachable endpoint?)"
+    )
 
 
-@pytest.mark.parametrize("args, message", [
-    (["monitor", "--config", "examples/federation.toml", "always (Speed[car1] < 1)"],
-     "error: monitor needs --source RECORDING, or --live"),
-    (["serve", "--config", "examples/federation.toml", "--listen", "nonsense"],
-     "error: zenoh: bad endpoint 'nonsense' (expected <protocol>/<address>"),
-    (["serve", "--config", "examples/federation.toml", "--listen", "tcp/256.1.1.1:1"],
-     "error: zenoh: cannot open a session"),
-    (["monitor", "--live", "--config", "examples/live/monitor.toml", "--wait", "0.1",
-      "always (Speed[car1] <"],
-     "error: <formula>:1:23: syntax error"),
-    (["monitor", "--config", "examples/live/monitor.toml", "--source", "x.jsonl",
-      "always (Speed[car1] < 1)"],
-     "error: examples/live/monitor.toml: [platforms.platform1] has no ontology file"),
-])
-def test_bad_live_invocations_give_one_line(args: list[str], message: str,
-                                             capsys: pytest.CaptureFixture[str],
-                                             monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (
+            ["monitor", "--config", "examples/federation.toml", "always (Speed[car1] < 1)"],
+            "error: monitor needs --source RECORDING, or --live",
+        ),
+        (
+            ["serve", "--config", "examples/federation.toml", "--listen", "nonsense"],
+            "error: zenoh: bad endpoint 'nonsense' (expected <protocol>/<address>",
+        ),
+        (
+            ["serve", "--config", "examples/federation.toml", "--listen", "tcp/256.1.1.1:1"],
+            "error: zenoh: cannot open a session",
+        ),
+        (
+            [
+                "monitor",
+                "--live",
+                "--config",
+                "examples/live/monitor.toml",
+                "--wait",
+                "0.1",
+                "always (Speed[car1] <",
+            ],
+            "error: <formula>:1:23: syntax error",
+        ),
+        (
+            [
+                "monitor",
+                "--config",
+                "examples/live/monitor.toml",
+                "--source",
+                "x.jsonl",
+                "always (Speed[car1] < 1)",
+            ],
+            "error: examples/live/monitor.toml: [platforms.platform1] has no ontology file",
+        ),
+    ],
+)
+def test_bad_live_invocations_give_one_line(
+    args: list[str],
+    message: str,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     monkeypatch.chdir(REPO)
     assert main(args) == 2
     out = capsys.readouterr()
-    lines = [line for line in (out.out + out.err).splitlines()
-             if not line.startswith("dkreason.live")]
+    lines = [
+        line for line in (out.out + out.err).splitlines() if not line.startswith("dkreason.live")
+    ]
     assert len(lines) == 1 and lines[0].startswith(message), lines
 
 
 # ---- the knowledge base as the federation changes (no network) ----------------------------
+
 
 @pytest.fixture
 def federation_km() -> KnowledgeManager:
@@ -358,8 +535,7 @@ def federation_km() -> KnowledgeManager:
 
 def _request(kb: KnowledgeBase, formula: str) -> dict[str, set[tuple[str, str]]]:
     request = KnowledgeManager(kb).check_formula(formula)
-    return {str(f.feature.key): {(t.platform, t.topic) for t in f.topics}
-            for f in request.features}
+    return {str(f.feature.key): {(t.platform, t.topic) for t in f.topics} for f in request.features}
 
 
 def test_a_platform_going_offline_rederives_no_view(federation_km: KnowledgeManager) -> None:
@@ -376,10 +552,12 @@ def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeMa
     from dkreason.parse.sslt import parse_text
 
     kb = federation_km.kb
-    spec = parse_text("topic uastopic9:UasMsg contains Height(uas21) = msg.height "
-                      "for uas21 = msg.id").specs
-    added, removed = kb.replace_specs("platform3", [*kb.platform("platform3").specs.values(),
-                                                    *spec])
+    spec = parse_text(
+        "topic uastopic9:UasMsg contains Height(uas21) = msg.height for uas21 = msg.id"
+    ).specs
+    added, removed = kb.replace_specs(
+        "platform3", [*kb.platform("platform3").specs.values(), *spec]
+    )
     assert (added, removed) == (["uastopic9"], [])
     assert set(kb.rederived) <= {"topic_objects", "topic_filter", "sort_arg_at", "sort_position"}
     assert ("platform3", "uastopic9") in _request(kb, ALTITUDE)["Altitude[uav2]"]
@@ -391,14 +569,22 @@ def test_a_platform_appearing_brings_its_mappings(tmp_path: Path) -> None:
     from dkreason.parse.sslt import read_specs
 
     full = KnowledgeBase.from_config(REPO / "examples" / "federation.toml")
-    kb = KnowledgeBase(full.local, {"platform1": full.platforms["platform1"]},
-                       (*full.mappings, *full.pending), online={"platform1"})
+    kb = KnowledgeBase(
+        full.local,
+        {"platform1": full.platforms["platform1"]},
+        (*full.mappings, *full.pending),
+        online={"platform1"},
+    )
     assert _request(kb, SPEEDING)["Speed[car2]"] == {("platform1", "topic4")}
-    platform2 = make_platform(read_ontology(REPO / "ontologies" / "platform2.owl", "platform2"),
-                              read_specs(REPO / "specs" / "platform2.sslt").specs)
+    platform2 = make_platform(
+        read_ontology(REPO / "ontologies" / "platform2.owl", "platform2"),
+        read_specs(REPO / "specs" / "platform2.sslt").specs,
+    )
     kb.add_platform(platform2)
-    assert _request(kb, SPEEDING)["Speed[car2]"] == {("platform1", "topic4"),
-                                                     ("platform2", "carstopic1")}
+    assert _request(kb, SPEEDING)["Speed[car2]"] == {
+        ("platform1", "topic4"),
+        ("platform2", "carstopic1"),
+    }
 
 
 def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path) -> None:
@@ -415,27 +601,48 @@ def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path) -> None:
     assert not kept & set(kb.rederived)
     request = KnowledgeManager(kb).check_formula(formula)
     assert {(t.platform, t.topic) for t in request.features[0].topics} == {
-        ("platform1", "topic5"), ("platform2", "carstopic1")}
+        ("platform1", "topic5"),
+        ("platform2", "carstopic1"),
+    }
     assert request.warnings == ()
 
 
 def test_a_node_publishes_json_lines_from_its_standard_input(
-        procs: Processes, tmp_path: Path) -> None:
+    procs: Processes, tmp_path: Path
+) -> None:
     (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
     port = free_port()
-    monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
-                          "--listen", f"tcp/127.0.0.1:{port}", "--until", "3", "--json",
-                          "always (Speed[car1] < 100)")
+    monitor = procs.start(
+        "monitor",
+        "--live",
+        "--config",
+        str(tmp_path / "monitor.toml"),
+        "--listen",
+        f"tcp/127.0.0.1:{port}",
+        "--until",
+        "3",
+        "--json",
+        "always (Speed[car1] < 100)",
+    )
     events, seen = lines_of(monitor), list[dict[str, Any]]()
-    node = procs.start("serve", "--config", str(REPO / "examples" / "live" / "platform1.toml"),
-                       "--connect", f"tcp/127.0.0.1:{port}", "--source", "-",
-                       stdin=subprocess.PIPE)
+    node = procs.start(
+        "serve",
+        "--config",
+        str(REPO / "examples" / "live" / "platform1.toml"),
+        "--connect",
+        f"tcp/127.0.0.1:{port}",
+        "--source",
+        "-",
+        stdin=subprocess.PIPE,
+    )
     wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
     subscription_known(port, "dkreason/platform1/topic/topic3")
     assert node.stdin is not None
     for t in range(6):  # the stream clock passes --until at 4: the monitor stops
-        node.stdin.write(json.dumps({"topic": "/platform1/topic3", "time": t,
-                                     "msg": {"id": 1, "spd": 50.0 + t}}) + "\n")
+        node.stdin.write(
+            json.dumps({"topic": "/platform1/topic3", "time": t, "msg": {"id": 1, "spd": 50.0 + t}})
+            + "\n"
+        )
         node.stdin.flush()
     assert monitor.wait(timeout=20) == 0
     node.stdin.close()
@@ -459,25 +666,32 @@ class InProcess:
         (scenario / "monitor.toml").write_text(
             'local = "platform1"\n[platforms.platform1]\n[platforms.platform2]\n'
             '[[mappings]]\nsource = "platform1"\ntarget = "platform2"\n'
-            'file = "mappings/platform1-platform2.cowl.xml"\n')
+            'file = "mappings/platform1-platform2.cowl.xml"\n'
+        )
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
         self.sessions = [open_session([], [self.endpoint])]
         self.nodes = [self.node(1), self.node(2)]
-        self.monitor = LiveMonitor(scenario / "monitor.toml", ["always (Speed[car3] > 60)"],
-                                   StreamPolicy(), self.sessions[0], wait=10)
+        self.monitor = LiveMonitor(
+            scenario / "monitor.toml",
+            ["always (Speed[car3] > 60)"],
+            StreamPolicy(),
+            self.sessions[0],
+            wait=10,
+        )
 
     def node(self, n: int) -> Any:
         from dkreason.live.serve import PlatformNode
         from dkreason.live.wire import open_session
 
         config = self.scenario / f"p{n}.toml"
-        config.write_text(f'[platforms.platform{n}]\nontology = "ontologies/platform{n}.owl"\n'
-                          f'specs = "specs/platform{n}.sslt"\n')
+        config.write_text(
+            f'[platforms.platform{n}]\nontology = "ontologies/platform{n}.owl"\n'
+            f'specs = "specs/platform{n}.sslt"\n'
+        )
         self.sessions.append(open_session([self.endpoint], []))
         return PlatformNode(KnowledgeManager.from_config(config), self.sessions[-1])
 
-    def run(self, steps: list[tuple[set[tuple[str, str, str, str]], Any]]
-            ) -> list[tuple[str, ...]]:
+    def run(self, steps: list[tuple[set[tuple[str, str, str, str]], Any]]) -> list[tuple[str, ...]]:
         """The monitor's changes, taking each step once the changes it waits for are seen."""
         from dkreason.live.monitor import Change
 
@@ -504,9 +718,13 @@ def test_objects_and_specs_a_node_announces_reach_a_running_monitor(scenario: Pa
     """Through the Python API: platform 2 says truck1 is an Automobile, then drops a topic;
     the running monitor subscribes and unsubscribes accordingly."""
     fed = InProcess(scenario)
-    changes = fed.run([(STARTED, lambda: fed.nodes[1].add_object("truck1", "Automobile")),
-                       ({CARSTOPIC1}, lambda: fed.nodes[1].remove_topic("carstopic1")),
-                       ({("unsubscribed", "platform2", "carstopic1", "")}, fed.monitor.stop.set)])
+    changes = fed.run(
+        [
+            (STARTED, lambda: fed.nodes[1].add_object("truck1", "Automobile")),
+            ({CARSTOPIC1}, lambda: fed.nodes[1].remove_topic("carstopic1")),
+            ({("unsubscribed", "platform2", "carstopic1", "")}, fed.monitor.stop.set),
+        ]
+    )
     assert CARSTOPIC1 in changes
     assert ("unsubscribed", "platform2", "carstopic1", "") in changes
     assert not any(c[0] == "source_lost" for c in changes)  # topic5 still serves Speed[car3]
@@ -523,21 +741,27 @@ def test_a_platform_back_with_another_ontology_replaces_its_knowledge(scenario: 
     def restart_platform2() -> None:
         fed.nodes[1].close()
         fed.sessions.pop().close()
-        add_to_ontology(scenario / "ontologies" / "platform2.owl",
-                        f'<owl:Class rdf:about="{P2}Truck"><rdfs:subClassOf '
-                        f'rdf:resource="{P2}Automobile"/></owl:Class>'
-                        f'<rdf:Description rdf:about="{P2}truck1">'
-                        f'<rdf:type rdf:resource="{P2}Truck"/></rdf:Description>')
+        add_to_ontology(
+            scenario / "ontologies" / "platform2.owl",
+            f'<owl:Class rdf:about="{P2}Truck"><rdfs:subClassOf '
+            f'rdf:resource="{P2}Automobile"/></owl:Class>'
+            f'<rdf:Description rdf:about="{P2}truck1">'
+            f'<rdf:type rdf:resource="{P2}Truck"/></rdf:Description>',
+        )
         fed.nodes[1] = fed.node(2)
 
     changes = fed.run([(STARTED, restart_platform2), ({CARSTOPIC1}, fed.monitor.stop.set)])
     assert [c[:2] for c in changes if c[1] == "platform2" and c[0] in ("joined", "left")] == [
-        ("joined", "platform2"), ("left", "platform2"), ("joined", "platform2")]
+        ("joined", "platform2"),
+        ("left", "platform2"),
+        ("joined", "platform2"),
+    ]
     assert CARSTOPIC1 in changes
 
 
 def test_a_platform_removed_and_added_again_matches_as_before(
-        federation_km: KnowledgeManager) -> None:
+    federation_km: KnowledgeManager,
+) -> None:
     kb = federation_km.kb
     before = _request(kb, SPEEDING)
     platform2 = kb.remove_platform("platform2")
@@ -559,35 +783,71 @@ def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path) -> 
     from dkreason.live.wire import open_session
 
     key = Ed25519PrivateKey.generate()
-    (tmp_path / "p1.pem").write_bytes(key.private_bytes(
-        serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-        serialization.NoEncryption()))
-    (tmp_path / "p1.pub.pem").write_bytes(key.public_key().public_bytes(
-        serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo))
+    (tmp_path / "p1.pem").write_bytes(
+        key.private_bytes(
+            serialization.Encoding.PEM,
+            serialization.PrivateFormat.PKCS8,
+            serialization.NoEncryption(),
+        )
+    )
+    (tmp_path / "p1.pub.pem").write_bytes(
+        key.public_key().public_bytes(
+            serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo
+        )
+    )
     (tmp_path / "keys.toml").write_text('platform1 = "p1.pub.pem"\n')
     (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
     port = free_port()
-    monitor = procs.start("monitor", "--live", "--config", str(tmp_path / "monitor.toml"),
-                          "--listen", f"tcp/127.0.0.1:{port}", "--until", "3", "--json",
-                          "--trust", str(tmp_path / "keys.toml"), "always (Speed[car1] < 100)")
+    monitor = procs.start(
+        "monitor",
+        "--live",
+        "--config",
+        str(tmp_path / "monitor.toml"),
+        "--listen",
+        f"tcp/127.0.0.1:{port}",
+        "--until",
+        "3",
+        "--json",
+        "--trust",
+        str(tmp_path / "keys.toml"),
+        "always (Speed[car1] < 100)",
+    )
     events, seen, log = lines_of(monitor), list[dict[str, Any]](), log_of(monitor)
-    node = procs.start("serve", "--config", str(REPO / "examples" / "live" / "platform1.toml"),
-                       "--connect", f"tcp/127.0.0.1:{port}", "--source", "-",
-                       "--sign", str(tmp_path / "p1.pem"), stdin=subprocess.PIPE)
+    node = procs.start(
+        "serve",
+        "--config",
+        str(REPO / "examples" / "live" / "platform1.toml"),
+        "--connect",
+        f"tcp/127.0.0.1:{port}",
+        "--source",
+        "-",
+        "--sign",
+        str(tmp_path / "p1.pem"),
+        stdin=subprocess.PIPE,
+    )
     wait_for(events, seen, event="subscribed", platform="platform1", topic="topic3")
     rogue = open_session([f"tcp/127.0.0.1:{port}"], [])
     try:
-        bad = heard(rogue.declare_publisher("dkreason/platform1/topic/topic3",
-                                            congestion_control=zenoh.CongestionControl.BLOCK))
+        bad = heard(
+            rogue.declare_publisher(
+                "dkreason/platform1/topic/topic3", congestion_control=zenoh.CongestionControl.BLOCK
+            )
+        )
         for t in range(3):  # an injector on the node's own key, unsigned and forged
             bad.put(json.dumps({"valid": t * 10**9, "msg": {"id": 1, "spd": 500.0}}).encode())
-            bad.put(json.dumps({"valid": t * 10**9, "msg": {"id": 1, "spd": 501.0}}).encode(),
-                    attachment=b"\0" * 64)
+            bad.put(
+                json.dumps({"valid": t * 10**9, "msg": {"id": 1, "spd": 501.0}}).encode(),
+                attachment=b"\0" * 64,
+            )
         logged(log, "unsigned sample", "bad signature")  # taken, judged, dropped: then data
         assert node.stdin is not None
         for t in range(6):
-            node.stdin.write(json.dumps({"topic": "/platform1/topic3", "time": t,
-                                         "msg": {"id": 1, "spd": 50.0 + t}}) + "\n")
+            node.stdin.write(
+                json.dumps(
+                    {"topic": "/platform1/topic3", "time": t, "msg": {"id": 1, "spd": 50.0 + t}}
+                )
+                + "\n"
+            )
             node.stdin.flush()
         assert monitor.wait(timeout=30) == 0
     finally:
@@ -602,10 +862,13 @@ def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path) -> 
 
 # ---- the inbox from zenoh's threads -----------------------------------------------------------
 
+
 def test_the_inbox_loses_nothing_and_keeps_each_threads_order() -> None:
     inbox, n, threads = Inbox(), 20_000, 4
-    producers = [threading.Thread(target=lambda k=k: [inbox.put((k, i)) for i in range(n)])
-                 for k in range(threads)]
+    producers = [
+        threading.Thread(target=lambda k=k: [inbox.put((k, i)) for i in range(n)])
+        for k in range(threads)
+    ]
     for t in producers:
         t.start()
     got: list[tuple[int, int]] = []

@@ -14,14 +14,14 @@ NEW = "topic topic10:UavMsg contains Altitude(uav2) = msg.alt for uav2 = msg.id"
 
 @pytest.mark.parametrize("form", ["sslt", "xml"])
 def test_added_topic_is_matched_and_saved_and_removing_restores_the_file(
-        scenario: Path, form: str) -> None:
+    scenario: Path, form: str
+) -> None:
     config = scenario / ("single.toml" if form == "sslt" else "single-xml.toml")
     specs = scenario / "specs" / f"platform1.{form}"
     before = specs.read_text()
     km = KnowledgeManager.from_config(config)
     km.add_topic(NEW)
-    assert "topic10" in {t.topic for t in km.check_formula("Altitude[uav2] > 1")
-                         .features[0].topics}
+    assert "topic10" in {t.topic for t in km.check_formula("Altitude[uav2] > 1").features[0].topics}
     reloaded = KnowledgeManager.from_config(config)
     assert reloaded.get_topic_specification("topic10") == km.get_topic_specification("topic10")
     reloaded.remove_topic("topic10")

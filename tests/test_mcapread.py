@@ -25,13 +25,19 @@ FLOAT64 = "float64 data\n"
 TOPICS = ("/a", "/b", "/c")
 
 
-def write(path: Path, messages: list[tuple[int, int, float]], chunk_size: int = 1024,
-          compression: str = "zstd", json_channel: bool = False) -> None:
+def write(
+    path: Path,
+    messages: list[tuple[int, int, float]],
+    chunk_size: int = 1024,
+    compression: str = "zstd",
+    json_channel: bool = False,
+) -> None:
     """(channel index, record time, value) as std_msgs/msg/Float64 on /a, /b, /c."""
     from mcap.writer import CompressionType, Writer
 
-    kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
-            "": CompressionType.NONE}[compression]
+    kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "": CompressionType.NONE}[
+        compression
+    ]
     with open(path, "wb") as handle:
         writer = Writer(handle, chunk_size=chunk_size, compression=kind)
         writer.start(profile="ros2", library="test")
@@ -49,8 +55,10 @@ def write(path: Path, messages: list[tuple[int, int, float]], chunk_size: int = 
 def ours(path: Path) -> list[tuple[str, int, float]]:
     source = RosbagSource(path)
     try:
-        return [(topic, t, values[0]) for topic, t, _, values
-                in source.messages({t: ["msg.data"] for t in TOPICS})]
+        return [
+            (topic, t, values[0])
+            for topic, t, _, values in source.messages({t: ["msg.data"] for t in TOPICS})
+        ]
     finally:
         source.close()
 
@@ -58,21 +66,26 @@ def ours(path: Path) -> list[tuple[str, int, float]]:
 def rosbags(path: Path) -> list[tuple[str, int, float]]:
     source = RosbagSource(path)
     try:
-        return [(c.topic, t, source.reader.deserialize(raw, c.msgtype).data)  # type: ignore[attr-defined]
-                for c, t, raw in source.reader.messages(connections=source.connections)]
+        return [
+            (c.topic, t, source.reader.deserialize(raw, c.msgtype).data)  # type: ignore[attr-defined]
+            for c, t, raw in source.reader.messages(connections=source.connections)
+        ]
     finally:
         source.close()
 
 
-messages = st.lists(st.tuples(st.integers(0, 2), st.integers(0, 40), st.floats(-1e6, 1e6)),
-                    min_size=1, max_size=120)
+messages = st.lists(
+    st.tuples(st.integers(0, 2), st.integers(0, 40), st.floats(-1e6, 1e6)), min_size=1, max_size=120
+)
 
 
-@settings(max_examples=60, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(messages, st.sampled_from([60, 200, 1 << 20]), st.sampled_from(["zstd", "lz4", ""]))
-def test_any_chunking_reads_as_rosbags_reads(tmp_path: Path, rows: list[tuple[int, int, float]],
-                                             chunk_size: int, compression: str) -> None:
+def test_any_chunking_reads_as_rosbags_reads(
+    tmp_path: Path, rows: list[tuple[int, int, float]], chunk_size: int, compression: str
+) -> None:
     """Out-of-order times within and across chunks, equal times, overlapping chunks."""
     path = tmp_path / "r.mcap"
     write(path, rows, chunk_size, compression)
@@ -86,8 +99,10 @@ def test_channels_in_other_encodings_and_unasked_topics_are_skipped(tmp_path: Pa
     path = tmp_path / "r.mcap"
     write(path, [(0, 1, 1.0), (3, 2, 0.0), (1, 3, 2.0), (0, 4, 3.0)], json_channel=True)
     source = RosbagSource(path)
-    assert [(topic, v) for topic, _, _, (v,) in source.messages({"/a": ["msg.data"]})] == \
-        [("/a", 1.0), ("/a", 3.0)]
+    assert [(topic, v) for topic, _, _, (v,) in source.messages({"/a": ["msg.data"]})] == [
+        ("/a", 1.0),
+        ("/a", 3.0),
+    ]
     source.close()
 
 
@@ -96,7 +111,7 @@ def test_a_corrupt_chunk_stops_after_the_messages_before_it(tmp_path: Path) -> N
     write(path, [(0, t, float(t)) for t in range(200)], chunk_size=500, compression="")
     data = bytearray(path.read_bytes())
     at = data.index(struct.pack("<d", 150.0))
-    data[at:at + 8] = b"\xff" * 8  # a chunk's bytes no longer match its CRC
+    data[at : at + 8] = b"\xff" * 8  # a chunk's bytes no longer match its CRC
     path.write_bytes(bytes(data))
     seen: list[float] = []
     source = RosbagSource(path)
@@ -117,28 +132,36 @@ def test_a_file_without_a_chunk_index_is_read_by_rosbags(tmp_path: Path) -> None
         schema = writer.register_schema("std_msgs/msg/Float64", "ros2msg", FLOAT64.encode())
         channel = writer.register_channel("/a", "cdr", schema)
         for t in range(5):
-            writer.add_message(channel, log_time=t, data=b"\x00\x01\x00\x00" +
-                               struct.pack("<d", t), publish_time=t)
+            writer.add_message(
+                channel, log_time=t, data=b"\x00\x01\x00\x00" + struct.pack("<d", t), publish_time=t
+            )
         writer.finish()  # type: ignore[no-untyped-call]
     assert open_indexed(tmp_path / "plain.mcap") is None
     source = RosbagSource(tmp_path / "plain.mcap")
-    assert [v for _, _, _, (v,) in source.messages({"/a": ["msg.data"]})] == \
-        [0.0, 1.0, 2.0, 3.0, 4.0]
+    assert [v for _, _, _, (v,) in source.messages({"/a": ["msg.data"]})] == [
+        0.0,
+        1.0,
+        2.0,
+        3.0,
+        4.0,
+    ]
     source.close()
 
 
-@settings(max_examples=60, deadline=None,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(st.integers(0, 10_000), st.binary(min_size=1, max_size=8))
 def test_any_corruption_gives_messages_then_one_line_never_a_traceback(
-        tmp_path: Path, at: int, junk: bytes) -> None:
+    tmp_path: Path, at: int, junk: bytes
+) -> None:
     """Bytes overwritten anywhere (the index, a chunk header, a record's length): the
     messages before the damage, then a one-line DkError; never another exception or a hang."""
     path = tmp_path / "r.mcap"
     write(path, [(t % 3, t, float(t)) for t in range(150)], chunk_size=400, compression="")
     data = bytearray(path.read_bytes())
     at %= len(data)
-    data[at:at + len(junk)] = junk
+    data[at : at + len(junk)] = junk
     path.write_bytes(bytes(data))
     try:
         source = RosbagSource(path)

@@ -48,12 +48,17 @@ def test_any_rdf_syntax_rdflib_reads(tmp_path: Path) -> None:
     xml = read_ontology(SCENARIOS / "ontologies" / "platform1.owl", "p1")
     ttl = read_ontology(turtle, "p1")
     assert (ttl.features, ttl.individuals, set(ttl.types)) == (
-        xml.features, xml.individuals, set(xml.types))
+        xml.features,
+        xml.individuals,
+        set(xml.types),
+    )
 
 
 def test_id_data_property_numeric_or_string_in_any_namespace(tmp_path: Path) -> None:
     path = tmp_path / "o.owl"
-    path.write_text(HEAD + """
+    path.write_text(
+        HEAD
+        + """
       <owl:Class rdf:about="http://x.org/o#Ship"/>
       <owl:NamedIndividual rdf:about="http://x.org/o#alpha">
         <rdf:type rdf:resource="http://x.org/o#Ship"/>
@@ -62,31 +67,42 @@ def test_id_data_property_numeric_or_string_in_any_namespace(tmp_path: Path) -> 
       <owl:NamedIndividual rdf:about="http://x.org/o#beta">
         <rdf:type rdf:resource="http://x.org/o#Ship"/><id>B-2</id>
       </owl:NamedIndividual>
-    </rdf:RDF>""")
+    </rdf:RDF>"""
+    )
     ids = read_ontology(path, "p").ids
     assert ids == {"http://x.org/o#alpha": 7, "http://x.org/o#beta": "B-2"}
 
 
 def test_several_id_values_are_an_error_naming_the_object(tmp_path: Path) -> None:
     path = tmp_path / "o.owl"
-    path.write_text(HEAD + """<owl:NamedIndividual rdf:about="http://x.org/o#alpha">
-        <id>1</id><id>2</id></owl:NamedIndividual></rdf:RDF>""")
+    path.write_text(
+        HEAD
+        + """<owl:NamedIndividual rdf:about="http://x.org/o#alpha">
+        <id>1</id><id>2</id></owl:NamedIndividual></rdf:RDF>"""
+    )
     with pytest.raises(ParseError, match="alpha> has several id values"):
         read_ontology(path, "p")
 
 
-@pytest.mark.parametrize(("name", "text", "says"), [
-    ("bad.ttl", "@prefix : <http://x#> .\n:a :b :c ;;; ]\n", "bad.ttl:2: malformed RDF"),
-    ("bad.owl", HEAD + "<rdf:Description rdf:about='http://x#a'>", "bad.owl:7:1: malformed XML"),
-])
-def test_malformed_rdf_names_file_and_line(tmp_path: Path, name: str, text: str,
-                                           says: str) -> None:
+@pytest.mark.parametrize(
+    ("name", "text", "says"),
+    [
+        ("bad.ttl", "@prefix : <http://x#> .\n:a :b :c ;;; ]\n", "bad.ttl:2: malformed RDF"),
+        (
+            "bad.owl",
+            HEAD + "<rdf:Description rdf:about='http://x#a'>",
+            "bad.owl:7:1: malformed XML",
+        ),
+    ],
+)
+def test_malformed_rdf_names_file_and_line(tmp_path: Path, name: str, text: str, says: str) -> None:
     path = tmp_path / name
     path.write_text(text)
     with pytest.raises(ParseError) as err:
         read_ontology(path, "p")
-    assert str(err.value).startswith(str(tmp_path / says.split(":")[0])) and \
-        says.split(": ", 1)[1] in str(err.value)
+    assert str(err.value).startswith(str(tmp_path / says.split(":")[0])) and says.split(": ", 1)[
+        1
+    ] in str(err.value)
 
 
 # ---- OWL 2 declarations (issue 15, item 3) ----------------------------------------------------
@@ -113,12 +129,16 @@ DECLARED = """@prefix : <http://x.org/d#> .
 
 def declared(tmp_path: Path) -> Path:
     (tmp_path / "d.ttl").write_text(DECLARED, encoding="utf-8")
-    (tmp_path / "d.sslt").write_text("topic /hoehe:M contains Höhe(drohne1) = msg.h "
-                                     "for drohne1 = msg.id\n"
-                                     "topic /alle:M contains Höhe(UAV) = msg.h "
-                                     "for some UAV = msg.id\n", encoding="utf-8")
-    (tmp_path / "d.toml").write_text('local = "d"\n[platforms.d]\nontology = "d.ttl"\n'
-                                     'specs = "d.sslt"\n', encoding="utf-8")
+    (tmp_path / "d.sslt").write_text(
+        "topic /hoehe:M contains Höhe(drohne1) = msg.h "
+        "for drohne1 = msg.id\n"
+        "topic /alle:M contains Höhe(UAV) = msg.h "
+        "for some UAV = msg.id\n",
+        encoding="utf-8",
+    )
+    (tmp_path / "d.toml").write_text(
+        'local = "d"\n[platforms.d]\nontology = "d.ttl"\nspecs = "d.sslt"\n', encoding="utf-8"
+    )
     return tmp_path / "d.toml"
 
 
@@ -131,7 +151,8 @@ def test_properties_datatypes_and_the_ontology_are_never_objects(tmp_path: Path)
 
 
 def test_a_punned_name_is_a_sort_where_a_sort_is_expected_and_an_object_elsewhere(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     from dkreason import KnowledgeManager
 
     km = KnowledgeManager.from_config(declared(tmp_path))
@@ -155,16 +176,19 @@ def test_non_ascii_local_names_need_no_quoting(tmp_path: Path) -> None:
 SOSA = Path(__file__).parent / "data" / "sosa-ssn"
 
 
-def station(tmp_path: Path, config: str = "", platform: str = "",
-            ontology: str = '"weather.ttl"') -> Path:
+def station(
+    tmp_path: Path, config: str = "", platform: str = "", ontology: str = '"weather.ttl"'
+) -> Path:
     """The weather station (tests/data/sosa-ssn) copied with its catalog, a spec that only
     fits through SSN's axioms, and a config with `config` and `platform` lines added."""
     for f in SOSA.iterdir():
         (tmp_path / f.name).write_bytes(f.read_bytes())
-    (tmp_path / "w.sslt").write_text("topic /baro:M contains Reading(baro1) = msg.p "
-                                     "for baro1 = msg.id\n")
-    (tmp_path / "w.toml").write_text(f'{config}\n[platforms.w]\nontology = {ontology}\n'
-                                     f'specs = "w.sslt"\n{platform}\n')
+    (tmp_path / "w.sslt").write_text(
+        "topic /baro:M contains Reading(baro1) = msg.p for baro1 = msg.id\n"
+    )
+    (tmp_path / "w.toml").write_text(
+        f'{config}\n[platforms.w]\nontology = {ontology}\nspecs = "w.sslt"\n{platform}\n'
+    )
     return tmp_path / "w.toml"
 
 
@@ -196,23 +220,31 @@ def test_an_unresolved_import_names_the_importing_file_and_the_iri(tmp_path: Pat
 
     config = station(tmp_path)
     (tmp_path / "catalog-v001.xml").unlink()
-    with pytest.raises(ParseError, match=r"weather.ttl: owl:imports <http://www.w3.org/ns/ssn/>"
-                                         r" is found neither"):
+    with pytest.raises(
+        ParseError,
+        match=r"weather.ttl: owl:imports <http://www.w3.org/ns/ssn/>"
+        r" is found neither",
+    ):
         KnowledgeManager.from_config(config)
 
 
 def test_a_config_table_resolves_imports_and_several_files_make_one_ontology(
-        tmp_path: Path) -> None:
+    tmp_path: Path,
+) -> None:
     from dkreason import KnowledgeManager
 
-    config = station(tmp_path, config='[imports]\n"http://www.w3.org/ns/ssn/" = "ssn.ttl"\n'
-                                      '"http://www.w3.org/ns/sosa/" = "sosa.ttl"',
-                     ontology='["weather.ttl", "extra.ttl"]')
+    config = station(
+        tmp_path,
+        config='[imports]\n"http://www.w3.org/ns/ssn/" = "ssn.ttl"\n'
+        '"http://www.w3.org/ns/sosa/" = "sosa.ttl"',
+        ontology='["weather.ttl", "extra.ttl"]',
+    )
     (tmp_path / "catalog-v001.xml").unlink()
     (tmp_path / "extra.ttl").write_text(
         "@prefix owl: <http://www.w3.org/2002/07/owl#> .\n@prefix sosa: "
         "<http://www.w3.org/ns/sosa/> .\n<http://example.org/weather#baro3> a "
-        "owl:NamedIndividual, sosa:Sensor .\n")
+        "owl:NamedIndividual, sosa:Sensor .\n"
+    )
     km = KnowledgeManager.from_config(config)
     assert km.list_sort("System") == ["baro1", "baro2", "baro3"]
 
@@ -222,13 +254,17 @@ def test_an_import_cycle_loads_each_ontology_once(tmp_path: Path) -> None:
 
     config = station(tmp_path)
     sosa = tmp_path / "sosa.ttl"  # SOSA imports the weather station back
-    sosa.write_text(sosa.read_text().replace(
-        "sosa: a owl:Ontology ,", "sosa: owl:imports <http://example.org/weather> .\n"
-                                  "sosa: a owl:Ontology ,"))
-    (tmp_path / "catalog-v001.xml").write_text((tmp_path / "catalog-v001.xml").read_text()
-                                               .replace("</group>", '<uri name="http://example'
-                                                        '.org/weather" uri="weather.ttl"/>'
-                                                        "</group>"))
+    sosa.write_text(
+        sosa.read_text().replace(
+            "sosa: a owl:Ontology ,",
+            "sosa: owl:imports <http://example.org/weather> .\nsosa: a owl:Ontology ,",
+        )
+    )
+    (tmp_path / "catalog-v001.xml").write_text(
+        (tmp_path / "catalog-v001.xml")
+        .read_text()
+        .replace("</group>", '<uri name="http://example.org/weather" uri="weather.ttl"/></group>')
+    )
     assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
 
 
@@ -249,7 +285,8 @@ def test_an_xxe_inside_an_imported_file_is_refused_naming_it(tmp_path: Path) -> 
     config = station(tmp_path)
     (tmp_path / "ssn.owl").write_text(
         '<?xml version="1.0"?>\n<!DOCTYPE r [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n'
-        '<rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">&x;</rdf:RDF>\n')
+        '<rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">&x;</rdf:RDF>\n'
+    )
     catalog = tmp_path / "catalog-v001.xml"
     catalog.write_text(catalog.read_text().replace('uri="ssn.ttl"', 'uri="ssn.owl"'))
     with pytest.raises(Exception, match="ssn.owl"):
@@ -257,7 +294,8 @@ def test_an_xxe_inside_an_imported_file_is_refused_naming_it(tmp_path: Path) -> 
 
 
 def test_a_changed_import_is_read_again_not_taken_from_the_cache(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from dkreason import KnowledgeManager
 
     monkeypatch.setenv("DKREASON_CACHE", str(tmp_path / "cache"))
@@ -265,8 +303,7 @@ def test_a_changed_import_is_read_again_not_taken_from_the_cache(
     assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
     ssn = tmp_path / "ssn.ttl"
     ssn.write_text(ssn.read_text() + "\n<http://example.org/weather#baro9> a sosa:Sensor .\n")
-    assert KnowledgeManager.from_config(config).list_sort("System") == [
-        "baro1", "baro2", "baro9"]
+    assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2", "baro9"]
 
 
 # ---- every common OWL syntax (issue 15, item 2) ----------------------------------------------
@@ -310,24 +347,34 @@ OWL_XML = """<?xml version="1.0"?>
 """
 
 
-@pytest.mark.parametrize("text", [FUNCTIONAL, MANCHESTER, OWL_XML],
-                         ids=["functional", "manchester", "owl-xml"])
+@pytest.mark.parametrize(
+    "text", [FUNCTIONAL, MANCHESTER, OWL_XML], ids=["functional", "manchester", "owl-xml"]
+)
 def test_owls_own_syntaxes_are_read_by_content_whatever_the_suffix(
-        tmp_path: Path, text: str) -> None:
+    tmp_path: Path, text: str
+) -> None:
     (tmp_path / "s.owl").write_text(text)
     ont = read_ontology(tmp_path / "s.owl", "s")
     assert signature(ont, "Altitude") == [["UAV"]]
     assert {local_name(o) for o in ont.individuals} == {"uav1"}
 
 
-@pytest.mark.parametrize(("text", "where", "says"), [
-    (FUNCTIONAL.replace("ClassAssertion(:UAV :uav1)", "ClassAssertion(:UAV"), ":10:1:",
-     "malformed OWL Functional Syntax"),
-    (MANCHESTER.replace("Types: UAV", "Types: and and"), ":9:19:", "malformed Manchester"),
-    (OWL_XML.replace("</Ontology>", ""), ":16:1:", "malformed XML"),  # the XML hardening's
-], ids=["functional", "manchester", "owl-xml"])
+@pytest.mark.parametrize(
+    ("text", "where", "says"),
+    [
+        (
+            FUNCTIONAL.replace("ClassAssertion(:UAV :uav1)", "ClassAssertion(:UAV"),
+            ":10:1:",
+            "malformed OWL Functional Syntax",
+        ),
+        (MANCHESTER.replace("Types: UAV", "Types: and and"), ":9:19:", "malformed Manchester"),
+        (OWL_XML.replace("</Ontology>", ""), ":16:1:", "malformed XML"),  # the XML hardening's
+    ],
+    ids=["functional", "manchester", "owl-xml"],
+)
 def test_a_malformed_owl_file_is_one_line_with_its_place(
-        tmp_path: Path, text: str, where: str, says: str) -> None:
+    tmp_path: Path, text: str, where: str, says: str
+) -> None:
     (tmp_path / "s.owl").write_text(text)
     with pytest.raises(ParseError) as error:
         read_ontology(tmp_path / "s.owl", "s")
@@ -382,22 +429,29 @@ def entailing(tmp_path: Path, reasoning: str = "owl-rl") -> Any:
     from dkreason import KnowledgeManager
 
     (tmp_path / "e.ttl").write_text(ENTAILING)
-    (tmp_path / "e.sslt").write_text("topic /battery:M contains Battery(Robot) = msg.b "
-                                     "for some Robot = msg.id\n")
-    (tmp_path / "e.toml").write_text(f'[platforms.e]\nontology = "e.ttl"\nspecs = "e.sslt"\n'
-                                     f'reasoning = "{reasoning}"\n')
+    (tmp_path / "e.sslt").write_text(
+        "topic /battery:M contains Battery(Robot) = msg.b for some Robot = msg.id\n"
+    )
+    (tmp_path / "e.toml").write_text(
+        f'[platforms.e]\nontology = "e.ttl"\nspecs = "e.sslt"\nreasoning = "{reasoning}"\n'
+    )
     return KnowledgeManager.from_config(tmp_path / "e.toml")
 
 
-@pytest.mark.parametrize(("sort", "members", "because"), [
-    ("Drone", ["d1", "d2", "d5"], "flies rdfs:domain Drone"),  # domain (d1), range (d2)
-    ("Carrier", ["d3"], "Carrier ≡ carries some Payload"),  # someValuesFrom
-    ("Blue", ["d4", "d5"], "Blue ≡ colour value blue"),  # hasValue
-    ("BlueDrone", ["d5"], "BlueDrone ≡ Blue ⊓ Drone"),  # intersection
-    ("FleetMember", ["d6"], "inFleet rdfs:domain FleetMember"),  # property chain, then domain
-], ids=["domain-range", "some", "value", "intersection", "chain"])
+@pytest.mark.parametrize(
+    ("sort", "members", "because"),
+    [
+        ("Drone", ["d1", "d2", "d5"], "flies rdfs:domain Drone"),  # domain (d1), range (d2)
+        ("Carrier", ["d3"], "Carrier ≡ carries some Payload"),  # someValuesFrom
+        ("Blue", ["d4", "d5"], "Blue ≡ colour value blue"),  # hasValue
+        ("BlueDrone", ["d5"], "BlueDrone ≡ Blue ⊓ Drone"),  # intersection
+        ("FleetMember", ["d6"], "inFleet rdfs:domain FleetMember"),  # property chain, then domain
+    ],
+    ids=["domain-range", "some", "value", "intersection", "chain"],
+)
 def test_owl_rl_entails_memberships_and_says_from_which_axiom(
-        tmp_path: Path, sort: str, members: list[str], because: str) -> None:
+    tmp_path: Path, sort: str, members: list[str], because: str
+) -> None:
     km = entailing(tmp_path)
     assert km.list_sort(sort) == members
     reasons = km.kb.platform("e").ontology.entailed.values()
@@ -431,8 +485,8 @@ def test_signatures_stay_told_under_owl_rl(tmp_path: Path) -> None:
     from dkreason import KnowledgeManager
 
     (tmp_path / "p.toml").write_text(
-        f'[platforms.p1]\nontology = "{SCENARIOS}/ontologies/platform1.owl"\n'
-        'reasoning = "owl-rl"\n')
+        f'[platforms.p1]\nontology = "{SCENARIOS}/ontologies/platform1.owl"\nreasoning = "owl-rl"\n'
+    )
     ont = KnowledgeManager.from_config(tmp_path / "p.toml").kb.platform("p1").ontology
     assert signature(ont, "GroundSpeed") == [["UAV"]]
     assert signature(ont, "Speed") == [["MovingObject"]]
@@ -452,25 +506,33 @@ def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
         km = entailing(tmp_path)
         files = [tmp_path / "e.ttl"]
     else:
-        files = [SCENARIOS / "ontologies" / "platform1.owl"] if name == "platform1" else \
-            [SOSA / "weather.ttl"]
-        (tmp_path / "c.toml").write_text(f'[platforms.e]\nontology = "{files[0]}"\n'
-                                         'reasoning = "owl-rl"\n')
+        files = (
+            [SCENARIOS / "ontologies" / "platform1.owl"]
+            if name == "platform1"
+            else [SOSA / "weather.ttl"]
+        )
+        (tmp_path / "c.toml").write_text(
+            f'[platforms.e]\nontology = "{files[0]}"\nreasoning = "owl-rl"\n'
+        )
         from dkreason import KnowledgeManager
+
         km = KnowledgeManager.from_config(tmp_path / "c.toml")
     ont = km.kb.platform("e").ontology
     closure = read_sources(files).graph
-    owlrl.DeductiveClosure(owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False,
-                           datatype_axioms=False).expand(closure)
+    owlrl.DeductiveClosure(
+        owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False, datatype_axioms=False
+    ).expand(closure)
     for sort in sorted(ont.sorts - {"http://www.w3.org/2002/07/owl#Thing"}):
         ours = {o for o in km.kb.engine.query("instance_of", "e", None, sort)}
-        theirs = {str(s) for s in closure.subjects(RDF.type, URIRef(sort))
-                  if str(s) in ont.individuals}
+        theirs = {
+            str(s) for s in closure.subjects(RDF.type, URIRef(sort)) if str(s) in ont.individuals
+        }
         assert {str(o[1]) for o in ours} == theirs, local_name(sort)
 
 
 def test_an_unresolved_import_on_the_cli_is_one_line_and_exit_2(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from dkreason.cli import main
 
     config = station(tmp_path)
@@ -480,15 +542,25 @@ def test_an_unresolved_import_on_the_cli_is_one_line_and_exit_2(
     assert err.count("\n") == 1 and "owl:imports <http://www.w3.org/ns/ssn/>" in err
 
 
-def test_the_weather_example_expands_over_sosa_sensors(
-        capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_weather_example_expands_over_sosa_sensors(capsys: pytest.CaptureFixture[str]) -> None:
     from dkreason.cli import main
 
     from .conftest import REPO
 
-    assert main(["match", "--json", "--config", str(REPO / "examples" / "weather" /
-                                                     "station.toml"),
-                 "forall s in System: always (Reading[s] > 900)"]) == 0
+    assert (
+        main(
+            [
+                "match",
+                "--json",
+                "--config",
+                str(REPO / "examples" / "weather" / "station.toml"),
+                "forall s in System: always (Reading[s] > 900)",
+            ]
+        )
+        == 0
+    )
     request = json.loads(capsys.readouterr().out)
     assert [(f["args"], [t["filter"] for t in f["topics"]]) for f in request["features"]] == [
-        (["baro1"], [{"msg.id": 1}]), (["baro2"], [{"msg.id": 2}])]
+        (["baro1"], [{"msg.id": 1}]),
+        (["baro2"], [{"msg.id": 2}]),
+    ]

@@ -24,8 +24,9 @@ from .conftest import formulas
 
 
 def shape(formula: str) -> list[tuple[str, tuple[tuple[str, str | None], ...]]]:
-    return [(f.name, tuple((a.name, a.sort) for a in f.args))
-            for f in features(parse_formula(formula))]
+    return [
+        (f.name, tuple((a.name, a.sort) for a in f.args)) for f in features(parse_formula(formula))
+    ]
 
 
 def test_every_thesis_formula_and_its_ascii_twin_give_the_same_features() -> None:
@@ -37,10 +38,14 @@ def test_every_thesis_formula_and_its_ascii_twin_give_the_same_features() -> Non
 
 def test_quantified_variables_carry_their_sort_and_constants_none() -> None:
     assert shape("for all x in UAV y in Car □(Altitude[x] > 10 and Speed[x] > Speed[y])") == [
-        ("Altitude", (("x", "UAV"),)), ("Speed", (("x", "UAV"),)), ("Speed", (("y", "Car"),))]
+        ("Altitude", (("x", "UAV"),)),
+        ("Speed", (("x", "UAV"),)),
+        ("Speed", (("y", "Car"),)),
+    ]
     assert shape("∀x in Car(Behind[car1, x])") == [("Behind", (("car1", None), ("x", "Car")))]
     assert shape("forall x in B, y in D (Z[x, y, e1])") == [
-        ("Z", (("x", "B"), ("y", "D"), ("e1", None)))]
+        ("Z", (("x", "B"), ("y", "D"), ("e1", None)))
+    ]
 
 
 def test_ascii_quantifier_with_colon_and_prefixed_sort() -> None:
@@ -80,12 +85,15 @@ def test_single_letters_are_features_and_U_is_until() -> None:
     assert isinstance(f, Until) and isinstance(f.left, Atom) and f.left.feature.name == "X"
 
 
-@pytest.mark.parametrize(("text", "column", "says"), [
-    ("always (Altitude[uav1] > )", 26, "syntax error"),
-    ("always (Altitude[uav1] > ", 26, "ends too early"),
-    ("always (X + 3)", 9, "not a formula"),
-    ("P until[5, 2] Q", 8, "empty interval"),
-])
+@pytest.mark.parametrize(
+    ("text", "column", "says"),
+    [
+        ("always (Altitude[uav1] > )", 26, "syntax error"),
+        ("always (Altitude[uav1] > ", 26, "ends too early"),
+        ("always (X + 3)", 9, "not a formula"),
+        ("P until[5, 2] Q", 8, "empty interval"),
+    ],
+)
 def test_syntax_errors_point_into_the_formula(text: str, column: int, says: str) -> None:
     with pytest.raises(ParseError) as err:
         parse_formula(text)

@@ -29,75 +29,115 @@ def test_text_to_xml_to_text_round_trip_loses_nothing(path: Path) -> None:
 
 
 def test_for_entries_bind_by_name_not_position() -> None:
-    (spec,) = parse_text("topic topic7:UavMsg contains Close(uav2, uav1) = msg.close "
-                         "for uav1 = msg.id2, uav2 = msg.id1").specs
-    assert [(a.name, a.id_field) for a in spec.features[0].args] == [("uav2", "msg.id1"),
-                                                                      ("uav1", "msg.id2")]
+    (spec,) = parse_text(
+        "topic topic7:UavMsg contains Close(uav2, uav1) = msg.close "
+        "for uav1 = msg.id2, uav2 = msg.id1"
+    ).specs
+    assert [(a.name, a.id_field) for a in spec.features[0].args] == [
+        ("uav2", "msg.id1"),
+        ("uav1", "msg.id2"),
+    ]
 
 
 def test_aliases_tell_repeated_arguments_apart_and_survive_writing() -> None:
-    text = ("topic t:M contains Close(UAV as a, UAV as b) = msg.c "
-            "for every a = msg.id1, some b = msg.id2")
+    text = (
+        "topic t:M contains Close(UAV as a, UAV as b) = msg.c "
+        "for every a = msg.id1, some b = msg.id2"
+    )
     (spec,) = parse_text(text).specs
-    assert spec.features[0].args == (TopicArg("every", "UAV", "msg.id1"),
-                                     TopicArg("some", "UAV", "msg.id2"))
+    assert spec.features[0].args == (
+        TopicArg("every", "UAV", "msg.id1"),
+        TopicArg("some", "UAV", "msg.id2"),
+    )
     assert parse_text(format_spec(spec)).specs == (spec,)
 
 
 def test_repeated_names_without_aliases_bind_in_order() -> None:
-    (spec,) = parse_text("topic t:M contains Behind(uav1, uav1) = msg.b "
-                         "for uav1 = msg.id1, uav1 = msg.id2").specs
+    (spec,) = parse_text(
+        "topic t:M contains Behind(uav1, uav1) = msg.b for uav1 = msg.id1, uav1 = msg.id2"
+    ).specs
     assert [a.id_field for a in spec.features[0].args] == ["msg.id1", "msg.id2"]
 
 
 def test_several_features_per_topic_and_implicit_objects() -> None:
-    (spec,) = parse_text("topic t:M contains Altitude(uav1) = msg.alt, "
-                         "Speed(uav1) = msg.spd for uav1 = msg.id").specs
+    (spec,) = parse_text(
+        "topic t:M contains Altitude(uav1) = msg.alt, Speed(uav1) = msg.spd for uav1 = msg.id"
+    ).specs
     assert [f.name for f in spec.features] == ["Altitude", "Speed"]
     assert spec.features[0].args[0].id_field is None
     assert spec.features[1].args[0].id_field == "msg.id"
 
 
 def test_sort_and_object_topics_with_optional_sort_keyword() -> None:
-    specs = parse_text("topic a:M contains sort some UAV = msg.id\n"
-                       "topic b:M contains every UAV = msg.id\n"
-                       "topic c:M contains uav1 = msg.id").specs
+    specs = parse_text(
+        "topic a:M contains sort some UAV = msg.id\n"
+        "topic b:M contains every UAV = msg.id\n"
+        "topic c:M contains uav1 = msg.id"
+    ).specs
     assert [(s.kind, s.entity.kind if s.entity else None) for s in specs] == [
-        ("sort", "some"), ("sort", "every"), ("object", "object")]
+        ("sort", "some"),
+        ("sort", "every"),
+        ("object", "object"),
+    ]
 
 
 def test_prefixed_names_iris_nested_fields_and_comments() -> None:
-    (spec,) = parse_text("# heading\ntopic t:M contains hr:Heading(<http://x.org/o#uav1>) "
-                         "= msg.pose.orientation.z for <http://x.org/o#uav1> = msg.ids[0]").specs
+    (spec,) = parse_text(
+        "# heading\ntopic t:M contains hr:Heading(<http://x.org/o#uav1>) "
+        "= msg.pose.orientation.z for <http://x.org/o#uav1> = msg.ids[0]"
+    ).specs
     arg = spec.features[0].args[0]
     assert (spec.features[0].name, arg.name, arg.id_field) == (
-        "hr:Heading", "<http://x.org/o#uav1>", "msg.ids[0]")
+        "hr:Heading",
+        "<http://x.org/o#uav1>",
+        "msg.ids[0]",
+    )
 
 
-@pytest.mark.parametrize(("text", "where", "says"), [
-    ("topic t1:M contains Speed(uav1 = msg.spd", "x.sslt:1:32", "expected"),
-    ("topic t1 M contains Speed(uav1) = msg.spd", "x.sslt:1:10", "expected ':'"),
-    ("topic t1:M contains Speed(uav1) = msg.spd for uav2 = msg.id", "x.sslt:1:47",
-     "names no unbound argument"),
-    ("topic t:M contains Speed(uav1) = msg.s\ntopic t:M contains Speed(uav1) = msg.s",
-     "x.sslt:2:1", "specified twice"),
-])
+@pytest.mark.parametrize(
+    ("text", "where", "says"),
+    [
+        ("topic t1:M contains Speed(uav1 = msg.spd", "x.sslt:1:32", "expected"),
+        ("topic t1 M contains Speed(uav1) = msg.spd", "x.sslt:1:10", "expected ':'"),
+        (
+            "topic t1:M contains Speed(uav1) = msg.spd for uav2 = msg.id",
+            "x.sslt:1:47",
+            "names no unbound argument",
+        ),
+        (
+            "topic t:M contains Speed(uav1) = msg.s\ntopic t:M contains Speed(uav1) = msg.s",
+            "x.sslt:2:1",
+            "specified twice",
+        ),
+    ],
+)
 def test_syntax_errors_name_file_line_column_and_what_was_expected(
-        text: str, where: str, says: str) -> None:
+    text: str, where: str, says: str
+) -> None:
     with pytest.raises(ParseError) as err:
         parse_text(text, "x.sslt")
     assert str(err.value).startswith(where) and says in str(err.value)
 
 
-@pytest.mark.parametrize(("xml", "says"), [
-    (b"<Topic_specs><Topic name='a' msgtype='b'><feature></Topic></Topic_specs>",
-     "mismatched tag"),
-    (b"<Topic_specs><Topic name='a'><object name='x' value='f'/></Topic></Topic_specs>",
-     "lacks the 'msgtype' attribute"),
-    (b"<Topics/>", "expected <Topic_specs>"),
-    (b"<Topic_specs><Topic name='a' msgtype='M'><sort name='S' value='f' all_objects='yes'/>"
-     b"</Topic></Topic_specs>", "all_objects must be true or false"),
-])
+@pytest.mark.parametrize(
+    ("xml", "says"),
+    [
+        (
+            b"<Topic_specs><Topic name='a' msgtype='b'><feature></Topic></Topic_specs>",
+            "mismatched tag",
+        ),
+        (
+            b"<Topic_specs><Topic name='a'><object name='x' value='f'/></Topic></Topic_specs>",
+            "lacks the 'msgtype' attribute",
+        ),
+        (b"<Topics/>", "expected <Topic_specs>"),
+        (
+            b"<Topic_specs><Topic name='a' msgtype='M'><sort name='S' value='f' all_objects='yes'/>"
+            b"</Topic></Topic_specs>",
+            "all_objects must be true or false",
+        ),
+    ],
+)
 def test_malformed_xml_specs_are_rejected_with_their_line(xml: bytes, says: str) -> None:
     with pytest.raises(ParseError) as err:
         parse_xml(xml, "s.xml")
@@ -117,19 +157,26 @@ topic topic1:UavMsg contains Altitude(uav1) = msg.alt for uav1 = msg.id
 def test_topic_names_are_ros_names_or_quoted_and_types_may_name_their_package() -> None:
     specs = parse_text(ROS_SPECS, "ros.sslt").specs
     assert [(s.name, s.msgtype) for s in specs] == [
-        ("/turtle1/pose", "turtlesim/Pose"), ("imu/data", "sensor_msgs/msg/Imu"),
-        ("/camera/imu/data", "Imu"), ("ORB-SLAM", "orb_slam/msg/Pose"), ("topic1", "UavMsg")]
+        ("/turtle1/pose", "turtlesim/Pose"),
+        ("imu/data", "sensor_msgs/msg/Imu"),
+        ("/camera/imu/data", "Imu"),
+        ("ORB-SLAM", "orb_slam/msg/Pose"),
+        ("topic1", "UavMsg"),
+    ]
     again = parse_text("".join(f"{format_spec(s)}\n" for s in specs), "again.sslt").specs
     via_xml = parse_xml(format_xml(specs).encode()).specs
     assert again == via_xml == specs
 
 
-@pytest.mark.parametrize(("line", "says"), [
-    ("topic /a//b:T contains X(o) = msg.x", "ros.sslt:1:"),
-    ("topic /a/:T contains X(o) = msg.x", "ros.sslt:1:"),
-    ('topic "":T contains X(o) = msg.x', "an empty topic name"),
-    ("topic a:pkg/msg/sub/T contains X(o) = msg.x", "ros.sslt:1:"),
-])
+@pytest.mark.parametrize(
+    ("line", "says"),
+    [
+        ("topic /a//b:T contains X(o) = msg.x", "ros.sslt:1:"),
+        ("topic /a/:T contains X(o) = msg.x", "ros.sslt:1:"),
+        ('topic "":T contains X(o) = msg.x', "an empty topic name"),
+        ("topic a:pkg/msg/sub/T contains X(o) = msg.x", "ros.sslt:1:"),
+    ],
+)
 def test_bad_ros_names_are_syntax_errors(line: str, says: str) -> None:
     with pytest.raises(ParseError, match=says):
         parse_text(line + "\n", "ros.sslt")

@@ -23,8 +23,11 @@ from dkreason.progress import Progressor
 from .oracle import Trace, holds
 
 # DKREASON_EXAMPLES=20000 for a long run; the default keeps the suite quick
-SETTINGS = settings(max_examples=int(os.environ.get("DKREASON_EXAMPLES", "400")), deadline=None,
-                    suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(
+    max_examples=int(os.environ.get("DKREASON_EXAMPLES", "400")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
 
 intervals = st.one_of(
     st.just(""),
@@ -63,8 +66,9 @@ def traces(draw: st.DrawFn) -> Trace:
             "X": draw(st.sampled_from([0, 1, 2, 3, 4, None])),
         }
         out.append((t, values))
-        t += draw(st.sampled_from([Fraction(1), Fraction(1), Fraction(2), Fraction(3),
-                                   Fraction(1, 2)]))
+        t += draw(
+            st.sampled_from([Fraction(1), Fraction(1), Fraction(2), Fraction(3), Fraction(1, 2)])
+        )
     return out
 
 
@@ -91,36 +95,44 @@ def test_verdicts_equal_the_offline_semantics(formula: str, trace: Trace) -> Non
 @SETTINGS
 @given(formulas(), traces())
 def test_an_early_verdict_is_final_and_holds_on_the_stream_cut_right_after_it(
-        formula: str, trace: Trace) -> None:
+    formula: str, trace: Trace
+) -> None:
     verdict, k = run(formula, trace)
     if k is not None:
         f = parse_formula(formula)
         assert verdict is not None
-        assert verdict == holds(f, trace, 0) == holds(f, trace[:k + 1], 0)
+        assert verdict == holds(f, trace, 0) == holds(f, trace[: k + 1], 0)
 
 
 @SETTINGS
 @given(formulas(), traces())
 def test_verdicts_come_no_later_than_a_three_valued_evaluation_of_the_prefix(
-        formula: str, trace: Trace) -> None:
+    formula: str, trace: Trace
+) -> None:
     f = parse_formula(formula)
     _, k = run(formula, trace)
-    forced = next((n for n in range(len(trace))
-                   if holds(f, trace[:n + 1], 0, prefix=True) is not None), None)
+    forced = next(
+        (n for n in range(len(trace)) if holds(f, trace[: n + 1], 0, prefix=True) is not None), None
+    )
     if forced is not None:
         assert k is not None and k <= forced
 
 
 single = st.one_of(
-    st.tuples(st.sampled_from(["always", "eventually", "next", "historically", "once",
-                               "previous"]), intervals, atoms)
-    .map(lambda p: f"{p[0]}{p[1]} ({p[2]})"),
-    st.tuples(atoms, st.sampled_from(["until", "since"]), intervals, atoms)
-    .map(lambda p: f"({p[0]}) {p[1]}{p[2]} ({p[3]})"),
-    st.tuples(atoms, intervals, atoms)
-    .map(lambda p: f"always (({p[0]}) -> eventually{p[1]} ({p[2]}))"),
-    st.tuples(atoms, intervals, atoms)
-    .map(lambda p: f"always (not ({p[0]}) or eventually{p[1]} ({p[2]}))"),
+    st.tuples(
+        st.sampled_from(["always", "eventually", "next", "historically", "once", "previous"]),
+        intervals,
+        atoms,
+    ).map(lambda p: f"{p[0]}{p[1]} ({p[2]})"),
+    st.tuples(atoms, st.sampled_from(["until", "since"]), intervals, atoms).map(
+        lambda p: f"({p[0]}) {p[1]}{p[2]} ({p[3]})"
+    ),
+    st.tuples(atoms, intervals, atoms).map(
+        lambda p: f"always (({p[0]}) -> eventually{p[1]} ({p[2]}))"
+    ),
+    st.tuples(atoms, intervals, atoms).map(
+        lambda p: f"always (not ({p[0]}) or eventually{p[1]} ({p[2]}))"
+    ),
     st.tuples(intervals, atoms).map(lambda p: f"always not (always{p[0]} ({p[1]}))"),
     st.tuples(atoms, atoms).map(lambda p: f"always (({p[0]}) and not ({p[1]}))"),
 )
@@ -129,11 +141,13 @@ single = st.one_of(
 @SETTINGS
 @given(single, traces())
 def test_single_operators_and_response_formulas_decide_exactly_at_the_forcing_state(
-        formula: str, trace: Trace) -> None:
+    formula: str, trace: Trace
+) -> None:
     f = parse_formula(formula)
     _, k = run(formula, trace)
-    forced = next((n for n in range(len(trace))
-                   if holds(f, trace[:n + 1], 0, prefix=True) is not None), None)
+    forced = next(
+        (n for n in range(len(trace)) if holds(f, trace[: n + 1], 0, prefix=True) is not None), None
+    )
     assert k == forced
 
 
@@ -154,20 +168,30 @@ def test_end_of_stream_semantics() -> None:
         p.add(f)
     assert p.step(0, {"P": True, "Q": False}) == []
     got = {v.formula: (v.verdict, v.at_end) for v in p.finish()}
-    assert got == {"eventually Q": (False, True), "next P": (False, True),
-                   "always P": (True, True), "P until Q": (False, True),
-                   "always[0, 100] P": (True, True)}
+    assert got == {
+        "eventually Q": (False, True),
+        "next P": (False, True),
+        "always P": (True, True),
+        "P until Q": (False, True),
+        "always[0, 100] P": (True, True),
+    }
 
 
 def test_times_and_units_are_exact() -> None:
     p = Progressor()
     p.add("eventually[0.3, 0.3] P")
     p.add("always[0ms, 250ms] Q")
-    for t, values in ((0.1, {"P": False, "Q": True}), (0.2, {"P": False, "Q": True}),
-                      (0.35, {"P": False, "Q": True}), (0.4, {"P": True, "Q": False})):
+    for t, values in (
+        (0.1, {"P": False, "Q": True}),
+        (0.2, {"P": False, "Q": True}),
+        (0.35, {"P": False, "Q": True}),
+        (0.4, {"P": True, "Q": False}),
+    ):
         for v in p.step(t, values):
-            assert (v.formula, v.verdict, v.time) in {("always[0ms, 250ms] Q", True, 0.35),
-                                                     ("eventually[0.3, 0.3] P", True, 0.4)}
+            assert (v.formula, v.verdict, v.time) in {
+                ("always[0ms, 250ms] Q", True, 0.35),
+                ("eventually[0.3, 0.3] P", True, 0.4),
+            }
     assert p.finish() == []
 
 
@@ -188,7 +212,8 @@ def test_feature_keys_ignore_whitespace() -> None:
 
 
 def test_text_keys_are_read_once_per_spelling_not_once_a_state(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     import dkreason.progress.progressor as progressor
 
     read: list[str] = []
@@ -209,11 +234,14 @@ def test_text_keys_are_read_once_per_spelling_not_once_a_state(
     assert v.verdict is False
 
 
-@pytest.mark.parametrize(("steps", "says"), [
-    ([(0, {"P": True}), (0, {"P": True})], "time 0 is not after the previous state's time 0"),
-    ([(0, {"Q": True})], "the state at time 0 has no value for P"),
-    ([(0, {"P": 3})], "P is used as a condition but has the value 3 at time 0"),
-])
+@pytest.mark.parametrize(
+    ("steps", "says"),
+    [
+        ([(0, {"P": True}), (0, {"P": True})], "time 0 is not after the previous state's time 0"),
+        ([(0, {"Q": True})], "the state at time 0 has no value for P"),
+        ([(0, {"P": 3})], "P is used as a condition but has the value 3 at time 0"),
+    ],
+)
 def test_bad_states_are_errors_naming_feature_and_time(steps: list[Any], says: str) -> None:
     p = Progressor()
     p.add("always P")
@@ -222,31 +250,46 @@ def test_bad_states_are_errors_naming_feature_and_time(steps: list[Any], says: s
             p.step(t, values)
 
 
-families = st.tuples(atoms, atoms, st.integers(0, 2), st.lists(
-    st.one_of(st.integers(0, 5).map(str), st.just("oo")), min_size=1, max_size=4)).map(
-    lambda p: [f"always (({p[0]}) -> eventually[{p[2]}, {max(int(h), p[2]) if h != 'oo' else h}]"
-               f" ({p[1]}))" for h in p[3]])
+families = st.tuples(
+    atoms,
+    atoms,
+    st.integers(0, 2),
+    st.lists(st.one_of(st.integers(0, 5).map(str), st.just("oo")), min_size=1, max_size=4),
+).map(
+    lambda p: [
+        f"always (({p[0]}) -> eventually[{p[2]}, {max(int(h), p[2]) if h != 'oo' else h}] ({p[1]}))"
+        for h in p[3]
+    ]
+)
 
 
-constants = st.one_of(st.integers(-1, 5).map(str), st.integers(0, 5).map(lambda c: f"-{c}"),
-                      st.integers(0, 4).map(lambda c: f"({c} - 1) * 2 + 1"))
-thresholds = st.lists(st.tuples(st.sampled_from(["<", "<=", ">", ">="]), constants,
-                                st.booleans()).map(
-    lambda p: f"always (X {p[0]} {p[1]})" if p[2] else f"always ({p[1]} {p[0]} X)"),
-    min_size=2, max_size=8)
+constants = st.one_of(
+    st.integers(-1, 5).map(str),
+    st.integers(0, 5).map(lambda c: f"-{c}"),
+    st.integers(0, 4).map(lambda c: f"({c} - 1) * 2 + 1"),
+)
+thresholds = st.lists(
+    st.tuples(st.sampled_from(["<", "<=", ">", ">="]), constants, st.booleans()).map(
+        lambda p: f"always (X {p[0]} {p[1]})" if p[2] else f"always ({p[1]} {p[0]} X)"
+    ),
+    min_size=2,
+    max_size=8,
+)
 
 
 @SETTINGS
 @given(st.lists(st.one_of(formulas(), single), max_size=4), families, traces())
 def test_formulas_sharing_one_progressor_each_keep_their_own_semantics(
-        others: list[str], family: list[str], trace: Trace) -> None:
+    others: list[str], family: list[str], trace: Trace
+) -> None:
     judged_alone_and_together([*others, *family], trace)
 
 
 @SETTINGS
 @given(st.lists(st.one_of(formulas(), single), max_size=3), thresholds, traces())
 def test_invariants_sharing_a_feature_and_a_side_keep_their_own_semantics(
-        others: list[str], family: list[str], trace: Trace) -> None:
+    others: list[str], family: list[str], trace: Trace
+) -> None:
     """`always (X > c)` for many c share one sorted check (fused.Thresholds)."""
     judged_alone_and_together([*others, *family], trace)
 
@@ -271,7 +314,7 @@ def judged_alone_and_together(batch: list[str], trace: Trace) -> None:
         parsed = parse_formula(f)
         assert verdict == holds(parsed, trace, 0), f
         if at is not None:
-            assert verdict == holds(parsed, trace[:at + 1], 0), f
+            assert verdict == holds(parsed, trace[: at + 1], 0), f
 
 
 def test_times_print_as_exact_decimals_never_as_fractions() -> None:
@@ -290,5 +333,6 @@ def test_thresholds_sharing_a_feature_report_when_it_was_unknown() -> None:
         assert p.step(t, {"X": x}) == []
     verdicts = p.finish()
     assert [v.verdict for v in verdicts] == [None, None]
-    assert all([u.to_json() for u in v.unknown] == [{"feature": "X", "from": 1, "to": 2}]
-               for v in verdicts)
+    assert all(
+        [u.to_json() for u in v.unknown] == [{"feature": "X", "from": 1, "to": 2}] for v in verdicts
+    )

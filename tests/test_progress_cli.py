@@ -29,12 +29,21 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, list[dict[
 
 @pytest.mark.parametrize("spelling", ["", "-ascii"])
 def test_thesis_formulas_give_the_hand_checked_verdicts(
-        capsys: pytest.CaptureFixture[str], spelling: str) -> None:
+    capsys: pytest.CaptureFixture[str], spelling: str
+) -> None:
     assert SCENARIOS is not None
     table = formulas()
     argv = [table[f"{name}{spelling}"] for name in HAND_CHECK]
-    code, lines = run(capsys, "progress", "--states", str(STATES), "--config",
-                      str(SCENARIOS / "single.toml"), "--json", *argv)
+    code, lines = run(
+        capsys,
+        "progress",
+        "--states",
+        str(STATES),
+        "--config",
+        str(SCENARIOS / "single.toml"),
+        "--json",
+        *argv,
+    )
     assert code == 1
     got = {line["formula"]: (line["verdict"], line["time"]) for line in lines}
     assert got == {argv[n]: HAND_CHECK[name] for n, name in enumerate(HAND_CHECK)}
@@ -42,29 +51,48 @@ def test_thesis_formulas_give_the_hand_checked_verdicts(
 
 
 def test_one_line_per_formula_argument_and_exit_status(
-        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
     states = tmp_path / "s.jsonl"
-    states.write_text('{"time": 0, "values": {"P": true, "X": 1}}\n'
-                      '{"time": 2.5, "values": {"P": false, "X": null}}\n')
-    code, lines = run(capsys, "progress", "--states", str(states), "--json",
-                      "eventually P", "eventually P", "always (X > 0)")
+    states.write_text(
+        '{"time": 0, "values": {"P": true, "X": 1}}\n'
+        '{"time": 2.5, "values": {"P": false, "X": null}}\n'
+    )
+    code, lines = run(
+        capsys,
+        "progress",
+        "--states",
+        str(states),
+        "--json",
+        "eventually P",
+        "eventually P",
+        "always (X > 0)",
+    )
     assert code == 3  # nothing violated, one unknown
-    assert [line["formula"] for line in lines] == ["eventually P", "eventually P",
-                                                   "always (X > 0)"]
-    assert lines[0] == {"formula": "eventually P", "verdict": True, "time": 0,
-                        "at_end": False, "witness": None}
+    assert [line["formula"] for line in lines] == ["eventually P", "eventually P", "always (X > 0)"]
+    assert lines[0] == {
+        "formula": "eventually P",
+        "verdict": True,
+        "time": 0,
+        "at_end": False,
+        "witness": None,
+    }
     assert lines[2]["verdict"] is None and lines[2]["at_end"] is True
     assert lines[2]["time"] == 2.5
     assert lines[2]["unknown"] == [{"feature": "X", "from": 2.5, "to": 2.5}]
 
 
-@pytest.mark.parametrize(("content", "says"), [
-    ('{"time": 0, "values": {"P": true}}\n{"time": 1, "values": \n', "s.jsonl:2:"),
-    ('{"time": 0}\n', 's.jsonl:1: expected {"time": …, "values": {…}}'),
-    ('{"time": 0, "values": {"Q": true}}\n', "the state at time 0 has no value for P"),
-])
+@pytest.mark.parametrize(
+    ("content", "says"),
+    [
+        ('{"time": 0, "values": {"P": true}}\n{"time": 1, "values": \n', "s.jsonl:2:"),
+        ('{"time": 0}\n', 's.jsonl:1: expected {"time": …, "values": {…}}'),
+        ('{"time": 0, "values": {"Q": true}}\n', "the state at time 0 has no value for P"),
+    ],
+)
 def test_bad_state_files_are_one_line_errors(
-        capsys: pytest.CaptureFixture[str], tmp_path: Path, content: str, says: str) -> None:
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, content: str, says: str
+) -> None:
     states = tmp_path / "s.jsonl"
     states.write_text(content)
     code = main(["progress", "--states", str(states), "always P"])
@@ -73,7 +101,8 @@ def test_bad_state_files_are_one_line_errors(
 
 
 def test_quantifiers_need_a_knowledge_base(
-        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
     states = tmp_path / "s.jsonl"
     states.write_text('{"time": 0, "values": {}}\n')
     code = main(["progress", "--states", str(states), "forall x in UAV: Speed[x] > 1"])
@@ -81,12 +110,24 @@ def test_quantifiers_need_a_knowledge_base(
 
 
 def test_states_may_hold_strings_and_types_are_checked_against_their_use(
-        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
     states = tmp_path / "s.jsonl"
-    states.write_text("".join(json.dumps({"time": t, "values": {"Mode[a]": m, "Alt[a]": 5}})
-                              + "\n" for t, m in enumerate(["AUTO", "AUTO", "MANUAL"])))
-    code, lines = run(capsys, "progress", "--states", str(states), "--json",
-                      'always (Mode[a] == "AUTO")', "always (abs(Alt[a] - 6) < 2)")
+    states.write_text(
+        "".join(
+            json.dumps({"time": t, "values": {"Mode[a]": m, "Alt[a]": 5}}) + "\n"
+            for t, m in enumerate(["AUTO", "AUTO", "MANUAL"])
+        )
+    )
+    code, lines = run(
+        capsys,
+        "progress",
+        "--states",
+        str(states),
+        "--json",
+        'always (Mode[a] == "AUTO")',
+        "always (abs(Alt[a] - 6) < 2)",
+    )
     assert code == 1 and [(v["verdict"], v["time"]) for v in lines] == [(False, 2), (True, 2)]
     code = main(["progress", "--states", str(states), "always (Mode[a] > 3)"])
     err = capsys.readouterr().err

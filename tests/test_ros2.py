@@ -42,64 +42,123 @@ from .test_live import POSITION, SPEEDING, free_port
 S = 10**9
 POSE = "geometry_msgs/msg/PoseStamped"
 TRAFFIC_MSGS = sorted((REPO / "examples" / "traffic" / "msg").rglob("*.msg"))
-TRAFFIC_TOPICS = ["/clock", "/platform1/topic3", "/platform1/topic4", "/platform1/topic5",
-                  "/platform2/carstopic1", "/platform2/carstopic3"]  # what the formulas read
-TALKER = ("@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/"
-          "std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503"
-          "259e948f6b1a18/::,7:,:,:,,")
+TRAFFIC_TOPICS = [
+    "/clock",
+    "/platform1/topic3",
+    "/platform1/topic4",
+    "/platform1/topic5",
+    "/platform2/carstopic1",
+    "/platform2/carstopic3",
+]  # what the formulas read
+TALKER = (
+    "@ros2_lv/2/8b20917502ee955ac4476e0266340d5c/0/10/MP/%/%/talker/%chatter/"
+    "std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503"
+    "259e948f6b1a18/::,7:,:,:,,"
+)
 
 
 # ---- the wire formats -------------------------------------------------------------------
 
+
 def test_an_rmw_zenoh_publisher_token_names_topic_type_node_and_data_key() -> None:
     pub = rmw.parse_token(TALKER)
     assert pub is not None
-    assert (pub.topic, pub.msgtype, pub.node, pub.namespace, pub.domain, pub.bridged) == \
-        ("/chatter", "std_msgs/msg/String", "talker", "/", 2, False)
-    assert pub.key == ("2/chatter/std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a7"
-                       "0dfd4bd59db1288021743503259e948f6b1a18")
-    robot = rmw.parse_token("@ros2_lv/0/aa/3/12/MP/%/%robot1/odometry/%robot1%odom/"
-                            "nav_msgs::msg::dds_::Odometry_/RIHS01_00/::,10:,:,:,,")
+    assert (pub.topic, pub.msgtype, pub.node, pub.namespace, pub.domain, pub.bridged) == (
+        "/chatter",
+        "std_msgs/msg/String",
+        "talker",
+        "/",
+        2,
+        False,
+    )
+    assert pub.key == (
+        "2/chatter/std_msgs::msg::dds_::String_/RIHS01_df668c740482bbd48fb39d76a7"
+        "0dfd4bd59db1288021743503259e948f6b1a18"
+    )
+    robot = rmw.parse_token(
+        "@ros2_lv/0/aa/3/12/MP/%/%robot1/odometry/%robot1%odom/"
+        "nav_msgs::msg::dds_::Odometry_/RIHS01_00/::,10:,:,:,,"
+    )
     assert robot is not None
-    assert (robot.topic, robot.namespace, robot.key) == \
-        ("/robot1/odom", "/robot1", "0/robot1/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_00")
+    assert (robot.topic, robot.namespace, robot.key) == (
+        "/robot1/odom",
+        "/robot1",
+        "0/robot1/odom/nav_msgs::msg::dds_::Odometry_/RIHS01_00",
+    )
 
 
 def test_other_entities_are_not_publishers_and_a_bridge_token_is_read_too() -> None:
     node = "@ros2_lv/2/aac3178e146ba6f1fc6e6a4085e77f21/0/0/NN/%/%/listener"
     sub = TALKER.replace("/MP/", "/MS/")
     assert rmw.parse_token(node) is None and rmw.parse_token(sub) is None
-    assert rmw.parse_token("@ros2_lv/7f3a/SS/add_two_ints/example_interfaces§srv§AddTwoInts") \
-        is None
+    assert (
+        rmw.parse_token("@ros2_lv/7f3a/SS/add_two_ints/example_interfaces§srv§AddTwoInts") is None
+    )
     bridged = rmw.parse_token("@ros2_lv/7f3a/MP/robot2§odom/nav_msgs§msg§Odometry/K:1::1,5")
     assert bridged is not None
-    assert (bridged.topic, bridged.msgtype, bridged.key, bridged.bridged, bridged.node) == \
-        ("/robot2/odom", "nav_msgs/msg/Odometry", "robot2/odom", True, None)
-    assert rmw.parse_token(rmw.bridge_token("7f3a", "/robot2/odom", "nav_msgs/msg/Odometry")) \
-        == bridged.__class__(rmw.bridge_token("7f3a", "/robot2/odom", "nav_msgs/msg/Odometry"),
-                             "/robot2/odom", "nav_msgs/msg/Odometry", "robot2/odom", None,
-                             None, None, True)
+    assert (bridged.topic, bridged.msgtype, bridged.key, bridged.bridged, bridged.node) == (
+        "/robot2/odom",
+        "nav_msgs/msg/Odometry",
+        "robot2/odom",
+        True,
+        None,
+    )
+    assert rmw.parse_token(
+        rmw.bridge_token("7f3a", "/robot2/odom", "nav_msgs/msg/Odometry")
+    ) == bridged.__class__(
+        rmw.bridge_token("7f3a", "/robot2/odom", "nav_msgs/msg/Odometry"),
+        "/robot2/odom",
+        "nav_msgs/msg/Odometry",
+        "robot2/odom",
+        None,
+        None,
+        None,
+        True,
+    )
 
 
-@pytest.mark.parametrize("token", [
-    "@ros2_lv/x/aa/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/h/q",  # domain
-    "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chatter/String/h/q",  # not a DDS type name
-    "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chatter",  # cut short
-    "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chat ter/std_msgs::msg::dds_::String_/h/q",  # name
-    "@ros2_lv/0/aa/0/10/ZZ/%/%/talker",  # no such entity
-    "@ros2_lv/7f3a/MP/robot2§odom/Odometry/q",  # bridge: not a ROS type
-    "@ros2_lv/" + "a/" * 3000,  # too long
-    "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/**/q",  # wildcard
-])
+@pytest.mark.parametrize(
+    "token",
+    [
+        "@ros2_lv/x/aa/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/h/q",  # domain
+        "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chatter/String/h/q",  # not a DDS type name
+        "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chatter",  # cut short
+        "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chat ter/std_msgs::msg::dds_::String_/h/q",  # name
+        "@ros2_lv/0/aa/0/10/ZZ/%/%/talker",  # no such entity
+        "@ros2_lv/7f3a/MP/robot2§odom/Odometry/q",  # bridge: not a ROS type
+        "@ros2_lv/" + "a/" * 3000,  # too long
+        "@ros2_lv/0/aa/0/10/MP/%/%/talker/%chatter/std_msgs::msg::dds_::String_/**/q",  # wildcard
+    ],
+)
 def test_a_malformed_token_is_a_wire_error(token: str) -> None:
     with pytest.raises(WireError):
         rmw.parse_token(token)
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.sampled_from(["@ros2_lv", "0", "MP", "NN", "%", "%a%b", "x::msg::dds_::Y_",
-                                 "a§b", "::,7:,:,:,,", "", "ü", "12", "/", "q"]),
-                max_size=15))
+@given(
+    st.lists(
+        st.sampled_from(
+            [
+                "@ros2_lv",
+                "0",
+                "MP",
+                "NN",
+                "%",
+                "%a%b",
+                "x::msg::dds_::Y_",
+                "a§b",
+                "::,7:,:,:,,",
+                "",
+                "ü",
+                "12",
+                "/",
+                "q",
+            ]
+        ),
+        max_size=15,
+    )
+)
 def test_any_token_is_a_publisher_none_or_a_wire_error(parts: list[str]) -> None:
     try:
         pub = rmw.parse_token("/".join(parts))
@@ -113,10 +172,14 @@ def test_attachments_of_both_layouts_are_read() -> None:
     plain = rmw.attachment(9, 1_788_000_000_123_456_789, gid)
     assert len(plain) == 33 and plain[16] == 16
     assert rmw.parse_attachment(plain) == (9, 1_788_000_000_123_456_789, gid)
-    labelled = b"".join(bytes([len(label)]) + label + value for label, value in (
-        (b"sequence_number", struct.pack("<q", 42)),
-        (b"source_timestamp", struct.pack("<q", 1_700_000_000_000_000_000)),
-        (b"source_gid", b"\x10" + gid)))
+    labelled = b"".join(
+        bytes([len(label)]) + label + value
+        for label, value in (
+            (b"sequence_number", struct.pack("<q", 42)),
+            (b"source_timestamp", struct.pack("<q", 1_700_000_000_000_000_000)),
+            (b"source_gid", b"\x10" + gid),
+        )
+    )
     assert rmw.parse_attachment(labelled) == (42, 1_700_000_000_000_000_000, gid)
     assert rmw.attachment(42, 1_700_000_000_000_000_000, gid, labelled=True) == labelled
 
@@ -130,8 +193,11 @@ def test_any_attachment_bytes_are_read_or_refused(data: bytes) -> None:
     assert len(gid) == 16 and rmw.attachment(sequence, stamp, gid) == data or len(data) == 77
 
 
-@given(st.integers(-2**63, 2**63 - 1), st.integers(-2**63, 2**63 - 1),
-       st.binary(min_size=16, max_size=16))
+@given(
+    st.integers(-(2**63), 2**63 - 1),
+    st.integers(-(2**63), 2**63 - 1),
+    st.binary(min_size=16, max_size=16),
+)
 def test_attachments_round_trip(sequence: int, stamp: int, gid: bytes) -> None:
     assert rmw.parse_attachment(rmw.attachment(sequence, stamp, gid)) == (sequence, stamp, gid)
 
@@ -165,11 +231,13 @@ def test_on_the_wall_clock_a_topic_holds_states_back_as_far_as_its_samples_lag()
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=120), st.sampled_from([b"\x00\x01\x00\x00", b"\x00\x00\x00\x00"]))
 def test_any_payload_decodes_to_the_wanted_values_or_is_a_wire_error(
-        body: bytes, header: bytes) -> None:
+    body: bytes, header: bytes
+) -> None:
     """What a peer puts on a subscribed key: read field by field, or decoded in full (a
     topic's first message), either gives values or a WireError, in either byte order."""
-    read, stamped = _ros_reader(STORE.fielddefs, POSE, ["msg.pose.position.x"], False,
-                                STORE.deserialize_cdr)
+    read, stamped = _ros_reader(
+        STORE.fielddefs, POSE, ["msg.pose.position.x"], False, STORE.deserialize_cdr
+    )
     payload = header + body
     for reader in (read, lambda raw: STORE.deserialize_cdr(raw, POSE)):
         try:
@@ -182,6 +250,7 @@ def test_any_payload_decodes_to_the_wanted_values_or_is_a_wire_error(
 
 # ---- live, on loopback --------------------------------------------------------------------
 
+
 @pytest.fixture
 def robots(tmp_path: Path) -> Path:
     """Two robots of one fleet, each under its namespace, reading a standard stamped type."""
@@ -190,7 +259,8 @@ def robots(tmp_path: Path) -> Path:
     for n in (1, 2):
         (tmp_path / f"robot{n}.toml").write_text(
             f'[platforms.robot{n}]\nontology = "{ttl}"\nspecs = "pose.sslt"\n'
-            f'namespace = "/robot{n}"\n')
+            f'namespace = "/robot{n}"\n'
+        )
     return tmp_path
 
 
@@ -198,15 +268,28 @@ class Live:
     """A monitor on one session and publishers on another, joined on a free loopback port;
     the monitor runs in a thread, its events collected as they come."""
 
-    def __init__(self, km: KnowledgeManager, formulas: list[str], *, store: Any = None,
-                 policy: StreamPolicy | None = None, until: Fraction | None = None,
-                 wait: float = 60.0, **options: Any) -> None:
+    def __init__(
+        self,
+        km: KnowledgeManager,
+        formulas: list[str],
+        *,
+        store: Any = None,
+        policy: StreamPolicy | None = None,
+        until: Fraction | None = None,
+        wait: float = 60.0,
+        **options: Any,
+    ) -> None:
         port = free_port()
         self.publishing = open_session([], [f"tcp/127.0.0.1:{port}"])
         self.watching = open_session([f"tcp/127.0.0.1:{port}"], [])
         self.monitor = Ros2Monitor(
-            km, list(formulas), policy or StreamPolicy(max_age=Fraction(1)), self.watching,
-            store=store or _typestore({}, False, "ros2_jazzy"), **options)
+            km,
+            list(formulas),
+            policy or StreamPolicy(max_age=Fraction(1)),
+            self.watching,
+            store=store or _typestore({}, False, "ros2_jazzy"),
+            **options,
+        )
         self.events: list[Any] = []
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, args=(until, wait), daemon=True)
@@ -216,7 +299,7 @@ class Live:
         try:
             for event in self.monitor.run(until=until, duration=60, wait=wait):
                 self.events.append(event)
-        except BaseException as exc:  # noqa: BLE001 - the test reports it
+        except BaseException as exc:
             self.error = exc
 
     def changes(self, kind: str) -> list[Change]:
@@ -236,8 +319,10 @@ class Live:
     def matched(self, *pubs: Any) -> None:
         """Until the monitor's subscriptions have reached these publishers (a put before
         that goes nowhere)."""
-        self.until(lambda: all(p.publisher.matching_status.matching for p in pubs),
-                   "the monitor's subscriptions reach the publishers")
+        self.until(
+            lambda: all(p.publisher.matching_status.matching for p in pubs),
+            "the monitor's subscriptions reach the publishers",
+        )
 
     def finish(self) -> None:
         self.monitor.stop.set()
@@ -269,11 +354,13 @@ def pose(store: Any, t: int, x: float) -> bytes:
     """A PoseStamped at `t` ns, at x."""
     types = store.types
     header = types["std_msgs/msg/Header"](
-        stamp=types["builtin_interfaces/msg/Time"](sec=t // S, nanosec=t % S), frame_id="map")
+        stamp=types["builtin_interfaces/msg/Time"](sec=t // S, nanosec=t % S), frame_id="map"
+    )
     point = types["geometry_msgs/msg/Point"](x=x, y=0.0, z=0.0)
     quat = types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)
-    msg = types[POSE](header=header, pose=types["geometry_msgs/msg/Pose"](
-        position=point, orientation=quat))
+    msg = types[POSE](
+        header=header, pose=types["geometry_msgs/msg/Pose"](position=point, orientation=quat)
+    )
     return bytes(store.serialize_cdr(msg, POSE))
 
 
@@ -281,7 +368,8 @@ STORE = _typestore({}, False, "ros2_jazzy")
 
 
 def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
-        traffic: Path, live: Callable[..., Live], tmp_path: Path) -> None:
+    traffic: Path, live: Callable[..., Live], tmp_path: Path
+) -> None:
     """Three robots replay the traffic example as ROS 2 topics (rmw_zenoh's format, /clock);
     the monitor binds them by name, decodes CDR with --msg types, and decides what the
     recording decides offline; its --record file, replayed offline, decides the same."""
@@ -292,15 +380,25 @@ def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
     formulas = [SPEEDING, POSITION]
     offline = list(Monitor(km, formulas, policy).run(RosbagSource(traffic, TRAFFIC_MSGS)))
     record = tmp_path / "run.mcap"
-    run = live(km, formulas, store=store, policy=policy, sim_time=True,
-               recorder=Recorder(record, store), until=Fraction(400))
+    run = live(
+        km,
+        formulas,
+        store=store,
+        policy=policy,
+        sim_time=True,
+        recorder=Recorder(record, store),
+        until=Fraction(400),
+    )
     sent = replay(traffic, run.publishing, speed=200, wait_for=TRAFFIC_TOPICS)
     assert sent > 2900
-    run.until(lambda: run.monitor.clock is not None and run.monitor.clock >= 359 * S,
-              "the monitor's clock reaches the recording's end")
+    run.until(
+        lambda: run.monitor.clock is not None and run.monitor.clock >= 359 * S,
+        "the monitor's clock reaches the recording's end",
+    )
     run.finish()
-    assert {c.topic for c in run.changes("subscribed")} == {t.rsplit("/", 1)[1]
-                                                            for t in TRAFFIC_TOPICS[1:]}
+    assert {c.topic for c in run.changes("subscribed")} == {
+        t.rsplit("/", 1)[1] for t in TRAFFIC_TOPICS[1:]
+    }
     assert run.verdicts() == [v for v in offline if isinstance(v, Verdict)]
     assert run.verdicts()[0].verdict is False and run.verdicts()[0].time == 300.02
     replayed = list(Monitor(km, formulas, policy).run(RosbagSource(record)))
@@ -313,7 +411,8 @@ def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
 
 
 def test_bridge_tokens_are_taken_with_bridge_and_named_otherwise(
-        robots: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture) -> None:
+    robots: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture
+) -> None:
     km = KnowledgeManager.from_config(robots / "robot1.toml")
     without = live(km, ["always (X[me] < 15)"], sim_time=True)
     bridged = Ros2Node(without.publishing, "turtle", "/robot1", bridged=True)
@@ -322,7 +421,8 @@ def test_bridge_tokens_are_taken_with_bridge_and_named_otherwise(
     assert not without.monitor.subs
     run = live(km, ["always (X[me] < 15)"], bridge=True)
     pub = Ros2Node(run.publishing, "turtle", "/robot1", bridged=True).publisher(
-        "/robot1/pose", POSE)
+        "/robot1/pose", POSE
+    )
     run.until(lambda: bool(run.changes("subscribed")), "subscribed through the bridge")
     run.matched(pub)
     assert "through the bridge" in run.changes("subscribed")[0].detail
@@ -334,7 +434,8 @@ def test_bridge_tokens_are_taken_with_bridge_and_named_otherwise(
 
 
 def test_a_late_publisher_is_subscribed_and_a_vanished_one_is_source_loss(
-        robots: Path, live: Callable[..., Live]) -> None:
+    robots: Path, live: Callable[..., Live]
+) -> None:
     km = KnowledgeManager.from_config(robots / "robot1.toml")
     run = live(km, ["always (X[me] < 15)"], sim_time=True, keep_states=True)
     player = Ros2Node(run.publishing, "player").publisher("/clock", "rosgraph_msgs/msg/Clock")
@@ -356,17 +457,19 @@ def test_a_late_publisher_is_subscribed_and_a_vanished_one_is_source_loss(
     assert lost.feature == "X[me]" and lost.last_sample == 4 * S
     assert run.changes("unsubscribed")[0].topic == "pose"
     player.put(cdr_clock(7 * S))  # past the maximum age (1 s) of the last pose
-    run.until(lambda: any(s.get(k) is None for _, s in run.monitor.monitor.states
-                          for k in s), "X[me] turned unknown")
+    run.until(
+        lambda: any(s.get(k) is None for _, s in run.monitor.monitor.states for k in s),
+        "X[me] turned unknown",
+    )
     unknown = next(t for t, s in run.monitor.monitor.states if None in s.values())
     assert unknown == 5 * S + 1  # the instant the last pose (4 s) is older than 1 s
     run.finish()
 
 
 def test_a_type_the_typestore_does_not_know_is_one_warning_and_skipped(
-        tmp_path: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture) -> None:
-    (tmp_path / "t.sslt").write_text("topic /turtle1/pose:turtlesim/Pose contains X(me) = "
-                                     "msg.x\n")
+    tmp_path: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture
+) -> None:
+    (tmp_path / "t.sslt").write_text("topic /turtle1/pose:turtlesim/Pose contains X(me) = msg.x\n")
     ttl = REPO / "tests" / "data" / "turtles" / "turtle.ttl"
     (tmp_path / "t.toml").write_text(f'[platforms.t]\nontology = "{ttl}"\nspecs = "t.sslt"\n')
     run = live(KnowledgeManager.from_config(tmp_path / "t.toml"), ["always (X[me] < 15)"])
@@ -375,19 +478,25 @@ def test_a_type_the_typestore_does_not_know_is_one_warning_and_skipped(
     node.publisher("/turtle1/cmd_vel", "geometry_msgs/msg/Twist")  # not wanted: no word
     run.until(lambda: "turtlesim/msg/Pose" in caplog.text, "the unknown type named")
     lines = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
-    assert lines == ["/turtle1/pose: type turtlesim/msg/Pose is not known (give its .msg "
-                     "file with --msg, or --typestore); skipped"]
+    assert lines == [
+        "/turtle1/pose: type turtlesim/msg/Pose is not known (give its .msg "
+        "file with --msg, or --typestore); skipped"
+    ]
     assert not run.monitor.subs
 
 
 def test_payloads_that_are_not_cdr_too_large_or_torn_are_counted_and_the_rest_kept(
-        robots: Path, live: Callable[..., Live], monkeypatch: pytest.MonkeyPatch,
-        caplog: pytest.LogCaptureFixture) -> None:
+    robots: Path,
+    live: Callable[..., Live],
+    monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+) -> None:
     monkeypatch.setattr("dkreason.live.ros2.MAX_PAYLOAD", 1000)
     km = KnowledgeManager.from_config(robots / "robot1.toml")
     run = live(km, ["always (X[me] < 15)"])
     pub = Ros2Node(run.publishing, "turtle", "/robot1", labelled=True).publisher(
-        "/robot1/pose", POSE)  # a robot on Jazzy's first rmw_zenoh
+        "/robot1/pose", POSE
+    )  # a robot on Jazzy's first rmw_zenoh
     run.until(lambda: bool(run.changes("subscribed")), "subscribed")
     run.matched(pub)
     good = pose(STORE, time.time_ns(), 3.0)
@@ -406,7 +515,8 @@ def test_payloads_that_are_not_cdr_too_large_or_torn_are_counted_and_the_rest_ke
 
 
 def test_ids_namespaces_and_bindings_are_those_of_recordings(
-        robots: Path, live: Callable[..., Live], tmp_path: Path) -> None:
+    robots: Path, live: Callable[..., Live], tmp_path: Path
+) -> None:
     """robot1's relative `pose` is /robot1/pose (its namespace), never /robot2/pose; for
     platforms without a namespace, --bind names the node namespace that is each robot's."""
     run = live(KnowledgeManager.from_config(robots / "robot1.toml"), ["always (X[me] < 15)"])
@@ -416,27 +526,36 @@ def test_ids_namespaces_and_bindings_are_those_of_recordings(
     run.until(lambda: len(run.monitor.seen) == 2, "both publishers seen")
     assert [s.topic for s in run.monitor.subs.values()] == ["/robot1/pose"]
     run.close()
-    (tmp_path / "odom.sslt").write_text(f"topic /odom:{POSE} contains X(me) = "
-                                        "msg.pose.position.x\n")
+    (tmp_path / "odom.sslt").write_text(
+        f"topic /odom:{POSE} contains X(me) = msg.pose.position.x\n"
+    )
     ttl = REPO / "tests" / "data" / "turtles" / "turtle.ttl"
     (tmp_path / "pair.toml").write_text(
         f'local = "robot2"\n[platforms.robot1]\nontology = "{ttl}"\nspecs = "odom.sslt"\n'
-        f'[platforms.robot2]\nontology = "{ttl}"\nspecs = "odom.sslt"\n')
-    pair = live(KnowledgeManager.from_config(tmp_path / "pair.toml"), ["always (X[me] < 15)"],
-                bind={"robot1": "/r1", "robot2": "/r2"})
+        f'[platforms.robot2]\nontology = "{ttl}"\nspecs = "odom.sslt"\n'
+    )
+    pair = live(
+        KnowledgeManager.from_config(tmp_path / "pair.toml"),
+        ["always (X[me] < 15)"],
+        bind={"robot1": "/r1", "robot2": "/r2"},
+    )
     nodes = [Ros2Node(pair.publishing, "turtle", f"/r{n}") for n in (1, 2)]
     for n, node in enumerate(nodes, 1):
         node.publisher(f"/r{n}/odom", POSE)
     pair.until(lambda: len(pair.changes("subscribed")) == 2, "both subscribed")
-    assert {(c.platform, c.detail.split()[0]) for c in pair.changes("subscribed")} == \
-        {("robot1", "/r1/odom"), ("robot2", "/r2/odom")}  # one vocabulary: both feed X[me]
+    assert {(c.platform, c.detail.split()[0]) for c in pair.changes("subscribed")} == {
+        ("robot1", "/r1/odom"),
+        ("robot2", "/r2/odom"),
+    }  # one vocabulary: both feed X[me]
 
 
 def test_a_malformed_token_and_a_flood_keep_the_monitor_running_and_lose_nothing(
-        robots: Path, live: Callable[..., Live]) -> None:
+    robots: Path, live: Callable[..., Live]
+) -> None:
     run = live(KnowledgeManager.from_config(robots / "robot1.toml"), ["always (X[me] < 15)"])
     bad = run.publishing.liveliness().declare_token(
-        "@ros2_lv/0/aa/0/10/MP/%/%/n/%robot1%pose/geometry_msgs::PoseStamped/h/q")
+        "@ros2_lv/0/aa/0/10/MP/%/%/n/%robot1%pose/geometry_msgs::PoseStamped/h/q"
+    )
     pub = Ros2Node(run.publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
     run.until(lambda: bool(run.changes("subscribed")), "subscribed")
     run.matched(pub)
@@ -450,25 +569,37 @@ def test_a_malformed_token_and_a_flood_keep_the_monitor_running_and_lose_nothing
 
 
 def test_verdicts_go_back_onto_the_network_as_json_and_as_a_ros2_topic(
-        live: Callable[..., Live], robots: Path) -> None:
+    live: Callable[..., Live], robots: Path
+) -> None:
     port = free_port()
     talker = open_session([], [f"tcp/127.0.0.1:{port}"])
     listener = open_session([f"tcp/127.0.0.1:{port}"], [])
     got: list[tuple[str, bytes]] = []
     attachments: list[bytes] = []
-    subs = [listener.declare_subscriber(key, lambda s: got.append(
-        (str(s.key_expr), s.payload.to_bytes()))) for key in
-        ("dkreason/verdicts/**", rmw.data_key("/dkreason/verdicts", "std_msgs/msg/String"))]
-    subs.append(listener.declare_subscriber(
-        rmw.data_key("/dkreason/verdicts", "std_msgs/msg/String"),
-        lambda s: attachments.append(s.attachment.to_bytes())))
+    subs = [
+        listener.declare_subscriber(
+            key, lambda s: got.append((str(s.key_expr), s.payload.to_bytes()))
+        )
+        for key in (
+            "dkreason/verdicts/**",
+            rmw.data_key("/dkreason/verdicts", "std_msgs/msg/String"),
+        )
+    ]
+    subs.append(
+        listener.declare_subscriber(
+            rmw.data_key("/dkreason/verdicts", "std_msgs/msg/String"),
+            lambda s: attachments.append(s.attachment.to_bytes()),
+        )
+    )
     labelled = [False]  # what the monitor has seen of the robots' attachments
     tokens: list[str] = []
-    lv = listener.liveliness().declare_subscriber(f"{rmw.ADMIN}/**",
-                                                  lambda s: tokens.append(str(s.key_expr)))
+    lv = listener.liveliness().declare_subscriber(
+        f"{rmw.ADMIN}/**", lambda s: tokens.append(str(s.key_expr))
+    )
     try:
-        announce = Announcer(talker, ["always (X[me] < 15)"], ros2=True,
-                             labelled=lambda: labelled[0])
+        announce = Announcer(
+            talker, ["always (X[me] < 15)"], ros2=True, labelled=lambda: labelled[0]
+        )
         deadline = time.monotonic() + 30
         while not tokens and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -490,14 +621,16 @@ def test_verdicts_go_back_onto_the_network_as_json_and_as_a_ros2_topic(
         talker.close()
         listener.close()
     pub = rmw.parse_token(tokens[0])
-    assert pub is not None and (pub.topic, pub.msgtype) == ("/dkreason/verdicts",
-                                                           "std_msgs/msg/String")
+    assert pub is not None and (pub.topic, pub.msgtype) == (
+        "/dkreason/verdicts",
+        "std_msgs/msg/String",
+    )
     as_json = json.loads(next(p for k, p in got if k == "dkreason/verdicts/f1"))
     assert as_json["id"] == "f1" and as_json["verdict"] is False and as_json["time"] == 2
     assert len(attachments[0]) == 33 and rmw.parse_attachment(attachments[-1])[0] > 1
     ros = next(p for k, p in got if k.startswith("0/"))
     length = struct.unpack_from("<I", ros, 4)[0]
-    as_ros = json.loads(ros[8:8 + length - 1])
+    as_ros = json.loads(ros[8 : 8 + length - 1])
     assert as_ros.pop("ids") == [as_json.pop("id")] and as_ros == as_json
 
 
@@ -517,32 +650,47 @@ def test_a_violation_goes_to_every_formula_that_reads_its_feature() -> None:
     speed, position = FeatureKey("Speed", ("car2",)), FeatureKey("Position", ("car2",))
     formulas = {SPEEDING: [speed], POSITION: [position], "always (Speed[car2] < 200)": [speed]}
     session = Session()
-    announce = Announcer(session, list(formulas), reads=lambda key: [
-        text for text, keys in formulas.items() if key in keys])
+    announce = Announcer(
+        session,
+        list(formulas),
+        reads=lambda key: [text for text, keys in formulas.items() if key in keys],
+    )
     announce(Violation("late", 5 * S, speed, "platform1/topic4", "a late sample"))
     announce(Violation("late", 6 * S, FeatureKey("Altitude", ("uav1",)), "t", "unread"))
     assert [(k, p["id"], p["violation"]) for k, p in session.puts] == [
-        ("dkreason/verdicts/f1", "f1", "late"), ("dkreason/verdicts/f3", "f3", "late"),
-        ("dkreason/verdicts/violations", "violations", "late")]
+        ("dkreason/verdicts/f1", "f1", "late"),
+        ("dkreason/verdicts/f3", "f3", "late"),
+        ("dkreason/verdicts/violations", "violations", "late"),
+    ]
 
 
-@pytest.mark.parametrize(("argv", "message"), [
-    (["--bridge"], "--bridge is for --ros2"),
-    (["--ros2", "--bind", "robot1"], "expected PLATFORM=/NAMESPACE"),
-    (["--ros2", "--bind", "nobody=/x"], "not a platform of the config"),
-    (["--ros2", "--source", "x.mcap"], "--ros2 takes no --source"),
-    (["--publish-verdicts", "--source", "x.mcap"], "--publish-verdicts is for --live or --ros2"),
-])
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--bridge"], "--bridge is for --ros2"),
+        (["--ros2", "--bind", "robot1"], "expected PLATFORM=/NAMESPACE"),
+        (["--ros2", "--bind", "nobody=/x"], "not a platform of the config"),
+        (["--ros2", "--source", "x.mcap"], "--ros2 takes no --source"),
+        (
+            ["--publish-verdicts", "--source", "x.mcap"],
+            "--publish-verdicts is for --live or --ros2",
+        ),
+    ],
+)
 def test_ros2_options_misused_are_one_line_and_exit_2(
-        argv: list[str], message: str, robots: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["monitor", "--config", str(robots / "robot1.toml"), *argv,
-                 "always (X[me] < 15)"]) == 2
+    argv: list[str], message: str, robots: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert (
+        main(["monitor", "--config", str(robots / "robot1.toml"), *argv, "always (X[me] < 15)"])
+        == 2
+    )
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
 
 
 def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
-        traffic: Path, tmp_path: Path) -> None:
+    traffic: Path, tmp_path: Path
+) -> None:
     """`dkreason monitor --ros2 --sim-time --json --record --publish-verdicts` against the
     replayed robots: the offline verdicts, as JSON lines; the record replays them; the
     verdicts arrive on dkreason/verdicts/f1."""
@@ -552,15 +700,40 @@ def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
     port = free_port()
     session = open_session([], [f"tcp/127.0.0.1:{port}"])
     got: list[bytes] = []
-    listener = session.declare_subscriber("dkreason/verdicts/f1",
-                                          lambda s: got.append(s.payload.to_bytes()))
+    listener = session.declare_subscriber(
+        "dkreason/verdicts/f1", lambda s: got.append(s.payload.to_bytes())
+    )
     record = tmp_path / "run.mcap"
-    args = ["monitor", "--config", str(REPO / "examples" / "federation.toml"), "--delay", "0.5",
-            *(a for m in TRAFFIC_MSGS for a in ("--msg", str(m))), SPEEDING]
+    args = [
+        "monitor",
+        "--config",
+        str(REPO / "examples" / "federation.toml"),
+        "--delay",
+        "0.5",
+        *(a for m in TRAFFIC_MSGS for a in ("--msg", str(m))),
+        SPEEDING,
+    ]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "dkreason.cli", *args, "--ros2", "--sim-time", "--json",
-         "--record", str(record), "--publish-verdicts", "--connect", f"tcp/127.0.0.1:{port}",
-         "--until", "330"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        [
+            sys.executable,
+            "-m",
+            "dkreason.cli",
+            *args,
+            "--ros2",
+            "--sim-time",
+            "--json",
+            "--record",
+            str(record),
+            "--publish-verdicts",
+            "--connect",
+            f"tcp/127.0.0.1:{port}",
+            "--until",
+            "330",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         replay(traffic, session, speed=200, wait_for=TRAFFIC_TOPICS[:-1], timeout=60)
         out, err = proc.communicate(timeout=120)
@@ -576,10 +749,17 @@ def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
     assert verdicts == [(False, 300.02)]
     assert {c["topic"] for c in lines if c.get("event") == "subscribed"} >= {"topic4"}
     assert json.loads(got[0])["verdict"] is False
-    offline = subprocess.run([sys.executable, "-m", "dkreason.cli", *args, "--json", "--source",
-                              str(record)], capture_output=True, text=True, timeout=120)
-    assert [(v["verdict"], v["time"]) for v in map(json.loads, offline.stdout.splitlines())
-            if "verdict" in v] == verdicts
+    offline = subprocess.run(
+        [sys.executable, "-m", "dkreason.cli", *args, "--json", "--source", str(record)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert [
+        (v["verdict"], v["time"])
+        for v in map(json.loads, offline.stdout.splitlines())
+        if "verdict" in v
+    ] == verdicts
 
 
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
@@ -598,7 +778,8 @@ def test_a_record_that_cannot_be_written_is_one_error_and_stops_the_run() -> Non
 
 
 def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(
-        robots: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture) -> None:
+    robots: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture
+) -> None:
     """A header stamp of zero (never set, as many drivers leave it) is not 1970: the source
     time is taken.  A feature no publisher feeds after `wait` is named with the names it binds
     by and the publishers seen instead: names that do not bind are the usual day-one trouble."""
@@ -611,8 +792,9 @@ def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(
     run.until(lambda: len(run.monitor.seen) == 1, "the publisher seen")
     caplog.clear()
     run.monitor.unfed()  # what `wait` s after the start says
-    assert caplog.messages == ["no publisher yet for X[me] (it binds by /robot1/pose); "
-                               "publishers seen: /robot2/pose"]
+    assert caplog.messages == [
+        "no publisher yet for X[me] (it binds by /robot1/pose); publishers seen: /robot2/pose"
+    ]
     before = time.time_ns()
     pub = Ros2Node(run.publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
     run.until(lambda: bool(run.changes("subscribed")), "subscribed")
@@ -649,7 +831,8 @@ os._exit(0)  # the SDK's session threads would hold the interpreter
 
 
 def test_an_independent_rmw_zenoh_implementation_talks_with_dkreason_both_ways(
-        robots: Path, tmp_path: Path) -> None:
+    robots: Path, tmp_path: Path
+) -> None:
     """zenoh-ros2-sdk (its own tokens, keys, RIHS01 hashes and attachments) publishes a
     std_msgs/msg/Float64 the monitor discovers, binds and judges; and it receives the verdicts
     dkreason publishes as /dkreason/verdicts."""
@@ -657,19 +840,25 @@ def test_an_independent_rmw_zenoh_implementation_talks_with_dkreason_both_ways(
     import sys
 
     pytest.importorskip("zenoh_ros2_sdk")
-    (tmp_path / "v.sslt").write_text("topic value:std_msgs/msg/Float64 contains X(me) = "
-                                     "msg.data\n")
+    (tmp_path / "v.sslt").write_text("topic value:std_msgs/msg/Float64 contains X(me) = msg.data\n")
     ttl = REPO / "tests" / "data" / "turtles" / "turtle.ttl"
-    (tmp_path / "v.toml").write_text(f'[platforms.robot1]\nontology = "{ttl}"\nspecs = "v.sslt"\n'
-                                     f'namespace = "/robot1"\n')
+    (tmp_path / "v.toml").write_text(
+        f'[platforms.robot1]\nontology = "{ttl}"\nspecs = "v.sslt"\nnamespace = "/robot1"\n'
+    )
     log = tmp_path / "sdk.log"  # a file, not a pipe: the SDK logs freely and never blocks
     port = free_port()
     session = open_session([], [f"tcp/127.0.0.1:{port}"])  # the SDK connects to it
-    monitor = Ros2Monitor(KnowledgeManager.from_config(tmp_path / "v.toml"),
-                          ["always (X[me] < 15)"], StreamPolicy(), session, store=STORE)
+    monitor = Ros2Monitor(
+        KnowledgeManager.from_config(tmp_path / "v.toml"),
+        ["always (X[me] < 15)"],
+        StreamPolicy(),
+        session,
+        store=STORE,
+    )
     with log.open("w") as sink:
-        sdk = subprocess.Popen([sys.executable, "-c", SDK_PUBLISHER, str(port)],
-                               stdout=sink, stderr=sink)
+        sdk = subprocess.Popen(
+            [sys.executable, "-c", SDK_PUBLISHER, str(port)], stdout=sink, stderr=sink
+        )
     try:
         events = list(monitor.run(duration=60))
     finally:
@@ -687,8 +876,9 @@ def test_an_independent_rmw_zenoh_implementation_talks_with_dkreason_both_ways(
     announce = Announcer(session, ["always (X[me] < 15)"], ros2=True)
     out = tmp_path / "sdk.out"
     with out.open("w") as answer, log.open("w") as sink:
-        sdk = subprocess.Popen([sys.executable, "-c", SDK_SUBSCRIBER, str(port)],
-                               stdout=answer, stderr=sink)
+        sdk = subprocess.Popen(
+            [sys.executable, "-c", SDK_SUBSCRIBER, str(port)], stdout=answer, stderr=sink
+        )
     try:
         deadline = time.monotonic() + 60
         while not out.read_text() and time.monotonic() < deadline:  # until it has one
@@ -703,8 +893,8 @@ def test_an_independent_rmw_zenoh_implementation_talks_with_dkreason_both_ways(
 
 
 def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
-        robots: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
-        ) -> None:
+    robots: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
     """Memory stays bounded on a flood the monitor cannot take: with its queue full, zenoh's
     thread waits (holding the link, and a blocking publisher, back); past that wait a sample
     is dropped and counted, and the count is logged."""
@@ -714,8 +904,13 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
     publishing = open_session([], [f"tcp/127.0.0.1:{port}"])
     watching = open_session([f"tcp/127.0.0.1:{port}"], [])
     try:
-        monitor = Ros2Monitor(KnowledgeManager.from_config(robots / "robot1.toml"),
-                              ["always (X[me] < 15)"], StreamPolicy(), watching, store=STORE)
+        monitor = Ros2Monitor(
+            KnowledgeManager.from_config(robots / "robot1.toml"),
+            ["always (X[me] < 15)"],
+            StreamPolicy(),
+            watching,
+            store=STORE,
+        )
         pub = Ros2Node(publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
         deadline = time.monotonic() + 30
         while not monitor.events.items and time.monotonic() < deadline:

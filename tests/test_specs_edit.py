@@ -27,8 +27,9 @@ def platform(tmp_path: Path, specs: str | bytes, name: str = "specs.sslt") -> Pa
     (tmp_path / name).write_bytes(data)
     (tmp_path / name).chmod(0o644)
     config = tmp_path / "config.toml"
-    config.write_text(f'local = "platform1"\n[platforms.platform1]\nontology = "p1.owl"\n'
-                      f'specs = "{name}"\n')
+    config.write_text(
+        f'local = "platform1"\n[platforms.platform1]\nontology = "p1.owl"\nspecs = "{name}"\n'
+    )
     return config
 
 
@@ -71,7 +72,7 @@ def test_empty_xml_root_is_opened_for_a_new_topic(tmp_path: Path) -> None:
 def test_two_sslt_topics_on_one_line(tmp_path: Path) -> None:
     lines = SSLT.splitlines()
     i = next(n for n, line in enumerate(lines) if line.startswith("topic topic3:"))
-    lines[i:i + 2] = [lines[i] + "  " + lines[i + 1]]
+    lines[i : i + 2] = [lines[i] + "  " + lines[i + 1]]
     config = platform(tmp_path, "\n".join(lines) + "\n")
     KnowledgeManager.from_config(config).remove_topic("topic3")
     assert names(tmp_path / "specs.sslt") == [n for n in original() if n != "topic3"]
@@ -92,8 +93,7 @@ def test_line_ends_are_kept(tmp_path: Path, newline: str) -> None:
     km.add_topic(NEW)
     data = (tmp_path / "specs.sslt").read_bytes().decode()
     assert data.count(newline) == len(original()) and "\n" not in data.replace(newline, "")
-    assert names(tmp_path / "specs.sslt") == [n for n in original() if n != "topic4"] + \
-        ["topic10"]
+    assert names(tmp_path / "specs.sslt") == [n for n in original() if n != "topic4"] + ["topic10"]
 
 
 def test_mode_symlink_and_temporaries(tmp_path: Path) -> None:
@@ -111,8 +111,20 @@ def test_mode_symlink_and_temporaries(tmp_path: Path) -> None:
 
 def test_removing_a_missing_topic_is_one_line_exit_2(tmp_path: Path) -> None:
     config = platform(tmp_path, SSLT)
-    done = subprocess.run([sys.executable, "-m", "dkreason.cli", "specs", "remove",
-                           "--config", str(config), "topic99"], capture_output=True, text=True)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "dkreason.cli",
+            "specs",
+            "remove",
+            "--config",
+            str(config),
+            "topic99",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "topic99" in done.stderr
     assert (tmp_path / "specs.sslt").read_text() == SSLT
 
@@ -130,20 +142,40 @@ def test_a_topic_added_behind_our_back_is_refused_not_duplicated(tmp_path: Path)
 
 def test_fifty_concurrent_editors(tmp_path: Path) -> None:
     """25 adds and 25 removes at once: every add present, every remove applied, mode kept."""
-    extra = "\n".join(f"topic old{i}:UavMsg contains Altitude(uav1) = msg.alt{i} for uav1 = msg.id"
-                      for i in range(25))
+    extra = "\n".join(
+        f"topic old{i}:UavMsg contains Altitude(uav1) = msg.alt{i} for uav1 = msg.id"
+        for i in range(25)
+    )
     config = platform(tmp_path, SSLT + extra + "\n")
     env = {**os.environ, "PYTHONPATH": str(REPO / "src")}
     argv = [sys.executable, "-m", "dkreason.cli", "specs"]
-    procs = [subprocess.Popen([*argv, "add", "--config", str(config),
-                               f"topic new{i}:UavMsg contains Altitude(uav2) = msg.alt "
-                               f"for uav2 = msg.id"], env=env, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE) for i in range(25)]
-    procs += [subprocess.Popen([*argv, "remove", "--config", str(config), f"old{i}"], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-              for i in range(25)]
+    procs = [
+        subprocess.Popen(
+            [
+                *argv,
+                "add",
+                "--config",
+                str(config),
+                f"topic new{i}:UavMsg contains Altitude(uav2) = msg.alt for uav2 = msg.id",
+            ],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
+        for i in range(25)
+    ]
+    procs += [
+        subprocess.Popen(
+            [*argv, "remove", "--config", str(config), f"old{i}"],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+        )
+        for i in range(25)
+    ]
     errors = [p.communicate(timeout=600)[1] for p in procs]
     assert [p.returncode for p in procs] == [0] * 50, errors
     assert sorted(names(tmp_path / "specs.sslt")) == sorted(
-        [*original(), *(f"new{i}" for i in range(25))])
+        [*original(), *(f"new{i}" for i in range(25))]
+    )
     assert (tmp_path / "specs.sslt").stat().st_mode & 0o777 == 0o644

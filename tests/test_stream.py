@@ -11,14 +11,33 @@ from rosbags.typesys.store import Typestore
 from dkreason.stream.fastread import compile_extractor
 from dkreason.stream.fields import accessor, check
 
-DEFINITION = ("std_msgs/Header header\nint32 id\nfloat64 speed\nuint8[4] arr\nstring name\n"
-              "bool flag\nint64 big\ngeometry_msgs/Point where\nfloat64[] tail\nint8 last")
-FIELDS = ["msg.speed", "msg.id", "msg.header.stamp.sec", "msg.header.stamp.nanosec",
-          "msg.arr[2]", "msg.name", "msg.flag", "msg.big", "msg.where.z", "msg.header.frame_id"]
+DEFINITION = (
+    "std_msgs/Header header\nint32 id\nfloat64 speed\nuint8[4] arr\nstring name\n"
+    "bool flag\nint64 big\ngeometry_msgs/Point where\nfloat64[] tail\nint8 last"
+)
+FIELDS = [
+    "msg.speed",
+    "msg.id",
+    "msg.header.stamp.sec",
+    "msg.header.stamp.nanosec",
+    "msg.arr[2]",
+    "msg.name",
+    "msg.flag",
+    "msg.big",
+    "msg.where.z",
+    "msg.header.frame_id",
+]
 # no header: the fields before the string are all at offsets known beforehand
 HEADLESS = "int8 tag\nuint16[3] arr\nfloat64 speed\nbool flag\nstring name\nint32 after"
-HEADLESS_FIELDS = ["msg.tag", "msg.arr[0]", "msg.arr[2]", "msg.speed", "msg.flag", "msg.name",
-                   "msg.after"]
+HEADLESS_FIELDS = [
+    "msg.tag",
+    "msg.arr[0]",
+    "msg.arr[2]",
+    "msg.speed",
+    "msg.flag",
+    "msg.name",
+    "msg.after",
+]
 
 
 def store(ros1: bool) -> Typestore:
@@ -34,16 +53,34 @@ STORES = {ros1: store(ros1) for ros1 in (False, True)}
 
 
 @settings(max_examples=150, deadline=None)
-@given(ros1=st.booleans(), frame=st.text(max_size=5), name=st.text(max_size=7),
-       sec=st.integers(0, 2**31 - 1), nsec=st.integers(0, 10**9 - 1),
-       ident=st.integers(-2**31, 2**31 - 1), speed=st.floats(allow_nan=False),
-       arr=st.lists(st.integers(0, 255), min_size=4, max_size=4), flag=st.booleans(),
-       big=st.integers(-2**63, 2**63 - 1), z=st.floats(allow_nan=False),
-       fields=st.one_of(st.just(FIELDS), st.lists(st.sampled_from(FIELDS), min_size=1,
-                                                  max_size=4)))
+@given(
+    ros1=st.booleans(),
+    frame=st.text(max_size=5),
+    name=st.text(max_size=7),
+    sec=st.integers(0, 2**31 - 1),
+    nsec=st.integers(0, 10**9 - 1),
+    ident=st.integers(-(2**31), 2**31 - 1),
+    speed=st.floats(allow_nan=False),
+    arr=st.lists(st.integers(0, 255), min_size=4, max_size=4),
+    flag=st.booleans(),
+    big=st.integers(-(2**63), 2**63 - 1),
+    z=st.floats(allow_nan=False),
+    fields=st.one_of(st.just(FIELDS), st.lists(st.sampled_from(FIELDS), min_size=1, max_size=4)),
+)
 def test_extracted_fields_equal_full_deserialisation(
-        ros1: bool, frame: str, name: str, sec: int, nsec: int, ident: int, speed: float,
-        arr: list[int], flag: bool, big: int, z: float, fields: list[str]) -> None:
+    ros1: bool,
+    frame: str,
+    name: str,
+    sec: int,
+    nsec: int,
+    ident: int,
+    speed: float,
+    arr: list[int],
+    flag: bool,
+    big: int,
+    z: float,
+    fields: list[str],
+) -> None:
     """Any fields, in any order, some asked twice: those before a string are read at offsets
     known beforehand, the others as the message is read."""
     ts = STORES[ros1]
@@ -51,37 +88,63 @@ def test_extracted_fields_equal_full_deserialisation(
     msg = ts.types["x/msg/T"](
         header=ts.types["std_msgs/msg/Header"](
             stamp=ts.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-            frame_id=frame, **header),
-        id=ident, speed=speed, arr=np.array(arr, dtype=np.uint8), name=name, flag=flag,
-        big=big, where=ts.types["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=z),
-        tail=np.array([1.5]), last=3)
+            frame_id=frame,
+            **header,
+        ),
+        id=ident,
+        speed=speed,
+        arr=np.array(arr, dtype=np.uint8),
+        name=name,
+        flag=flag,
+        big=big,
+        where=ts.types["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=z),
+        tail=np.array([1.5]),
+        last=3,
+    )
     raw = bytes((ts.serialize_ros1 if ros1 else ts.serialize_cdr)(msg, "x/msg/T"))
     extract = compile_extractor(ts.fielddefs, "x/msg/T", fields, ros1)
     assert extract is not None
     back = (ts.deserialize_ros1 if ros1 else ts.deserialize_cdr)(raw, "x/msg/T")
-    want = tuple(v.item() if hasattr(v, "item") else v
-                 for v in (accessor(f, dicts=False)(back) for f in fields))
+    want = tuple(
+        v.item() if hasattr(v, "item") else v
+        for v in (accessor(f, dicts=False)(back) for f in fields)
+    )
     assert extract(raw) == want
 
 
 @settings(max_examples=100, deadline=None)
-@given(ros1=st.booleans(), tag=st.integers(-128, 127),
-       arr=st.lists(st.integers(0, 2**16 - 1), min_size=3, max_size=3),
-       speed=st.floats(allow_nan=False), flag=st.booleans(), name=st.text(max_size=7),
-       after=st.integers(-2**31, 2**31 - 1),
-       fields=st.lists(st.sampled_from(HEADLESS_FIELDS), min_size=1, max_size=5))
+@given(
+    ros1=st.booleans(),
+    tag=st.integers(-128, 127),
+    arr=st.lists(st.integers(0, 2**16 - 1), min_size=3, max_size=3),
+    speed=st.floats(allow_nan=False),
+    flag=st.booleans(),
+    name=st.text(max_size=7),
+    after=st.integers(-(2**31), 2**31 - 1),
+    fields=st.lists(st.sampled_from(HEADLESS_FIELDS), min_size=1, max_size=5),
+)
 def test_fields_at_known_offsets_are_read_in_one_call(
-        ros1: bool, tag: int, arr: list[int], speed: float, flag: bool, name: str, after: int,
-        fields: list[str]) -> None:
+    ros1: bool,
+    tag: int,
+    arr: list[int],
+    speed: float,
+    flag: bool,
+    name: str,
+    after: int,
+    fields: list[str],
+) -> None:
     ts = STORES[ros1]
-    msg = ts.types["x/msg/U"](tag=tag, arr=np.array(arr, dtype=np.uint16), speed=speed,
-                              flag=flag, name=name, after=after)
+    msg = ts.types["x/msg/U"](
+        tag=tag, arr=np.array(arr, dtype=np.uint16), speed=speed, flag=flag, name=name, after=after
+    )
     raw = bytes((ts.serialize_ros1 if ros1 else ts.serialize_cdr)(msg, "x/msg/U"))
     extract = compile_extractor(ts.fielddefs, "x/msg/U", fields, ros1)
     assert extract is not None
     back = (ts.deserialize_ros1 if ros1 else ts.deserialize_cdr)(raw, "x/msg/U")
-    assert extract(raw) == tuple(v.item() if hasattr(v, "item") else v
-                                 for v in (accessor(f, dicts=False)(back) for f in fields))
+    assert extract(raw) == tuple(
+        v.item() if hasattr(v, "item") else v
+        for v in (accessor(f, dicts=False)(back) for f in fields)
+    )
 
 
 @pytest.mark.parametrize("ros1", [False, True])
@@ -97,11 +160,14 @@ def test_big_endian_cdr_is_left_to_the_deserialiser() -> None:
     assert extract is not None and extract(bytes([0, 0, 0, 0]) + bytes(64)) is None
 
 
-@pytest.mark.parametrize(("field", "says"), [
-    ("msg.speed.x", "has no fields"),
-    ("msg.arr.x", "has no fields"),
-    ("msg.speed[1]", "is not an array"),
-    ("msg.nope", "x/msg/T has no field 'nope'"),
-])
+@pytest.mark.parametrize(
+    ("field", "says"),
+    [
+        ("msg.speed.x", "has no fields"),
+        ("msg.arr.x", "has no fields"),
+        ("msg.speed[1]", "is not an array"),
+        ("msg.nope", "x/msg/T has no field 'nope'"),
+    ],
+)
 def test_field_checks_say_why(field: str, says: str) -> None:
     assert says in (check(STORES[False].fielddefs, "x/msg/T", field) or "")

@@ -49,8 +49,13 @@ from dkreason.request import build_request
 
 from .workload import QUANTIFIED, Workload, expanded, formula, many, nine, write
 
-PHASES = ("Preprocessing", "Extracting features", "Checking features",
-          "Matching topic specs", "Building the request")
+PHASES = (
+    "Preprocessing",
+    "Extracting features",
+    "Checking features",
+    "Matching topic specs",
+    "Building the request",
+)
 FORMULA_PHASES = PHASES[1:]
 TARGET_SHARE = 0.001
 OUT = Path(__file__).resolve().parents[1] / "out" / "chapter7"
@@ -68,8 +73,9 @@ class Case:
     point: Callable[[int, int], tuple[Workload, str]]  # (column index, scale) -> setup
 
 
-def _nine_setup(concepts: int, relevant: int, irrelevant: int, rel_specs: int,
-                irr_specs: int) -> tuple[Workload, str]:
+def _nine_setup(
+    concepts: int, relevant: int, irrelevant: int, rel_specs: int, irr_specs: int
+) -> tuple[Workload, str]:
     return Workload(concepts, relevant, irrelevant, rel_specs, irr_specs, nine()), formula(nine())
 
 
@@ -95,8 +101,7 @@ def _case_2_2(i: int, s: int) -> tuple[Workload, str]:
 
 def _case_3(i: int, s: int) -> tuple[Workload, str]:
     features = many(10 * (i + 1))
-    return Workload(50 * s, 51 * s - 3, 0, 50 * s - len(features), 0, features), \
-        formula(features)
+    return Workload(50 * s, 51 * s - 3, 0, 50 * s - len(features), 0, features), formula(features)
 
 
 def _case_4(i: int, s: int) -> tuple[Workload, str]:
@@ -106,18 +111,37 @@ def _case_4(i: int, s: int) -> tuple[Workload, str]:
 
 
 _PRE = "Preprocessing"
-_KEYS = {"preprocessing": _PRE, "extracting": "Extracting features",
-         "checking": "Checking features", "matching": "Matching topic specs"}
-_SETUPS = {"1.1": _case_1_1, "1.2": _case_1_2, "1.3": _case_1_3, "2.1": _case_2_1,
-           "2.2": _case_2_2, "3": _case_3, "4": _case_4}
+_KEYS = {
+    "preprocessing": _PRE,
+    "extracting": "Extracting features",
+    "checking": "Checking features",
+    "matching": "Matching topic specs",
+}
+_SETUPS = {
+    "1.1": _case_1_1,
+    "1.2": _case_1_2,
+    "1.3": _case_1_3,
+    "2.1": _case_2_1,
+    "2.2": _case_2_2,
+    "3": _case_3,
+    "4": _case_4,
+}
 
 
 def _cases() -> list[Case]:
     """The thesis' tables (thesis.toml) joined to the workload each point needs."""
     tables = tomllib.loads((Path(__file__).parent / "thesis.toml").read_text(encoding="utf-8"))
-    return [Case(name, t["title"], t["axis"], tuple(t["x"]),
-                 {_KEYS[k]: tuple(t[k]) for k in _KEYS}, _SETUPS[name])
-            for name, t in tables.items()]
+    return [
+        Case(
+            name,
+            t["title"],
+            t["axis"],
+            tuple(t["x"]),
+            {_KEYS[k]: tuple(t[k]) for k in _KEYS},
+            _SETUPS[name],
+        )
+        for name, t in tables.items()
+    ]
 
 
 CASES = _cases()
@@ -139,12 +163,21 @@ def time_formula(km: KnowledgeManager, text: str) -> dict[str, float]:
     missing = [f for f in request.features if not f.topics]
     if missing:
         raise SystemExit(f"chapter7: workload broken, no topic for {missing[0].feature}")
-    return dict(zip(FORMULA_PHASES, ((t1 - t0) * 1e3, (t2 - t1) * 1e3, (t3 - t2) * 1e3,
-                                     (t4 - t3) * 1e3), strict=True))
+    return dict(
+        zip(
+            FORMULA_PHASES,
+            ((t1 - t0) * 1e3, (t2 - t1) * 1e3, (t3 - t2) * 1e3, (t4 - t3) * 1e3),
+            strict=True,
+        )
+    )
 
 
-FIRST, FIRST_CPU, LATER_CPU, PRE_CPU = ("First formula", "First formula CPU",
-                                        "Later formula CPU", "Preprocessing CPU")
+FIRST, FIRST_CPU, LATER_CPU, PRE_CPU = (
+    "First formula",
+    "First formula CPU",
+    "Later formula CPU",
+    "Preprocessing CPU",
+)
 
 
 def one_process(config: Path, text: str, runs: int) -> dict[str, float]:
@@ -167,8 +200,7 @@ def one_process(config: Path, text: str, runs: int) -> dict[str, float]:
     return out
 
 
-def measure(w: Workload, text: str, runs: int, processes: int,
-            folder: Path) -> dict[str, float]:
+def measure(w: Workload, text: str, runs: int, processes: int, folder: Path) -> dict[str, float]:
     """Median over `processes` fresh processes of every figure of `one_process`."""
     config = write(w, folder)
     cache = folder / "cache"  # the grammars' tables stay; parsed platforms and views never do
@@ -177,9 +209,23 @@ def measure(w: Workload, text: str, runs: int, processes: int,
     for _ in range(processes):
         for entry in [*cache.glob("platform-*"), *cache.glob("views-*")]:
             entry.unlink()
-        done = subprocess.run([sys.executable, "-m", "benchmarks.chapter7", "--point",
-                               str(config), "--formula", text, "--runs", str(runs)],
-                              capture_output=True, text=True, env=env, check=False)
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "benchmarks.chapter7",
+                "--point",
+                str(config),
+                "--formula",
+                text,
+                "--runs",
+                str(runs),
+            ],
+            capture_output=True,
+            text=True,
+            env=env,
+            check=False,
+        )
         if done.returncode:
             raise SystemExit(f"chapter7: a point failed: {done.stderr.strip()[-500:]}")
         seen.append(json.loads(done.stdout))
@@ -194,8 +240,9 @@ def thesis_per_formula(case: Case, i: int) -> float:
     return sum(case.thesis[p][i] for p in FORMULA_PHASES if p in case.thesis)
 
 
-def run_case(case: Case, scale: int, runs: int, processes: int, root: Path,
-             sorts: bool) -> list[dict[str, float]]:
+def run_case(
+    case: Case, scale: int, runs: int, processes: int, root: Path, sorts: bool
+) -> list[dict[str, float]]:
     results = []
     for i in range(len(case.xs)):
         w, text = case.point(i, scale)
@@ -216,33 +263,57 @@ def table(case: Case, results: list[dict[str, float]]) -> list[list[str]]:
         if phase in case.thesis:
             rows.append([f"{phase} (thesis)", *(str(v) for v in case.thesis[phase])])
         rows.append([f"{phase} (ours)", *(_fmt(r[phase]) for r in results)])
-    rows.append(["Per formula (thesis)",
-                 *(str(round(thesis_per_formula(case, i))) for i in range(len(case.xs)))])
+    rows.append(
+        [
+            "Per formula (thesis)",
+            *(str(round(thesis_per_formula(case, i))) for i in range(len(case.xs))),
+        ]
+    )
     rows.append(["Per formula, later (ours)", *(_fmt(per_formula(r)) for r in results)])
     rows.append(["Per formula, first (ours)", *(_fmt(r[FIRST]) for r in results)])
-    rows.append(["CPU: later / first (ours)",
-                 *(f"{_fmt(r[LATER_CPU])}/{_fmt(r[FIRST_CPU])}" for r in results)])
-    rows.append(["Ours / thesis, later",
-                 *(f"{per_formula(r) / thesis_per_formula(case, i):.3%}"
-                   for i, r in enumerate(results))])
-    rows.append(["Ours / thesis, first",
-                 *(f"{r[FIRST] / thesis_per_formula(case, i):.3%}"
-                   for i, r in enumerate(results))])
-    rows.append(["Ours / thesis, preprocessing",
-                 *(f"{r[_PRE] / case.thesis[_PRE][i]:.0%}" for i, r in enumerate(results))])
+    rows.append(
+        [
+            "CPU: later / first (ours)",
+            *(f"{_fmt(r[LATER_CPU])}/{_fmt(r[FIRST_CPU])}" for r in results),
+        ]
+    )
+    rows.append(
+        [
+            "Ours / thesis, later",
+            *(f"{per_formula(r) / thesis_per_formula(case, i):.3%}" for i, r in enumerate(results)),
+        ]
+    )
+    rows.append(
+        [
+            "Ours / thesis, first",
+            *(f"{r[FIRST] / thesis_per_formula(case, i):.3%}" for i, r in enumerate(results)),
+        ]
+    )
+    rows.append(
+        [
+            "Ours / thesis, preprocessing",
+            *(f"{r[_PRE] / case.thesis[_PRE][i]:.0%}" for i, r in enumerate(results)),
+        ]
+    )
     return rows
 
 
 def plain(rows: list[list[str]]) -> str:
     widths = [max(len(r[c]) for r in rows) for c in range(len(rows[0]))]
-    return "\n".join("  ".join(cell.rjust(w) if c else cell.ljust(w)
-                               for c, (cell, w) in enumerate(zip(r, widths, strict=True)))
-                     for r in rows)
+    return "\n".join(
+        "  ".join(
+            cell.rjust(w) if c else cell.ljust(w)
+            for c, (cell, w) in enumerate(zip(r, widths, strict=True))
+        )
+        for r in rows
+    )
 
 
 def markdown(rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(rows[0]) + " |",
-             "|" + "|".join(["---"] + ["---:"] * (len(rows[0]) - 1)) + "|"]
+    lines = [
+        "| " + " | ".join(rows[0]) + " |",
+        "|" + "|".join(["---"] + ["---:"] * (len(rows[0]) - 1)) + "|",
+    ]
     lines += ["| " + " | ".join(r) + " |" for r in rows[1:]]
     return "\n".join(lines)
 
@@ -255,16 +326,32 @@ def plot(case: Case, results: list[dict[str, float]], path: Path) -> None:
 
     xs = list(range(len(case.xs)))
     fig, ax = plt.subplots(figsize=(7, 4))
-    ax.plot(xs, [thesis_per_formula(case, i) for i in xs], "o-", color="tab:red",
-            label="thesis, per formula")
-    ax.plot(xs, case.thesis[_PRE], "s--", color="tab:red", alpha=0.5,
-            label="thesis, preprocessing")
-    ax.plot(xs, [per_formula(r) for r in results], "o-", color="tab:blue",
-            label="dkreason, per formula")
-    ax.plot(xs, [r[_PRE] for r in results], "s--", color="tab:blue", alpha=0.5,
-            label="dkreason, preprocessing")
-    ax.plot(xs, [thesis_per_formula(case, i) * TARGET_SHARE for i in xs], ":",
-            color="grey", label="target: 0.1% of thesis")
+    ax.plot(
+        xs,
+        [thesis_per_formula(case, i) for i in xs],
+        "o-",
+        color="tab:red",
+        label="thesis, per formula",
+    )
+    ax.plot(xs, case.thesis[_PRE], "s--", color="tab:red", alpha=0.5, label="thesis, preprocessing")
+    ax.plot(
+        xs, [per_formula(r) for r in results], "o-", color="tab:blue", label="dkreason, per formula"
+    )
+    ax.plot(
+        xs,
+        [r[_PRE] for r in results],
+        "s--",
+        color="tab:blue",
+        alpha=0.5,
+        label="dkreason, preprocessing",
+    )
+    ax.plot(
+        xs,
+        [thesis_per_formula(case, i) * TARGET_SHARE for i in xs],
+        ":",
+        color="grey",
+        label="target: 0.1% of thesis",
+    )
     ax.set_yscale("log")
     ax.set_xticks(xs, case.xs)
     ax.set_xlabel(case.axis or "formula")
@@ -279,14 +366,14 @@ def plot(case: Case, results: list[dict[str, float]], path: Path) -> None:
 
 def growth(scales: list[int], runs: int, processes: int, root: Path) -> list[list[str]]:
     """The 9-feature workload (table 7.1's last point) grown by each scale; fitted exponents."""
-    figures = {s: measure(*_case_1_1(7, s), runs, processes, root / f"growth-{s}")
-               for s in scales}
+    figures = {s: measure(*_case_1_1(7, s), runs, processes, root / f"growth-{s}") for s in scales}
     header = ["Phase (ms)", *(f"scale {s}" for s in scales), "exponent"]
     rows = [header]
     first, last = scales[0], scales[-1]
     for phase in (*PHASES, "Per formula", FIRST):
-        values = [per_formula(figures[s]) if phase == "Per formula" else figures[s][phase]
-                  for s in scales]
+        values = [
+            per_formula(figures[s]) if phase == "Per formula" else figures[s][phase] for s in scales
+        ]
         k = math.log(values[-1] / values[0]) / math.log(last / first)
         rows.append([phase, *(_fmt(v) for v in values), f"{k:.2f}"])
     return rows
@@ -303,13 +390,18 @@ def _scales(text: str) -> list[int]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.chapter7",
-                                     description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.chapter7", description=__doc__.split("\n")[0]
+    )
     parser.add_argument("--runs", type=_positive, default=7, help="runs per formula (median)")
-    parser.add_argument("--processes", type=_positive, default=3,
-                        help="fresh processes per point (median)")
-    parser.add_argument("--sorts", action="store_true",
-                        help="the further relevant specs read `some B` (second reading)")
+    parser.add_argument(
+        "--processes", type=_positive, default=3, help="fresh processes per point (median)"
+    )
+    parser.add_argument(
+        "--sorts",
+        action="store_true",
+        help="the further relevant specs read `some B` (second reading)",
+    )
     parser.add_argument("--point", type=Path, help=argparse.SUPPRESS)  # one process's figures
     parser.add_argument("--formula", help=argparse.SUPPRESS)
     parser.add_argument("--cases", default=",".join(c.name for c in CASES))
@@ -331,29 +423,42 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     args.out.mkdir(parents=True, exist_ok=True)
     reading = "further relevant specs over sorts" if args.sorts else "specs name objects"
-    report = [f"# Thesis chapter 7 reproduced (scale {args.scale}, {reading}; median of "
-              f"{args.processes} fresh processes, later formulas the median of {args.runs})\n"]
+    report = [
+        f"# Thesis chapter 7 reproduced (scale {args.scale}, {reading}; median of "
+        f"{args.processes} fresh processes, later formulas the median of {args.runs})\n"
+    ]
     worst = 0.0
     with tempfile.TemporaryDirectory(prefix="dkreason-ch7-") as tmp:
         for case in (c for c in CASES if c.name in wanted):
-            results = run_case(case, args.scale, args.runs, args.processes, Path(tmp),
-                               args.sorts)
+            results = run_case(case, args.scale, args.runs, args.processes, Path(tmp), args.sorts)
             rows = table(case, results)
             print(f"\nTest case {case.name}: {case.title} (scale {args.scale}; ms)")
             print(plain(rows))
-            report += [f"## Test case {case.name}: {case.title}\n", markdown(rows),
-                       f"\n![test case {case.name}](case{case.name}.png)\n"]
+            report += [
+                f"## Test case {case.name}: {case.title}\n",
+                markdown(rows),
+                f"\n![test case {case.name}](case{case.name}.png)\n",
+            ]
             plot(case, results, args.out / f"case{case.name}.png")
-            worst = max(worst, *(max(per_formula(r), r[FIRST]) / thesis_per_formula(case, i)
-                                 for i, r in enumerate(results)))
-        summary = (f"Worst per-formula share of the thesis, first formula included: "
-                   f"{worst:.3%} (target 0.1%)")
+            worst = max(
+                worst,
+                *(
+                    max(per_formula(r), r[FIRST]) / thesis_per_formula(case, i)
+                    for i, r in enumerate(results)
+                ),
+            )
+        summary = (
+            f"Worst per-formula share of the thesis, first formula included: "
+            f"{worst:.3%} (target 0.1%)"
+        )
         print(f"\n{summary}")
         report.append(summary + "\n")
         if args.growth:
             rows = growth(args.scales, args.runs, args.processes, Path(tmp))
-            print("\nGrowth of the 9-feature workload (200 concepts, 200 individuals, "
-                  "20 specs at scale 1)")
+            print(
+                "\nGrowth of the 9-feature workload (200 concepts, 200 individuals, "
+                "20 specs at scale 1)"
+            )
             print(plain(rows))
             report += ["## Growth of the 9-feature workload\n", markdown(rows), ""]
     (args.out / "report.md").write_text("\n".join(report) + "\n", encoding="utf-8")

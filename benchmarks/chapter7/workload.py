@@ -18,10 +18,22 @@ from itertools import product
 from pathlib import Path
 
 NS = "http://example.org/ch7#"
-NINE = ["X[b1]", "X[b2]", "X[b3]", "Y[b1, b1]", "Y[b1, b2]", "Y[b1, b3]", "Z[b1, b2, b1]",
-        "Z[b1, b2, b2]", "Z[b1, b2, b3]"]
-QUANTIFIED = {3: "forall x in B (Z[x, d1, e1])", 9: "forall x in B, y in D (Z[x, y, e1])",
-              27: "forall x in B, y in D, z in E(Z[x, y, z])"}
+NINE = [
+    "X[b1]",
+    "X[b2]",
+    "X[b3]",
+    "Y[b1, b1]",
+    "Y[b1, b2]",
+    "Y[b1, b3]",
+    "Z[b1, b2, b1]",
+    "Z[b1, b2, b2]",
+    "Z[b1, b2, b3]",
+]
+QUANTIFIED = {
+    3: "forall x in B (Z[x, d1, e1])",
+    9: "forall x in B, y in D (Z[x, y, e1])",
+    27: "forall x in B, y in D, z in E(Z[x, y, z])",
+}
 
 
 @dataclass(frozen=True)
@@ -43,11 +55,14 @@ def nine() -> list[str]:
 def many(n: int) -> list[str]:
     """n distinct ground features over b1..bk (test case 3)."""
     k = 3
-    while k + k * k + k ** 3 < n:
+    while k + k * k + k**3 < n:
         k += 1
     b = [f"b{i}" for i in range(1, k + 1)]
-    pool = [f"X[{x}]" for x in b] + [f"Y[{x}, {y}]" for x, y in product(b, b)] + \
-        [f"Z[{x}, {y}, {z}]" for x, y, z in product(b, b, b)]
+    pool = (
+        [f"X[{x}]" for x in b]
+        + [f"Y[{x}, {y}]" for x, y in product(b, b)]
+        + [f"Z[{x}, {y}, {z}]" for x, y, z in product(b, b, b)]
+    )
     return pool[:n]
 
 
@@ -93,12 +108,15 @@ def write(w: Workload, folder: Path) -> Path:
         specs.append(_spec(f"irr{n}", f"{name}[{', '.join(args)}]"))
     sorted_specs = round(w.relevant_specs * w.sort_share)
     for n in range(w.relevant_specs):  # further topics for the formula's features
-        specs.append(_spec(f"extra{n}", w.features[n % len(w.features)],
-                           over_sort=n < sorted_specs))
+        specs.append(
+            _spec(f"extra{n}", w.features[n % len(w.features)], over_sort=n < sorted_specs)
+        )
     (folder / "ch7.sslt").write_text("\n".join(specs) + "\n", encoding="utf-8")
     config = folder / "ch7.toml"
-    config.write_text('local = "ch7"\n[platforms.ch7]\nontology = "ch7.owl"\n'
-                      'specs = "ch7.sslt"\n', encoding="utf-8")
+    config.write_text(
+        'local = "ch7"\n[platforms.ch7]\nontology = "ch7.owl"\nspecs = "ch7.sslt"\n',
+        encoding="utf-8",
+    )
     return config
 
 
@@ -122,41 +140,53 @@ def _spec(topic: str, feature: str, over_sort: bool = False) -> str:
     name, args = _parse(feature)
     labels = [f"a{i}" for i in range(len(args))]
     sort_arg = [over_sort and a.startswith("b") for a in args]
-    aliased = ", ".join(f"{'B' if s else a} as {lab}"
-                        for a, lab, s in zip(args, labels, sort_arg, strict=True))
-    ids = ", ".join(f"{'some ' if s else ''}{lab} = msg.id{i + 1}"
-                    for i, (lab, s) in enumerate(zip(labels, sort_arg, strict=True)))
+    aliased = ", ".join(
+        f"{'B' if s else a} as {lab}" for a, lab, s in zip(args, labels, sort_arg, strict=True)
+    )
+    ids = ", ".join(
+        f"{'some ' if s else ''}{lab} = msg.id{i + 1}"
+        for i, (lab, s) in enumerate(zip(labels, sort_arg, strict=True))
+    )
     return f"topic {topic}:M contains {name}({aliased}) = msg.v for {ids}"
 
 
 def _owl(parent: dict[str, str | None], individuals: dict[str, str]) -> str:
-    out = ['<?xml version="1.0"?>',
-           f'<rdf:RDF xmlns="{NS}" xml:base="{NS[:-1]}"',
-           '  xmlns:owl="http://www.w3.org/2002/07/owl#"',
-           '  xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"',
-           '  xmlns:rdfs="http://www.w3.org/2000/01/rdf-schema#">',
-           f'<owl:Ontology rdf:about="{NS[:-1]}"/>']
+    out = [
+        '<?xml version="1.0"?>',
+        f'<rdf:RDF xmlns="{NS}" xml:base="{NS[:-1]}"',
+        '  xmlns:owl="http://www.w3.org/2002/07/owl#"',
+        '  xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"',
+        '  xmlns:rdfs="http://www.w3.org/2000/01/rdf-schema#">',
+        f'<owl:Ontology rdf:about="{NS[:-1]}"/>',
+    ]
     for arg in ("arg1", "arg2", "arg3"):
         out.append(f'<owl:ObjectProperty rdf:about="{NS}{arg}"/>')
     for c in ("Relation", "UnaryRelation", "BinaryRelation", "TernaryRelation"):
-        sup = "" if c == "Relation" else \
-            f'<rdfs:subClassOf rdf:resource="{NS}Relation"/>'
+        sup = "" if c == "Relation" else f'<rdfs:subClassOf rdf:resource="{NS}Relation"/>'
         out.append(f'<owl:Class rdf:about="{NS}{c}">{sup}</owl:Class>')
     for c, p in parent.items():
         sup = f'<rdfs:subClassOf rdf:resource="{NS}{p}"/>' if p else ""
         out.append(f'<owl:Class rdf:about="{NS}{c}">{sup}</owl:Class>')
-    for name, kind, arity in (("X", "UnaryRelation", 1), ("Y", "BinaryRelation", 2),
-                              ("Z", "TernaryRelation", 3)):
+    for name, kind, arity in (
+        ("X", "UnaryRelation", 1),
+        ("Y", "BinaryRelation", 2),
+        ("Z", "TernaryRelation", 3),
+    ):
         restrictions = "".join(
             f'<owl:Restriction><owl:onProperty rdf:resource="{NS}arg{i}"/>'
             f'<owl:allValuesFrom rdf:resource="{NS}A"/></owl:Restriction>'
-            for i in range(1, arity + 1))
-        out.append(f'<owl:Class rdf:about="{NS}{name}"><rdfs:subClassOf><owl:Class>'
-                   f'<owl:intersectionOf rdf:parseType="Collection">'
-                   f'<rdf:Description rdf:about="{NS}{kind}"/>{restrictions}'
-                   f'</owl:intersectionOf></owl:Class></rdfs:subClassOf></owl:Class>')
+            for i in range(1, arity + 1)
+        )
+        out.append(
+            f'<owl:Class rdf:about="{NS}{name}"><rdfs:subClassOf><owl:Class>'
+            f'<owl:intersectionOf rdf:parseType="Collection">'
+            f'<rdf:Description rdf:about="{NS}{kind}"/>{restrictions}'
+            f"</owl:intersectionOf></owl:Class></rdfs:subClassOf></owl:Class>"
+        )
     for ind, cls in individuals.items():
-        out.append(f'<owl:NamedIndividual rdf:about="{NS}{ind}">'
-                   f'<rdf:type rdf:resource="{NS}{cls}"/></owl:NamedIndividual>')
+        out.append(
+            f'<owl:NamedIndividual rdf:about="{NS}{ind}">'
+            f'<rdf:type rdf:resource="{NS}{cls}"/></owl:NamedIndividual>'
+        )
     out.append("</rdf:RDF>")
     return "\n".join(out) + "\n"

@@ -25,12 +25,22 @@ def main() -> int:
     parser.add_argument("--listen", action="append", default=[], metavar="ENDPOINT")
     parser.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
     parser.add_argument("--speed", type=float, default=1.0)
-    parser.add_argument("--delay", type=float, default=0.0,
-                        help="seconds between announcing the publishers and the first message")
-    parser.add_argument("--wait-for", action="append", default=[], metavar="TOPIC",
-                        help="start once TOPIC has a subscriber (repeatable)")
-    parser.add_argument("--bridge", action="store_true",
-                        help="announce the topics as zenoh-bridge-ros2dds does")
+    parser.add_argument(
+        "--delay",
+        type=float,
+        default=0.0,
+        help="seconds between announcing the publishers and the first message",
+    )
+    parser.add_argument(
+        "--wait-for",
+        action="append",
+        default=[],
+        metavar="TOPIC",
+        help="start once TOPIC has a subscriber (repeatable)",
+    )
+    parser.add_argument(
+        "--bridge", action="store_true", help="announce the topics as zenoh-bridge-ros2dds does"
+    )
     parser.add_argument("--domain", type=int, default=0)
     args = parser.parse_args()
     stop = threading.Event()
@@ -39,9 +49,16 @@ def main() -> int:
     try:
         session = open_session(args.connect, args.listen)
         try:
-            sent = replay(args.recording, session, speed=args.speed, domain=args.domain,
-                          bridged=args.bridge, wait_for=args.wait_for, delay=args.delay,
-                          stop=stop)
+            sent = replay(
+                args.recording,
+                session,
+                speed=args.speed,
+                domain=args.domain,
+                bridged=args.bridge,
+                wait_for=args.wait_for,
+                delay=args.delay,
+                stop=stop,
+            )
         finally:
             session.close()
     except DkError as exc:

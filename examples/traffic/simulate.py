@@ -22,8 +22,10 @@ from dkreason.stream.recording import write_recording
 
 HERE = Path(__file__).parent
 S = 10**9
-TYPES = {f"dkreason_msgs/msg/{p.stem}": p.read_text(encoding="utf-8")
-         for p in sorted((HERE / "msg" / "dkreason_msgs" / "msg").glob("*.msg"))}
+TYPES = {
+    f"dkreason_msgs/msg/{p.stem}": p.read_text(encoding="utf-8")
+    for p in sorted((HERE / "msg" / "dkreason_msgs" / "msg").glob("*.msg"))
+}
 DURATION = 360  # seconds recorded
 ENTERS_P2 = 200  # car2 leaves platform 1's region for platform 2's
 LEAVES_P2 = 350
@@ -31,8 +33,7 @@ LEAVES_P2 = 350
 
 def speeds(t: int) -> dict[str, float]:
     """km/h of each car at second t."""
-    return {"car1": 50.0 + (t % 7) * 0.5, "car2": 70.0,
-            "car3": 65.0 if t < 100 else 52.0}
+    return {"car1": 50.0 + (t % 7) * 0.5, "car2": 70.0, "car3": 65.0 if t < 100 else 52.0}
 
 
 def messages() -> list[tuple[str, str, int, dict[str, object]]]:
@@ -44,25 +45,58 @@ def messages() -> list[tuple[str, str, int, dict[str, object]]]:
         # platform 1: one topic per car while it is in platform 1's region, and the UAVs
         out.append(("/platform1/topic3", car, t * S, {"id": 1, "spd": v["car1"]}))
         if t < ENTERS_P2:
-            out.append(("/platform1/topic4", car, t * S + 10_000_000, {"id": 2,
-                                                                      "spd": v["car2"]}))
+            out.append(("/platform1/topic4", car, t * S + 10_000_000, {"id": 2, "spd": v["car2"]}))
         out.append(("/platform1/topic5", car, t * S + 20_000_000, {"id": 3, "spd": v["car3"]}))
         for n in (1, 2):
-            out.append(("/platform1/topic2", uav, t * S + 30_000_000 + n,
-                        {"id": n, "alt": 100.0 + 10 * n + t % 5, "spd": 40.0}))
+            out.append(
+                (
+                    "/platform1/topic2",
+                    uav,
+                    t * S + 30_000_000 + n,
+                    {"id": n, "alt": 100.0 + 10 * n + t % 5, "spd": 40.0},
+                )
+            )
         # platform 2: cars in its region, stamped when measured, recorded 50 ms later
         if ENTERS_P2 <= t < LEAVES_P2:
-            out.append(("/platform2/carstopic1", auto, t * S + 50_000_000,
-                        {"header": {"stamp": t}, "id": 12, "speed": v["car2"]}))
-        out.append(("/platform2/carstopic3", auto, t * S + 55_000_000,
-                    {"header": {"stamp": t}, "id": 12, "speed": v["car2"],
-                     "position": round(t * v["car2"] / 3.6, 1)}))
+            out.append(
+                (
+                    "/platform2/carstopic1",
+                    auto,
+                    t * S + 50_000_000,
+                    {"header": {"stamp": t}, "id": 12, "speed": v["car2"]},
+                )
+            )
+        out.append(
+            (
+                "/platform2/carstopic3",
+                auto,
+                t * S + 55_000_000,
+                {
+                    "header": {"stamp": t},
+                    "id": 12,
+                    "speed": v["car2"],
+                    "position": round(t * v["car2"] / 3.6, 1),
+                },
+            )
+        )
         # platform 3: its unmanned aircraft systems
-        out.append(("/platform3/uastopic9", uas, t * S + 70_000_000,
-                    {"header": {"stamp": t}, "id": 21, "speed": 38.0, "height": 95.0}))
+        out.append(
+            (
+                "/platform3/uastopic9",
+                uas,
+                t * S + 70_000_000,
+                {"header": {"stamp": t}, "id": 21, "speed": 38.0, "height": 95.0},
+            )
+        )
         for n in (20, 21):
-            out.append(("/platform3/uastopic1", uas, t * S + 60_000_000 + n,
-                        {"header": {"stamp": t}, "id": n, "speed": 38.0, "height": 120.0}))
+            out.append(
+                (
+                    "/platform3/uastopic1",
+                    uas,
+                    t * S + 60_000_000 + n,
+                    {"header": {"stamp": t}, "id": n, "speed": 38.0, "height": 120.0},
+                )
+            )
     return out
 
 

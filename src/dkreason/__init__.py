@@ -32,11 +32,28 @@ if TYPE_CHECKING:
     from .progress import Verdict
     from .stream.processor import StreamPolicy, Violation
 
-_LAZY = {"KnowledgeManager": "manager",
-         **dict.fromkeys(("FeatureKey", "FeatureRequest", "GroundFeature", "StreamRequest",
-                          "TopicArg", "TopicFeature", "TopicMatch", "TopicSpec"), "model"),
-         "Monitor": "monitor", "Plan": "plan", "FormulaPlan": "plan", "Verdict": "progress",
-         "StreamPolicy": "stream.processor", "Violation": "stream.processor"}
+_LAZY = {
+    "KnowledgeManager": "manager",
+    **dict.fromkeys(
+        (
+            "FeatureKey",
+            "FeatureRequest",
+            "GroundFeature",
+            "StreamRequest",
+            "TopicArg",
+            "TopicFeature",
+            "TopicMatch",
+            "TopicSpec",
+        ),
+        "model",
+    ),
+    "Monitor": "monitor",
+    "Plan": "plan",
+    "FormulaPlan": "plan",
+    "Verdict": "progress",
+    "StreamPolicy": "stream.processor",
+    "Violation": "stream.processor",
+}
 
 
 def __getattr__(name: str) -> Any:

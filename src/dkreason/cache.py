@@ -29,10 +29,22 @@ T = TypeVar("T")
 
 _ENTRY = re.compile(r"[a-z]+-[0-9a-f]{64}")  # what `key` names; lark's tables are its own
 # The modules whose code shapes a cached value: a change to any of them is a new key.
-_SHAPERS = ("model.py", "names.py", "facts.py", "kb.py", "datalog.py", "errors.py",
-            "parse/owl.py",
-            "parse/sslt.py", "parse/sslt.lark", "parse/files.py", "parse/entail.py",
-            "parse/owlrl_rules.py", "parse/config.py", "xmlsafe.py")
+_SHAPERS = (
+    "model.py",
+    "names.py",
+    "facts.py",
+    "kb.py",
+    "datalog.py",
+    "errors.py",
+    "parse/owl.py",
+    "parse/sslt.py",
+    "parse/sslt.lark",
+    "parse/files.py",
+    "parse/entail.py",
+    "parse/owlrl_rules.py",
+    "parse/config.py",
+    "xmlsafe.py",
+)
 
 
 def folder() -> Path | None:
@@ -77,8 +89,12 @@ def key(kind: str, parts: Iterable[bytes | str]) -> str:
     return f"{kind}-{digest.hexdigest()}"
 
 
-def cached(kind: str, parts: Iterable[bytes | str], build: Callable[[], T],
-           fresh: Callable[[T], bool] = lambda _: True) -> T:
+def cached(
+    kind: str,
+    parts: Iterable[bytes | str],
+    build: Callable[[], T],
+    fresh: Callable[[T], bool] = lambda _: True,
+) -> T:
     """The value built from `parts`: from the cache when an entry exists and is `fresh` (it
     may depend on more than `parts`: the files an ontology imports), else `build()`, stored
     for the next run.  Errors from `build` pass through and nothing is stored."""

@@ -32,10 +32,17 @@ def check_formula(kb: KnowledgeBase, formula: Formula) -> list[CheckedFeature]:
         iri = local.names.resolve(ref.name, ("feature",), ref.span)
         arity = local.ontology.features[iri].arity
         if len(ref.args) != arity:
-            raise SortError(f"{ref.name} takes {arity} argument{'s' if arity != 1 else ''}, "
-                            f"not {len(ref.args)}", ref.span)
-        args = tuple(local.names.resolve(a.sort, ("sort",), a.span) if a.sort is not None
-                     else local.names.resolve(a.name, ("object",), a.span) for a in ref.args)
+            raise SortError(
+                f"{ref.name} takes {arity} argument{'s' if arity != 1 else ''}, "
+                f"not {len(ref.args)}",
+                ref.span,
+            )
+        args = tuple(
+            local.names.resolve(a.sort, ("sort",), a.span)
+            if a.sort is not None
+            else local.names.resolve(a.name, ("object",), a.span)
+            for a in ref.args
+        )
         checked.append(CheckedFeature(ref, iri, args))
     asks: dict[tuple[str, int, str, str], tuple[int, Arg]] = {}  # first use of each argument
     for n, c in enumerate(checked):
@@ -45,9 +52,13 @@ def check_formula(kb: KnowledgeBase, formula: Formula) -> list[CheckedFeature]:
         fitting = set(kb.engine.ask("arg_fits", {"check_arg": list(asks)}, None, None, None))
         for (f, i, x, _kind), (n, arg) in asks.items():
             if (f, i, x) not in fitting:
-                how = kb.misfit(local, f, i, x) if not arg.is_variable else \
-                    f"variable {arg.name} ranges over {local_name(x)}, " + \
-                    kb.misfit(local, f, i, ResolvedArg("some", x, "")).removeprefix(
-                        f"sort {local_name(x)} ").replace("is not", "which is not", 1)
+                how = (
+                    kb.misfit(local, f, i, x)
+                    if not arg.is_variable
+                    else f"variable {arg.name} ranges over {local_name(x)}, "
+                    + kb.misfit(local, f, i, ResolvedArg("some", x, ""))
+                    .removeprefix(f"sort {local_name(x)} ")
+                    .replace("is not", "which is not", 1)
+                )
                 raise SortError(f"argument {i} of {checked[n].ref.name}: {how}", arg.span)
     return checked

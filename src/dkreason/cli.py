@@ -26,8 +26,10 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
 
 
-EXIT_STATUS = ("exit status: 0 every formula held, 1 one was violated, 2 bad input (one line "
-               "on stderr), 3 one stayed undecided")
+EXIT_STATUS = (
+    "exit status: 0 every formula held, 1 one was violated, 2 bad input (one line "
+    "on stderr), 3 one stayed undecided"
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -75,129 +77,258 @@ def _build() -> _Parser:
         p.add_argument("--config", required=True, type=Path, help="TOML config file")
 
     def definitions(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--msg", type=Path, action="append", default=[], metavar="FILE",
-                       help="a pkg/msg/Name.msg definition, for recordings that store none or to "
-                            "replace a wrong one they store "
-                            "(repeatable)")
-        p.add_argument("--typestore", choices=TYPESTORES,
-                       help="rosbags' standard message definitions for recordings that store "
-                            "none (default ros1_noetic for .bag, else ros2_humble)")
+        p.add_argument(
+            "--msg",
+            type=Path,
+            action="append",
+            default=[],
+            metavar="FILE",
+            help="a pkg/msg/Name.msg definition, for recordings that store none or to "
+            "replace a wrong one they store "
+            "(repeatable)",
+        )
+        p.add_argument(
+            "--typestore",
+            choices=TYPESTORES,
+            help="rosbags' standard message definitions for recordings that store "
+            "none (default ros1_noetic for .bag, else ros2_humble)",
+        )
 
     def network(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                       help="Zenoh endpoint to connect to, e.g. tcp/10.0.0.2:7447 (repeatable)")
-        p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
-                       help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)")
-        p.add_argument("--zenoh-config", metavar="FILE",
-                       help="Zenoh config file (TLS, access control); endpoints still apply")
+        p.add_argument(
+            "--connect",
+            action="append",
+            default=[],
+            metavar="ENDPOINT",
+            help="Zenoh endpoint to connect to, e.g. tcp/10.0.0.2:7447 (repeatable)",
+        )
+        p.add_argument(
+            "--listen",
+            action="append",
+            default=[],
+            metavar="ENDPOINT",
+            help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)",
+        )
+        p.add_argument(
+            "--zenoh-config",
+            metavar="FILE",
+            help="Zenoh config file (TLS, access control); endpoints still apply",
+        )
 
     p = sub.add_parser("match", help="the topics each feature of a formula is read from")
     config(p)
     p.add_argument("--json", action="store_true", help="print the stream request as JSON")
-    p.add_argument("--stats", action="store_true",
-                   help="on stderr: load and match times, and the rows of every stored "
-                        "relation (told facts and materialized views)")
+    p.add_argument(
+        "--stats",
+        action="store_true",
+        help="on stderr: load and match times, and the rows of every stored "
+        "relation (told facts and materialized views)",
+    )
     p.add_argument("formula")
     p.set_defaults(run=_match)
 
     p = sub.add_parser("progress", help="verdicts of formulas over a JSON-lines state file")
-    p.add_argument("--states", required=True, type=Path,
-                   help='JSON lines: {"time": 0.0, "values": {"P[a]": true, "X[a]": 3.5}}')
+    p.add_argument(
+        "--states",
+        required=True,
+        type=Path,
+        help='JSON lines: {"time": 0.0, "values": {"P[a]": true, "X[a]": 3.5}}',
+    )
     p.add_argument("--config", type=Path, help="TOML config: quantifiers range over its objects")
     p.add_argument("--json", action="store_true", help="one JSON line per formula")
     p.add_argument("formulas", nargs="+", metavar="FORMULA")
     p.set_defaults(run=_progress)
 
     p = sub.add_parser(
-        "monitor", help="verdicts of formulas over a robot recording, or live",
-        formatter_class=argparse.RawDescriptionHelpFormatter, epilog=f"{EXIT_STATUS}\n\n"
+        "monitor",
+        help="verdicts of formulas over a robot recording, or live",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=f"{EXIT_STATUS}\n\n"
         "example:\n  dkreason monitor --config examples/federation.toml --source "
         "examples/traffic/recording --delay 100ms \\\n    'forall c in Car: always "
-        "(Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)'")
+        "(Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)'",
+    )
     config(p)
-    p.add_argument("--source", action="append", default=[], metavar="[PLATFORM=]PATH",
-                   help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages; "
-                        "repeat for several recordings (merged by record time); PLATFORM= "
-                        "binds a recording's topics to that platform's specs only")
-    p.add_argument("--remap", action="append", default=[], metavar="FROM:=TO",
-                   help="read recording topic FROM as TO (repeatable)")
-    p.add_argument("--clock", choices=("auto", "header", "record"), default="auto",
-                   help="valid time from header.stamp or the record time; auto: the stamps, "
-                        "unless they run on another clock (simulated time), said in one line "
-                        "(default auto)")
+    p.add_argument(
+        "--source",
+        action="append",
+        default=[],
+        metavar="[PLATFORM=]PATH",
+        help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages; "
+        "repeat for several recordings (merged by record time); PLATFORM= "
+        "binds a recording's topics to that platform's specs only",
+    )
+    p.add_argument(
+        "--remap",
+        action="append",
+        default=[],
+        metavar="FROM:=TO",
+        help="read recording topic FROM as TO (repeatable)",
+    )
+    p.add_argument(
+        "--clock",
+        choices=("auto", "header", "record"),
+        default="auto",
+        help="valid time from header.stamp or the record time; auto: the stamps, "
+        "unless they run on another clock (simulated time), said in one line "
+        "(default auto)",
+    )
     definitions(p)
-    p.add_argument("--live", action="store_true",
-                   help="monitor the platforms of the config over Zenoh (`dkreason serve`)")
-    p.add_argument("--ros2", action="store_true",
-                   help="monitor live ROS 2 robots over Zenoh (rmw_zenoh; --bridge: DDS robots "
-                        "through zenoh-bridge-ros2dds); no ROS install needed")
-    p.add_argument("--domain", type=_domain, default=None, metavar="N",
-                   help="ros2: the ROS_DOMAIN_ID (default: $ROS_DOMAIN_ID, else 0)")
-    p.add_argument("--bridge", action="store_true",
-                   help="ros2: also take the publishers zenoh-bridge-ros2dds announces")
-    p.add_argument("--bind", action="append", default=[], metavar="PLATFORM=NAMESPACE",
-                   help="ros2: topics of nodes in (or named under) NAMESPACE are PLATFORM's, "
-                        "by their names relative to it (repeatable)")
-    p.add_argument("--sim-time", action="store_true",
-                   help="ros2: the stream clock is /clock (rosgraph_msgs/msg/Clock), as with "
-                        "use_sim_time")
-    p.add_argument("--record", type=Path, metavar="OUT.mcap",
-                   help="ros2: write the relevant topics' messages and the verdicts (a JSON "
-                        "channel) to one MCAP file, which --source replays")
-    p.add_argument("--publish-verdicts", action="store_true",
-                   help="live, ros2: put verdicts and violations on dkreason/verdicts/<formula "
-                        "id> (JSON); with --ros2 also on the ROS 2 topic /dkreason/verdicts")
+    p.add_argument(
+        "--live",
+        action="store_true",
+        help="monitor the platforms of the config over Zenoh (`dkreason serve`)",
+    )
+    p.add_argument(
+        "--ros2",
+        action="store_true",
+        help="monitor live ROS 2 robots over Zenoh (rmw_zenoh; --bridge: DDS robots "
+        "through zenoh-bridge-ros2dds); no ROS install needed",
+    )
+    p.add_argument(
+        "--domain",
+        type=_domain,
+        default=None,
+        metavar="N",
+        help="ros2: the ROS_DOMAIN_ID (default: $ROS_DOMAIN_ID, else 0)",
+    )
+    p.add_argument(
+        "--bridge",
+        action="store_true",
+        help="ros2: also take the publishers zenoh-bridge-ros2dds announces",
+    )
+    p.add_argument(
+        "--bind",
+        action="append",
+        default=[],
+        metavar="PLATFORM=NAMESPACE",
+        help="ros2: topics of nodes in (or named under) NAMESPACE are PLATFORM's, "
+        "by their names relative to it (repeatable)",
+    )
+    p.add_argument(
+        "--sim-time",
+        action="store_true",
+        help="ros2: the stream clock is /clock (rosgraph_msgs/msg/Clock), as with use_sim_time",
+    )
+    p.add_argument(
+        "--record",
+        type=Path,
+        metavar="OUT.mcap",
+        help="ros2: write the relevant topics' messages and the verdicts (a JSON "
+        "channel) to one MCAP file, which --source replays",
+    )
+    p.add_argument(
+        "--publish-verdicts",
+        action="store_true",
+        help="live, ros2: put verdicts and violations on dkreason/verdicts/<formula "
+        "id> (JSON); with --ros2 also on the ROS 2 topic /dkreason/verdicts",
+    )
     network(p)
-    p.add_argument("--wait", type=_positive, default=10.0,
-                   help="live: seconds to wait for the local platform; ros2: after which the "
-                        "features no publisher feeds are named (default 10)")
+    p.add_argument(
+        "--wait",
+        type=_positive,
+        default=10.0,
+        help="live: seconds to wait for the local platform; ros2: after which the "
+        "features no publisher feeds are named (default 10)",
+    )
     p.add_argument("--until", type=_seconds, help="live: stop when the stream clock passes it")
-    p.add_argument("--trust", type=Path, metavar="KEYS",
-                   help="live: TOML of platform = Ed25519 public key (PEM); their samples "
-                        "must be signed (`serve --sign`)")
+    p.add_argument(
+        "--trust",
+        type=Path,
+        metavar="KEYS",
+        help="live: TOML of platform = Ed25519 public key (PEM); their samples "
+        "must be signed (`serve --sign`)",
+    )
     p.add_argument("--duration", type=_positive, help="live: stop after this many wall seconds")
     p.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
-    p.add_argument("--plot", type=Path, help="draw features, verdicts and violations (.png, "
-                                             ".svg or .pdf, as the name says)")
+    p.add_argument(
+        "--plot",
+        type=Path,
+        help="draw features, verdicts and violations (.png, .svg or .pdf, as the name says)",
+    )
     p.add_argument("--period", type=_seconds, help="state every PERIOD s (default: on change)")
-    p.add_argument("--deviation", type=_seconds, default=Fraction(0),
-                   help="allowed sample period deviation (default 0)")
-    p.add_argument("--approximation", choices=("recent", "none"), default="recent",
-                   help="recent: the newest sample up to --max-age old; none: only a sample "
-                        "at the state's time (default recent)")
-    p.add_argument("--max-age", type=_seconds_or_inf, default=Fraction(5),
-                   help="oldest sample used, in s (default 5; inf: any)")
-    p.add_argument("--delay", type=_seconds, default=Fraction(1, 10),
-                   help="how long after a state's time its samples may still arrive (transport "
-                        "latency) before it is made (default 100ms)")
-    p.add_argument("--start", type=_bound, metavar="[+]TIME",
-                   help="judge from this time on (s on the recording's clock; +TIME: after "
-                        "its first sample)")
-    p.add_argument("--end", type=_bound, metavar="[+]TIME",
-                   help="ignore samples after this time (+TIME: after the first sample)")
+    p.add_argument(
+        "--deviation",
+        type=_seconds,
+        default=Fraction(0),
+        help="allowed sample period deviation (default 0)",
+    )
+    p.add_argument(
+        "--approximation",
+        choices=("recent", "none"),
+        default="recent",
+        help="recent: the newest sample up to --max-age old; none: only a sample "
+        "at the state's time (default recent)",
+    )
+    p.add_argument(
+        "--max-age",
+        type=_seconds_or_inf,
+        default=Fraction(5),
+        help="oldest sample used, in s (default 5; inf: any)",
+    )
+    p.add_argument(
+        "--delay",
+        type=_seconds,
+        default=Fraction(1, 10),
+        help="how long after a state's time its samples may still arrive (transport "
+        "latency) before it is made (default 100ms)",
+    )
+    p.add_argument(
+        "--start",
+        type=_bound,
+        metavar="[+]TIME",
+        help="judge from this time on (s on the recording's clock; +TIME: after its first sample)",
+    )
+    p.add_argument(
+        "--end",
+        type=_bound,
+        metavar="[+]TIME",
+        help="ignore samples after this time (+TIME: after the first sample)",
+    )
     p.add_argument("--max-delay", type=_seconds, help="largest allowed sample delay (s)")
     p.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
     p.add_argument("--unique", action="store_true", help="valid times must be unique")
-    p.add_argument("-f", "--formulas-file", type=Path, action="append", default=[],
-                   metavar="FILE", help="formulas, one per line (# comments); repeatable")
+    p.add_argument(
+        "-f",
+        "--formulas-file",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="formulas, one per line (# comments); repeatable",
+    )
     p.add_argument("formulas", nargs="*", metavar="FORMULA")
     p.set_defaults(run=_monitor)
 
     p = sub.add_parser("serve", help="run a platform node: its knowledge and topics over Zenoh")
     config(p)
     network(p)
-    p.add_argument("--source", type=Path,
-                   help="replay this recording's topics of the platform (- : JSON lines on "
-                        "stdin, published as they come)")
+    p.add_argument(
+        "--source",
+        type=Path,
+        help="replay this recording's topics of the platform (- : JSON lines on "
+        "stdin, published as they come)",
+    )
     definitions(p)
-    p.add_argument("--origin", type=_finite,
-                   help="wall time (Unix s) the replay starts at; nodes given the same one "
-                        "replay in step (default: now)")
+    p.add_argument(
+        "--origin",
+        type=_finite,
+        help="wall time (Unix s) the replay starts at; nodes given the same one "
+        "replay in step (default: now)",
+    )
     p.add_argument("--speed", type=_positive, default=1.0, help="replay speed factor (default 1)")
-    p.add_argument("--heartbeat", type=_positive, default=0.02,
-                   help="seconds between clock messages (default 0.02)")
-    p.add_argument("--sign", type=Path, metavar="KEY",
-                   help="sign every sample with this Ed25519 private key (PEM)")
+    p.add_argument(
+        "--heartbeat",
+        type=_positive,
+        default=0.02,
+        help="seconds between clock messages (default 0.02)",
+    )
+    p.add_argument(
+        "--sign",
+        type=Path,
+        metavar="KEY",
+        help="sign every sample with this Ed25519 private key (PEM)",
+    )
     p.set_defaults(run=_serve)
 
     p = sub.add_parser("explain", help="why each topic matched, or why one did not")
@@ -210,10 +341,12 @@ def _build() -> _Parser:
 
     p = sub.add_parser("specs", help="list, show, add or remove topic specifications")
     specs = p.add_subparsers(required=True, metavar="ACTION", parser_class=_Parser)
-    for action, helptext in (("list", "every topic specification"),
-                             ("show", "one topic specification"),
-                             ("add", "add an SSL_T topic specification (saved to the specs file)"),
-                             ("remove", "remove a topic specification (saved to the specs file)")):
+    for action, helptext in (
+        ("list", "every topic specification"),
+        ("show", "one topic specification"),
+        ("add", "add an SSL_T topic specification (saved to the specs file)"),
+        ("remove", "remove a topic specification (saved to the specs file)"),
+    ):
         q = specs.add_parser(action, help=helptext)
         config(q)
         q.add_argument("--platform", help="platform (default: the local one; list: all)")
@@ -255,8 +388,11 @@ def _match(args: argparse.Namespace) -> int:
     loaded = time.perf_counter()
     request = km.check_formula(args.formula)
     if args.stats:
-        print(f"stats: load {(loaded - start) * 1e3:.1f} ms, match "
-              f"{(time.perf_counter() - loaded) * 1e3:.1f} ms", file=sys.stderr)
+        print(
+            f"stats: load {(loaded - start) * 1e3:.1f} ms, match "
+            f"{(time.perf_counter() - loaded) * 1e3:.1f} ms",
+            file=sys.stderr,
+        )
         for name, (kind, rows) in sorted(km.kb.engine.sizes().items()):
             print(f"stats: {kind:<5} {name:<20} {rows:>9}", file=sys.stderr)
     if args.json:
@@ -286,8 +422,11 @@ def _progress(args: argparse.Namespace) -> int:
     from .progress.states import read_states
 
     progressor = Progressor()
-    trees = ([(f.text, f.tree) for f in _km(args).plan(args.formulas).formulas]
-             if args.config else [(f, parse_formula(f)) for f in args.formulas])
+    trees = (
+        [(f.text, f.tree) for f in _km(args).plan(args.formulas).formulas]
+        if args.config
+        else [(f, parse_formula(f)) for f in args.formulas]
+    )
     for text, tree in trees:
         progressor.add(text, tree if args.config else None)
     used = {k: use for k, (use, _) in feature_uses(trees).items()}
@@ -301,15 +440,16 @@ def _progress(args: argparse.Namespace) -> int:
             else:
                 value = {True: "true", False: "FALSE", None: "unknown"}[v.verdict]
                 when = "at end" if v.at_end else "at"
-                print(f"{when} {v.time}: {value}  {v.formula}" +
-                      (f"\n    {v.witness}" if v.witness else ""), flush=True)
+                print(
+                    f"{when} {v.time}: {value}  {v.formula}"
+                    + (f"\n    {v.witness}" if v.witness else ""),
+                    flush=True,
+                )
 
     for time, values in read_states(args.states, used):
         emit(progressor.step(time, values))
     emit(progressor.finish())
     return exit_status([v.verdict for v in verdicts])
-
-
 
 
 def _seconds(text: str) -> Fraction:
@@ -321,8 +461,9 @@ def _seconds(text: str) -> Fraction:
     try:
         value = exact(number, "seconds") * UNITS[unit or "s"]
     except DkError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a duration (like 5, 0.1, 500ms, "
-                                         f"2min)") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a duration (like 5, 0.1, 500ms, 2min)"
+        ) from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"must not be negative: {text}")
     return value
@@ -386,8 +527,7 @@ def _serve(args: argparse.Namespace) -> int:
 
     _logging()
     km = _km(args)
-    source = open_source(args.source, args.msg, args.typestore) \
-        if args.source is not None else None
+    source = open_source(args.source, args.msg, args.typestore) if args.source is not None else None
     records = getattr(source, "records", None)
     if source is not None and records is None:
         raise DkError(f"{source.name}: a damaged recording cannot be replayed live")
@@ -422,21 +562,33 @@ def _monitor(args: argparse.Namespace) -> int:
     if len(relative) > 1:
         raise DkError("--start and --end must be both relative (+SECONDS) or both absolute")
     policy = StreamPolicy(
-        sample_period=args.period, sample_period_deviation=args.deviation,
-        approximation=args.approximation, max_age=args.max_age,
+        sample_period=args.period,
+        sample_period_deviation=args.deviation,
+        approximation=args.approximation,
+        max_age=args.max_age,
         delay_before_approximation=args.delay,
         start_time=None if args.start is None else args.start[0],
         end_time=None if args.end is None else args.end[0],
-        max_delay=args.max_delay, ordered_on_valid_time=args.ordered,
-        unique_valid_time=args.unique, span_from_first=relative == {True})
+        max_delay=args.max_delay,
+        ordered_on_valid_time=args.ordered,
+        unique_valid_time=args.unique,
+        span_from_first=relative == {True},
+    )
     if args.plot is not None and not args.plot.parent.is_dir():
         raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
     if args.plot is not None and args.plot.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise DkError(f"--plot {args.plot}: name a .png, .svg or .pdf file")
-    ros2_only = [flag for flag, given in (("--bridge", args.bridge), ("--bind", args.bind),
-                                          ("--sim-time", args.sim_time),
-                                          ("--record", args.record), ("--domain", args.domain))
-                 if given not in (False, [], None)]
+    ros2_only = [
+        flag
+        for flag, given in (
+            ("--bridge", args.bridge),
+            ("--bind", args.bind),
+            ("--sim-time", args.sim_time),
+            ("--record", args.record),
+            ("--domain", args.domain),
+        )
+        if given not in (False, [], None)
+    ]
     if ros2_only and not args.ros2:
         raise DkError(f"{ros2_only[0]} is for --ros2")
     if args.publish_verdicts and not (args.live or args.ros2):
@@ -455,8 +607,10 @@ def _monitor(args: argparse.Namespace) -> int:
         source.close()
         raise
     for topic, features in processor.absent.items():
-        print(f"warning: {topic} (for {', '.join(dict.fromkeys(features))}) is in no "
-              f"recording", file=sys.stderr)
+        print(
+            f"warning: {topic} (for {', '.join(dict.fromkeys(features))}) is in no recording",
+            file=sys.stderr,
+        )
     note = getattr(source, "note", None)
     if note:
         print(f"note: {note}", file=sys.stderr)
@@ -496,10 +650,15 @@ def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
     try:
         monitor = LiveMonitor(args.config, formulas, policy, session, args.wait, trust=trust)
         _on_signals(lambda *_: monitor.stop.set())
-        return _report(args, monitor.run(args.until, args.duration),
-                       lambda: getattr(monitor, "processor", None), session,
-                       [f.text for f in monitor.formulas], ros2=False,
-                       reads=lambda key: _reading(monitor.monitor, key))
+        return _report(
+            args,
+            monitor.run(args.until, args.duration),
+            lambda: getattr(monitor, "processor", None),
+            session,
+            [f.text for f in monitor.formulas],
+            ros2=False,
+            reads=lambda key: _reading(monitor.monitor, key),
+        )
     finally:
         session.close()
 
@@ -521,30 +680,51 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
             raise DkError(f"--bind {given!r}: expected PLATFORM=/NAMESPACE")
         bind[platform] = namespace
     try:
-        domain = args.domain if args.domain is not None else \
-            _domain(os.environ.get("ROS_DOMAIN_ID", "0") or "0")
+        domain = (
+            args.domain
+            if args.domain is not None
+            else _domain(os.environ.get("ROS_DOMAIN_ID", "0") or "0")
+        )
     except argparse.ArgumentTypeError as exc:
         raise DkError(f"$ROS_DOMAIN_ID: {exc}") from None
     km = _km(args)
     unknown = sorted(set(bind) - set(km.platforms))
     if unknown:
-        raise DkError(f"--bind {unknown[0]}: not a platform of the config (platforms: "
-                      f"{', '.join(sorted(km.platforms))})")
+        raise DkError(
+            f"--bind {unknown[0]}: not a platform of the config (platforms: "
+            f"{', '.join(sorted(km.platforms))})"
+        )
     store = _typestore(_msg_types(args.msg), False, args.typestore or "ros2_jazzy")
     formulas = _formulas(args)
     recorder = Recorder(args.record, store) if args.record is not None else None
     session = _session(args)
     try:
-        monitor = Ros2Monitor(km, list(formulas), policy, session, store=store, domain=domain,
-                              bridge=args.bridge, bind=bind, remap=_remaps(args),
-                              sim_time=args.sim_time, recorder=recorder)
+        monitor = Ros2Monitor(
+            km,
+            list(formulas),
+            policy,
+            session,
+            store=store,
+            domain=domain,
+            bridge=args.bridge,
+            bind=bind,
+            remap=_remaps(args),
+            sim_time=args.sim_time,
+            recorder=recorder,
+        )
         recorder = None  # the monitor closes it
         _on_signals(lambda *_: monitor.stop.set())
-        return _report(args, monitor.run(args.until, args.duration, args.wait),
-                       lambda: monitor.processor,
-                       session, [f.text for f in monitor.monitor.plan.formulas], ros2=True,
-                       domain=domain, labelled=lambda: monitor.labelled,
-                       reads=lambda key: _reading(monitor.monitor, key))
+        return _report(
+            args,
+            monitor.run(args.until, args.duration, args.wait),
+            lambda: monitor.processor,
+            session,
+            [f.text for f in monitor.monitor.plan.formulas],
+            ros2=True,
+            domain=domain,
+            labelled=lambda: monitor.labelled,
+            reads=lambda key: _reading(monitor.monitor, key),
+        )
     finally:
         if recorder is not None:
             recorder.close()
@@ -556,24 +736,37 @@ def _reading(monitor: Any, key: Any) -> list[str]:
     return [f.text for f in monitor.plan.formulas if key in f.keys]
 
 
-def _report(args: argparse.Namespace, events: Any, processor: Any, session: Any,
-            formulas: list[str], ros2: bool, domain: int = 0, labelled: Any = None,
-            reads: Any = None) -> int:
+def _report(
+    args: argparse.Namespace,
+    events: Any,
+    processor: Any,
+    session: Any,
+    formulas: list[str],
+    ros2: bool,
+    domain: int = 0,
+    labelled: Any = None,
+    reads: Any = None,
+) -> int:
     """A live run's events printed (and published with --publish-verdicts) as they come."""
     from .live.monitor import Change
     from .live.ros2node import Announcer
     from .progress import Verdict
 
-    announce = Announcer(session, formulas, ros2, domain, labelled, reads) \
-        if args.publish_verdicts else None
+    announce = (
+        Announcer(session, formulas, ros2, domain, labelled, reads)
+        if args.publish_verdicts
+        else None
+    )
     verdicts, violations = [], 0
     try:
         for event in events:
             if announce is not None:
                 announce(event)
             if isinstance(event, Change):
-                print(json.dumps(event.to_json(), ensure_ascii=False) if args.json else
-                      str(event), flush=True)
+                print(
+                    json.dumps(event.to_json(), ensure_ascii=False) if args.json else str(event),
+                    flush=True,
+                )
                 continue
             if isinstance(event, Verdict):
                 verdicts.append(event)
@@ -602,8 +795,11 @@ def _formulas(args: argparse.Namespace) -> list[str]:
 
     out = list(args.formulas)
     for path in args.formulas_file:
-        out += [line.strip() for line in read_text(path).splitlines()
-                if line.strip() and not line.strip().startswith("#")]
+        out += [
+            line.strip()
+            for line in read_text(path).splitlines()
+            if line.strip() and not line.strip().startswith("#")
+        ]
     if not out:
         raise DkError("no formula given (as arguments or with -f FILE)")
     return out
@@ -620,12 +816,15 @@ def _recordings(args: argparse.Namespace, platforms: set[str]) -> Any:
         for given in args.source:
             platform, sep, path = given.partition("=")
             if sep and platform not in platforms and not Path(given).exists():
-                raise DkError(f"--source {given}: {platform!r} is not a platform of the config "
-                              f"(platforms: {', '.join(sorted(platforms))})")
+                raise DkError(
+                    f"--source {given}: {platform!r} is not a platform of the config "
+                    f"(platforms: {', '.join(sorted(platforms))})"
+                )
             if not sep or platform not in platforms:
                 platform, path = "", given
-            parts.append(Recording(open_source(Path(path), args.msg, args.typestore),
-                                   platform or None))
+            parts.append(
+                Recording(open_source(Path(path), args.msg, args.typestore), platform or None)
+            )
         return Recordings(parts, remap, args.clock)
     except BaseException:
         for r in parts:
@@ -655,8 +854,15 @@ def _info(args: argparse.Namespace) -> int:
     finally:
         recordings.close()
     if args.json:
-        print(json.dumps({"recordings": [i.to_json() for i in infos],
-                          "specs": [b.to_json() for b in binds or ()]}, ensure_ascii=False))
+        print(
+            json.dumps(
+                {
+                    "recordings": [i.to_json() for i in infos],
+                    "specs": [b.to_json() for b in binds or ()],
+                },
+                ensure_ascii=False,
+            )
+        )
     else:
         print(render(infos, binds))
     return 0
@@ -676,11 +882,17 @@ def _print_event(event: Any, as_json: bool, origin: int | None = None) -> None:
     when = _when(out.get("time"), origin)
     if isinstance(event, Verdict):
         value = {True: "held", False: "VIOLATED", None: "unknown"}[event.verdict]
-        print(f"{'at end' if event.at_end else f'at {when}'}: {value}  {event.formula}" +
-              (f"\n    {event.witness}" if event.witness else ""), flush=True)
+        print(
+            f"{'at end' if event.at_end else f'at {when}'}: {value}  {event.formula}"
+            + (f"\n    {event.witness}" if event.witness else ""),
+            flush=True,
+        )
     else:
-        print(f"violation at {when}: {event.constraint} on {event.feature} ({event.topic}): "
-              f"{event.detail}", flush=True)
+        print(
+            f"violation at {when}: {event.constraint} on {event.feature} ({event.topic}): "
+            f"{event.detail}",
+            flush=True,
+        )
 
 
 def _when(time: Any, origin: int | None) -> str:
@@ -690,8 +902,11 @@ def _when(time: Any, origin: int | None) -> str:
 
     stamp = f"{time} s"
     if time > 10**9:  # an epoch clock: the date says more than a ten-digit number
-        stamp = datetime.datetime.fromtimestamp(time, datetime.UTC).isoformat(
-            timespec="milliseconds").replace("+00:00", "Z")
+        stamp = (
+            datetime.datetime.fromtimestamp(time, datetime.UTC)
+            .isoformat(timespec="milliseconds")
+            .replace("+00:00", "Z")
+        )
     return f"t+{_since(time, origin)} s ({stamp})"
 
 
@@ -712,14 +927,13 @@ def _summary(verdicts: list[Any], violations: int) -> None:
         table.add_column(column)
     for v in verdicts:
         verdict = {True: "held", False: "violated", None: "unknown"}[v.verdict]
-        table.add_row(escape(v.formula), verdict,
-                      str(v.time), "yes" if v.at_end else "no")
+        table.add_row(escape(v.formula), verdict, str(v.time), "yes" if v.at_end else "no")
     console = Console(width=120)
     console.print(table)
     console.print(f"{violations} stream constraint violation(s)")
 
 
-class _progress_bar:  # noqa: N801 - used as a context manager, reads as one
+class _progress_bar:
     """A progress bar on stderr while a long file is read (only on a terminal)."""
 
     def __init__(self, source: Any, monitor: Any, enabled: bool) -> None:
@@ -753,14 +967,20 @@ def render_text(request: StreamRequest) -> str:
     """Thesis listings 6.2–6.4 and 6.8–6.10, plus where remote topics come from."""
     lines = []
     for f in request.features:
-        lines += [f"Feature: {f.feature.key}", "Topics to merge:" if f.topics
-                  else "Topics to merge: none"]
+        lines += [
+            f"Feature: {f.feature.key}",
+            "Topics to merge:" if f.topics else "Topics to merge: none",
+        ]
         for t in f.topics:
             ids = "".join(f"Id: {k} = {v}, " for k, v in t.filter)
-            where = "" if t.platform == request.local else \
-                f" (platform {t.platform}, as {t.as_feature}[{', '.join(t.as_args)}])"
-            lines.append(f"  Topic: {t.topic}{where}, Message type: {t.msgtype}, {ids}"
-                         f"Field: {t.field}")
+            where = (
+                ""
+                if t.platform == request.local
+                else f" (platform {t.platform}, as {t.as_feature}[{', '.join(t.as_args)}])"
+            )
+            lines.append(
+                f"  Topic: {t.topic}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
+            )
     lines += [f"Warning: {w}" for w in request.warnings]
     return "\n".join(lines)
 

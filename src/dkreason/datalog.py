@@ -90,8 +90,10 @@ class Relation:
 
 
 _DECL = re.compile(r"^\.decl\b(.*)$", re.M)
-_DECL_BODY = re.compile(r"\s+([a-z_]\w*)\(\s*(\w+(?:\s*,\s*\w+)*)\s*\)\s*(input|view|query)?"
-                        r"\s*(?:#.*)?$")
+_DECL_BODY = re.compile(
+    r"\s+([a-z_]\w*)\(\s*(\w+(?:\s*,\s*\w+)*)\s*\)\s*(input|view|query)?"
+    r"\s*(?:#.*)?$"
+)
 
 
 @contextmanager
@@ -179,13 +181,13 @@ class Datalog:
     def _declare(self, text: str, span: Span) -> None:
         found = _DECL_BODY.fullmatch(text)
         if not found:
-            raise RuleError("expected `.decl name(Column, …)` and optionally input, view or "
-                            "query", span)
+            raise RuleError(
+                "expected `.decl name(Column, …)` and optionally input, view or query", span
+            )
         name, columns, kind = found.group(1), found.group(2), found.group(3) or ""
         if name in self.schema:
             raise RuleError(f"{name} is declared twice (first at {self.schema[name].span})", span)
-        self.schema[name] = Relation(name, tuple(c.strip() for c in columns.split(",")), kind,
-                                     span)
+        self.schema[name] = Relation(name, tuple(c.strip() for c in columns.split(",")), kind, span)
 
     @property
     def views(self) -> dict[str, int]:
@@ -198,19 +200,29 @@ class Datalog:
                 relation = self.schema.get(lit.predicate)
                 if relation is None:
                     near = difflib.get_close_matches(lit.predicate, self.schema, 1)
-                    hint = f" (did you mean {near[0]}/{self.schema[near[0]].arity}?)" if near \
+                    hint = (
+                        f" (did you mean {near[0]}/{self.schema[near[0]].arity}?)"
+                        if near
                         else " (declare it with `.decl`)"
-                    raise RuleError(f"undeclared relation {lit.predicate}/{len(lit.args)}{hint}",
-                                    rule.span)
+                    )
+                    raise RuleError(
+                        f"undeclared relation {lit.predicate}/{len(lit.args)}{hint}", rule.span
+                    )
                 if len(lit.args) != relation.arity:
-                    raise RuleError(f"{lit.predicate} has {relation.arity} columns "
-                                    f"({', '.join(relation.columns)}, declared at "
-                                    f"{relation.span}), not {len(lit.args)}", rule.span)
+                    raise RuleError(
+                        f"{lit.predicate} has {relation.arity} columns "
+                        f"({', '.join(relation.columns)}, declared at "
+                        f"{relation.span}), not {len(lit.args)}",
+                        rule.span,
+                    )
         derived = {rule.head.predicate for rule in self.rules}
         for relation in self.schema.values():
             if relation.kind in ("query", "view") and relation.name not in derived:
-                raise RuleError(f"the rules derive no {relation.name}/{relation.arity}, which "
-                                f"dkreason asks for", relation.span)
+                raise RuleError(
+                    f"the rules derive no {relation.name}/{relation.arity}, which "
+                    f"dkreason asks for",
+                    relation.span,
+                )
 
     @contextmanager
     def given(self, inputs: dict[str, list[Row]]) -> Iterator[None]:
@@ -224,8 +236,7 @@ class Datalog:
             for name, rows in inputs.items():
                 self.retract_rows(name, rows)
 
-    def ask(self, predicate: str, inputs: dict[str, list[Row]],
-            *args: Value | None) -> list[Row]:
+    def ask(self, predicate: str, inputs: dict[str, list[Row]], *args: Value | None) -> list[Row]:
         """`query` with these input facts given."""
         with self.given(inputs):
             return self.query(predicate, *args)
@@ -312,8 +323,11 @@ class Datalog:
 
         self._activate()
         pred = Logic.tl.logic.Db.get(f"{name}/{self.schema[name].arity}")
-        return [] if pred is None else [tuple(t.id for t in c.head.terms)
-                                        for c in pred.db.values() if not c.body]
+        return (
+            []
+            if pred is None
+            else [tuple(t.id for t in c.head.terms) for c in pred.db.values() if not c.body]
+        )
 
     def _freeze(self, name: str, rows: list[Row]) -> None:
         from pyDatalog import Logic, pyEngine
@@ -344,7 +358,8 @@ class Datalog:
         reads: dict[str, set[str]] = {}
         for rule in self.rules:
             reads.setdefault(rule.head.predicate, set()).update(
-                b.predicate for b in rule.body if isinstance(b, Literal))
+                b.predicate for b in rule.body if isinstance(b, Literal)
+            )
         return reads
 
     def _view_order(self) -> list[str]:
@@ -398,8 +413,9 @@ class Datalog:
         if relation is not None and len(args) != relation.arity:
             raise TypeError(f"{predicate} has {relation.arity} columns, asked with {len(args)}")
         self._activate()
-        terms = [pyEngine.Var(f"V{i}") if a is None else pyEngine.Const(a)
-                 for i, a in enumerate(args)]
+        terms = [
+            pyEngine.Var(f"V{i}") if a is None else pyEngine.Const(a) for i, a in enumerate(args)
+        ]
         with gc_paused():
             answer = pyEngine.Literal(predicate, terms).ask()
         return list(answer) if isinstance(answer, list) else []
@@ -431,13 +447,20 @@ def _clauses(text: str, file: str) -> list[Rule]:
     rules = []
     for node in tree.body:
         expr = node.value if isinstance(node, ast.Expr) else None
-        if not (isinstance(expr, ast.Compare) and isinstance(expr.ops[0], ast.LtE)
-                and isinstance(expr.left, ast.Call) and isinstance(expr.left.func, ast.Name)):
+        if not (
+            isinstance(expr, ast.Compare)
+            and isinstance(expr.ops[0], ast.LtE)
+            and isinstance(expr.left, ast.Call)
+            and isinstance(expr.left.func, ast.Name)
+        ):
             raise RuleError("expected a rule `head(...) <= body`", Span(file, node.lineno))
-        source = "\n".join(lines[node.lineno - 1:(node.end_lineno or node.lineno)])
+        source = "\n".join(lines[node.lineno - 1 : (node.end_lineno or node.lineno)])
         if len(_BARE_UNDERSCORE.findall(source)) > 1:
-            raise RuleError("bare `_` is one shared variable in pyDatalog; name each "
-                            "don't-care variable (_Field, _Arity, …)", Span(file, node.lineno))
+            raise RuleError(
+                "bare `_` is one shared variable in pyDatalog; name each "
+                "don't-care variable (_Field, _Arity, …)",
+                Span(file, node.lineno),
+            )
         span = Span(file, node.lineno)
         body = tuple(_body(expr.comparators[0], span))
         rules.append(Rule(_literal(expr.left, span), body, source.strip(), span))
@@ -454,8 +477,11 @@ def _body(node: ast.expr, span: Span) -> list[Literal | Comparison]:
         lit = _literal(node.operand, span)
         return [Literal(lit.predicate, lit.args, negated=True)]
     if isinstance(node, ast.Compare) and len(node.ops) == 1 and type(node.ops[0]) in _OPS:
-        return [Comparison(_OPS[type(node.ops[0])], _term(node.left, span),
-                           _term(node.comparators[0], span))]
+        return [
+            Comparison(
+                _OPS[type(node.ops[0])], _term(node.left, span), _term(node.comparators[0], span)
+            )
+        ]
     return [_literal(node, span)]
 
 

@@ -1,12 +1,12 @@
 """Errors a user's input can cause, each rendered as one line naming where it happened.
 
-    DkError                    anything the CLI prints as one line and exits 2 on
-    └── SourceError            carries a Span (file, line, column) of the offending text
-        ├── ParseError         grammar or well-formedness failures (SSL_T, formulas, XML, RDF, TOML)
-        ├── NameError_         unknown or ambiguous names (feature, sort, object, topic, platform)
-        ├── SortError          wrong arity or an argument of the wrong sort
-        ├── MissingIdError     an object without id where a topic filter needs one
-        └── RuleError          a rule file the Datalog engine rejects
+DkError                    anything the CLI prints as one line and exits 2 on
+└── SourceError            carries a Span (file, line, column) of the offending text
+    ├── ParseError         grammar or well-formedness failures (SSL_T, formulas, XML, RDF, TOML)
+    ├── NameError_         unknown or ambiguous names (feature, sort, object, topic, platform)
+    ├── SortError          wrong arity or an argument of the wrong sort
+    ├── MissingIdError     an object without id where a topic filter needs one
+    └── RuleError          a rule file the Datalog engine rejects
 """
 
 from __future__ import annotations
@@ -32,8 +32,11 @@ class Span:
 
 def one_line(text: str) -> str:
     """`text` with line breaks and other control characters escaped: an error is one line."""
-    return text if text.isprintable() else "".join(
-        c if c.isprintable() else repr(c)[1:-1] for c in text)
+    return (
+        text
+        if text.isprintable()
+        else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    )
 
 
 class DkError(Exception):
@@ -50,7 +53,7 @@ class ParseError(SourceError):
     pass
 
 
-class NameError_(SourceError):  # noqa: N801 - trailing underscore avoids the builtin
+class NameError_(SourceError):
     pass
 
 

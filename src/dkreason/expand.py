@@ -44,34 +44,54 @@ class Expansion:
 def expand(kb: KnowledgeBase, formula: Formula, checked: list[CheckedFeature]) -> Expansion:
     local = kb.platform(kb.local)
     by_ref = {c.ref: c for c in checked}
-    sorts = {q.sort: local.names.resolve(q.sort, ("sort",), q.span)
-             for q in quantifiers(formula)}
+    sorts = {q.sort: local.names.resolve(q.sort, ("sort",), q.span) for q in quantifiers(formula)}
     members_of = members(kb, set(sorts.values()))
     size = _size(formula, lambda sort: len(members_of[sorts[sort]]))
     if size > MAX_EXPANSION:
-        raise DkError(f"{next(quantifiers(formula)).span}: the quantifiers expand to {size} "
-                      f"subformulas, more than the {MAX_EXPANSION} one formula takes")
+        raise DkError(
+            f"{next(quantifiers(formula)).span}: the quantifiers expand to {size} "
+            f"subformulas, more than the {MAX_EXPANSION} one formula takes"
+        )
     ground: dict[tuple[str, tuple[str, ...]], GroundFeature] = {}
 
     def walk(node: Any, env: dict[str, tuple[str, str]]) -> Any:  # var → (sort, object IRI)
         if isinstance(node, Quant):
-            parts = [walk(node.body, {**env, node.var: (node.sort, o)})
-                     for o in members_of[sorts[node.sort]]]
+            parts = [
+                walk(node.body, {**env, node.var: (node.sort, o)})
+                for o in members_of[sorts[node.sort]]
+            ]
             op = "and" if node.op == "forall" else "or"
             return chain(op, parts) if parts else BoolConst(op == "and")
         if isinstance(node, Atom | Ref):
             f = node.feature
-            c = by_ref[FeatureRef(f.name, tuple(Arg(a.name, env[a.name][0] if a.name in env
-                                                    else None, a.span) for a in f.args), f.span)]
-            iris = tuple(env[a.name][1] if a.name in env else iri
-                         for a, iri in zip(f.args, c.arg_iris, strict=True))
-            names = tuple(local_name(env[a.name][1]) if a.name in env else a.name
-                          for a in f.args)
+            c = by_ref[
+                FeatureRef(
+                    f.name,
+                    tuple(
+                        Arg(a.name, env[a.name][0] if a.name in env else None, a.span)
+                        for a in f.args
+                    ),
+                    f.span,
+                )
+            ]
+            iris = tuple(
+                env[a.name][1] if a.name in env else iri
+                for a, iri in zip(f.args, c.arg_iris, strict=True)
+            )
+            names = tuple(local_name(env[a.name][1]) if a.name in env else a.name for a in f.args)
             ground.setdefault((c.iri, iris), GroundFeature(f.name, names, c.iri, iris, f.span))
-            return type(node)(FeatureRef(f.name, tuple(
-                Arg(n, None, a.span) for n, a in zip(names, f.args, strict=True)), f.span))
-        changes = {attr: walk(getattr(node, attr), env)
-                   for attr in ("arg", "left", "right") if hasattr(node, attr)}
+            return type(node)(
+                FeatureRef(
+                    f.name,
+                    tuple(Arg(n, None, a.span) for n, a in zip(names, f.args, strict=True)),
+                    f.span,
+                )
+            )
+        changes = {
+            attr: walk(getattr(node, attr), env)
+            for attr in ("arg", "left", "right")
+            if hasattr(node, attr)
+        }
         return dataclasses.replace(node, **changes) if changes else node
 
     tree = walk(formula, {})
@@ -94,8 +114,9 @@ def members(kb: KnowledgeBase, sorts: set[str]) -> dict[str, list[str]]:
     representative), sorted by local name."""
     if not sorts:
         return {}
-    rows = kb.engine.ask("expansion", {"expand_sort": [(s,) for s in sorted(sorts)]},
-                         None, None, None)
+    rows = kb.engine.ask(
+        "expansion", {"expand_sort": [(s,) for s in sorted(sorts)]}, None, None, None
+    )
     classes: dict[str, set[str]] = defaultdict(set)
     for sort, _obj, cls in rows:
         classes[str(sort)].add(str(cls))

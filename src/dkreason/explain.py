@@ -126,8 +126,11 @@ class Reader:
 
     def __init__(self, kb: KnowledgeBase, ground: list[GroundFeature]) -> None:
         self.kb, self.ground = kb, ground
-        self.bridges = {(m.source, r.source, m.target, r.target, r.type): r.span
-                        for m in kb.mappings for r in m.rules}
+        self.bridges = {
+            (m.source, r.source, m.target, r.target, r.type): r.span
+            for m in kb.mappings
+            for r in m.rules
+        }
         self.derived = {r.head.predicate for r in kb.engine.rules}
         self.told: dict[str, set[tuple[str, str]]] = {}  # platform → its objects' told types
 
@@ -155,13 +158,15 @@ class Reader:
         if pred == "topic_arg" and None not in args:
             if c["Entity"] == "":
                 return "{Topic} has no argument {Position}".format(**named)
-            return ("{Topic} argument {Position}: {Kind} {Entity}".format(**named)
-                    + (f" = {named['IdField']}" if c["IdField"] else " (implicit)"))
+            return "{Topic} argument {Position}: {Kind} {Entity}".format(**named) + (
+                f" = {named['IdField']}" if c["IdField"] else " (implicit)"
+            )
         if pred == "class_type" and None not in args:  # the told member, if not the class
             told = self.typed_member(str(c["Platform"]), str(c["Class"]), str(c["Sort"]))
             if told != c["Class"]:
                 return "{} : {Sort} ({Platform} axiom), in the sameAs class of {Class}".format(
-                    self.name(told), **named)
+                    self.name(told), **named
+                )
         if pred in _GLOSSES and None not in args:
             if pred == "bridge":
                 named["Type"] = _BRIDGE.get(str(c["Type"]), str(c["Type"]))
@@ -176,8 +181,9 @@ class Reader:
         if pred == "same_rep":
             told = [(a, b, "=") for a, b in ont.same_as]
         else:
-            told = [(a, b, "⊑") for a, b in ont.subclass_of] + \
-                [(a, b, "≡") for a, b in ont.equivalent]
+            told = [(a, b, "⊑") for a, b in ont.subclass_of] + [
+                (a, b, "≡") for a, b in ont.equivalent
+            ]
         near: dict[str, list[tuple[str, str, str]]] = defaultdict(list)
         for a, b, sym in told:
             near[a].append((a, b, sym))
@@ -216,8 +222,9 @@ class Reader:
             spec = kb.platforms[str(c["Platform"])].specs.get(str(c["Topic"]))
             if spec is None:
                 return "topic specification"
-            if pred in ("topic_feature", "topic_filter") or \
-                    (pred == "topic_arg" and c["Entity"] == ""):
+            if pred in ("topic_feature", "topic_filter") or (
+                pred == "topic_arg" and c["Entity"] == ""
+            ):
                 return str(spec.features[int(c["K"]) - 1].span)
             if pred == "topic_arg":
                 return str(spec.features[int(c["K"]) - 1].args[int(c["Position"]) - 1].span)
@@ -239,26 +246,44 @@ class Reader:
             pred, args = "type_of", [args[0], self.typed_member(*(str(a) for a in args)), args[2]]
             c = {"Object": args[1], "Sort": args[2]}
         subject = f"<{args[1]}>" if len(args) > 1 else ""
-        if pred == "subclass_of" and c["Super"] == THING and \
-                (str(c["Sub"]), THING) not in set(owner.ontology.subclass_of):
+        if (
+            pred == "subclass_of"
+            and c["Super"] == THING
+            and (str(c["Sub"]), THING) not in set(owner.ontology.subclass_of)
+        ):
             return f"implicit: every sort is a subclass of owl:Thing ({file})"
-        entailed = owner.ontology.entailed.get((str(args[1]), str(args[2]))) \
-            if pred in ("type_of", "same_as") and len(args) == 3 else None
+        entailed = (
+            owner.ontology.entailed.get((str(args[1]), str(args[2])))
+            if pred in ("type_of", "same_as") and len(args) == 3
+            else None
+        )
         if entailed:
             return f"{entailed} ({file})"
-        if pred == "type_of" and c["Sort"] == THING and \
-                (str(c["Object"]), THING) not in set(owner.ontology.types):
+        if (
+            pred == "type_of"
+            and c["Sort"] == THING
+            and (str(c["Object"]), THING) not in set(owner.ontology.types)
+        ):
             return f"implicit: every object is a Thing ({file})"
-        kind = {"equivalent_class": "owl:equivalentClass", "subclass_of": "rdfs:subClassOf",
-                "type_of": "rdf:type", "same_as": "owl:sameAs", "individual": "NamedIndividual",
-                "sort": "owl:Class", "feature": "subClassOf (…Relation ⊓ …)",
-                "feature_arg": f"subClassOf ∀arg{c.get('Position', '')}",
-                "id_property": "id data property", "name_digits": "digits ending the name",
-                "same_rep": "owl:sameAs closure", "sort_rep": "subClassOf/equivalentClass closure"}
+        kind = {
+            "equivalent_class": "owl:equivalentClass",
+            "subclass_of": "rdfs:subClassOf",
+            "type_of": "rdf:type",
+            "same_as": "owl:sameAs",
+            "individual": "NamedIndividual",
+            "sort": "owl:Class",
+            "feature": "subClassOf (…Relation ⊓ …)",
+            "feature_arg": f"subClassOf ∀arg{c.get('Position', '')}",
+            "id_property": "id data property",
+            "name_digits": "digits ending the name",
+            "same_rep": "owl:sameAs closure",
+            "sort_rep": "subClassOf/equivalentClass closure",
+        }
         return f"{subject} {kind.get(str(pred), str(pred))}, {file}"
 
 
 # ---- replaying clauses ------------------------------------------------------------------------
+
 
 class Replayer:
     def __init__(self, kb: KnowledgeBase, reader: Reader) -> None:
@@ -277,7 +302,8 @@ class Replayer:
             pred, *args = pattern
             self._answers[pattern] = sorted(
                 ((str(pred), *row) for row in self.kb.engine.query(str(pred), *args)),
-                key=lambda row: [(type(v).__name__, v) for v in row])
+                key=lambda row: [(type(v).__name__, v) for v in row],
+            )
         return self._answers[pattern]
 
     def holds(self, fact: Row) -> bool:
@@ -318,8 +344,11 @@ class Replayer:
     def _prove(self, fact: Row, depth: int, path: frozenset[Row]) -> Proof | None:
         pred = str(fact[0])
         if pred not in self.clauses:
-            return Proof(fact, self.reader.text(fact), source=self.reader.source(fact)) \
-                if self.holds(fact) else None
+            return (
+                Proof(fact, self.reader.text(fact), source=self.reader.source(fact))
+                if self.holds(fact)
+                else None
+            )
         key = (fact, depth)
         if key in self._proofs:
             return self._proofs[key]
@@ -340,8 +369,9 @@ class Replayer:
                     return Proof(fact, self.reader.text(fact), rule=rule, children=children)
         return None
 
-    def _children(self, rule: Rule, env: Env, depth: int,
-                  path: frozenset[Row]) -> tuple[Proof, ...] | None:
+    def _children(
+        self, rule: Rule, env: Env, depth: int, path: frozenset[Row]
+    ) -> tuple[Proof, ...] | None:
         out = []
         for item in rule.body:
             if isinstance(item, Comparison):
@@ -382,13 +412,24 @@ class Replayer:
         condition = _instantiate(item, env)
         if item.negated:
             proof = self.prove(condition) if None not in condition else None  # type: ignore[arg-type]
-            return Failure(goal, text, rule, condition, self.reader.text(condition),
-                           negated=True, because=proof)
-        because = self.refute(condition, depth - 1) if depth > 0 and \
-            str(condition[0]) in self.clauses else None
+            return Failure(
+                goal,
+                text,
+                rule,
+                condition,
+                self.reader.text(condition),
+                negated=True,
+                because=proof,
+            )
+        because = (
+            self.refute(condition, depth - 1)
+            if depth > 0 and str(condition[0]) in self.clauses
+            else None
+        )
         nearby = self._nearby(condition) if str(condition[0]) not in self.clauses else ()
-        return Failure(goal, text, rule, condition, self.reader.text(condition), nearby=nearby,
-                       because=because)
+        return Failure(
+            goal, text, rule, condition, self.reader.text(condition), nearby=nearby, because=because
+        )
 
     def _furthest(self, body: tuple[Literal | Comparison, ...], env: Env) -> tuple[int, Env]:
         best = (0, env)
@@ -401,8 +442,7 @@ class Replayer:
                 best = (i, current)
             if i == len(body):
                 return best
-            for extended in reversed(list(itertools.islice(self._solve_one(body[i], current),
-                                                           50))):
+            for extended in reversed(list(itertools.islice(self._solve_one(body[i], current), 50))):
                 stack.append((i + 1, extended))
         return best
 
@@ -414,10 +454,9 @@ class Replayer:
         for i in reversed(range(len(args))):  # the same fact with one argument set free
             if args[i] is None:
                 continue
-            rows = self.rows((pred, *args[:i], None, *args[i + 1:]))
+            rows = self.rows((pred, *args[:i], None, *args[i + 1 :]))
             if rows:
-                return tuple(f"{self.reader.text(r)} [{self.reader.source(r)}]"
-                             for r in rows[:5])
+                return tuple(f"{self.reader.text(r)} [{self.reader.source(r)}]" for r in rows[:5])
         return ()
 
 
@@ -429,8 +468,9 @@ def _instantiate(item: Literal, env: Env) -> Pattern:
     return (item.predicate, *(_value(t, env) for t in item.args))
 
 
-def _unify(terms: tuple[Term, ...], values: tuple[Value | None, ...], env: Env,
-           partial: bool = False) -> Env | None:
+def _unify(
+    terms: tuple[Term, ...], values: tuple[Value | None, ...], env: Env, partial: bool = False
+) -> Env | None:
     out = dict(env)
     for term, value in zip(terms, values, strict=True):
         if value is None:
@@ -447,18 +487,33 @@ def _unify(terms: tuple[Term, ...], values: tuple[Value | None, ...], env: Env,
 
 
 def _compare(op: str, left: Value, right: Value) -> bool:
+    a: Any = left
     try:
-        return {"<": left < right, "<=": left <= right, ">": left > right,  # type: ignore[operator]
-                ">=": left >= right, "==": left == right, "!=": left != right}[op]  # type: ignore[operator]
+        return bool(
+            {
+                "<": a < right,
+                "<=": a <= right,
+                ">": a > right,
+                ">=": a >= right,
+                "==": a == right,
+                "!=": a != right,
+            }[op]
+        )
     except TypeError:
         return False
 
 
 # ---- explanations for a formula -----------------------------------------------------------
 
-def explain(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
-            matches: list[Match], feature: str | None = None,
-            topic: str | None = None) -> Explanation:
+
+def explain(
+    kb: KnowledgeBase,
+    formula: str,
+    ground: list[GroundFeature],
+    matches: list[Match],
+    feature: str | None = None,
+    topic: str | None = None,
+) -> Explanation:
     from .errors import DkError
     from .match import wanted_rows
     from .parse.formula import feature_key
@@ -468,8 +523,10 @@ def explain(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
         wanted_key = feature_key(feature)
         selected = [q for q, g in enumerate(ground) if g.key == wanted_key]
         if not selected:
-            raise DkError(f"{feature} is not a feature of the formula (its features: "
-                          f"{', '.join(str(g.key) for g in ground)})")
+            raise DkError(
+                f"{feature} is not a feature of the formula (its features: "
+                f"{', '.join(str(g.key) for g in ground)})"
+            )
     if topic is not None and not any(topic in p.specs for p in kb.platforms.values()):
         raise DkError(f"no topic {topic!r} on any platform")
     reader = Reader(kb, ground)
@@ -481,8 +538,11 @@ def explain(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
             why = tuple(_why(kb, replay, m) for m in mine)
             why_not: tuple[TopicWhyNot, ...] = ()
             if not mine:
-                platforms = [p for p, plat in kb.platforms.items() if topic in plat.specs] \
-                    if topic else [str(r[1]) for r in replay.rows(("context", kb.local, None))]
+                platforms = (
+                    [p for p, plat in kb.platforms.items() if topic in plat.specs]
+                    if topic
+                    else [str(r[1]) for r in replay.rows(("context", kb.local, None))]
+                )
                 why_not = tuple(w for p in platforms for w in _why_not(kb, replay, q, p, topic))
             features.append(FeatureExplanation(str(ground[q].key), why, why_not))
     return Explanation(formula, tuple(features))
@@ -492,23 +552,39 @@ def _why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
     from .match import padded
     from .request import topic_match
 
-    fact: Row = ("relevant_topic", m.query, m.platform, m.topic, m.feature_index,
-                 *padded(m.objects), *m.ids, *("",) * (3 - len(m.ids)))
+    fact: Row = (
+        "relevant_topic",
+        m.query,
+        m.platform,
+        m.topic,
+        m.feature_index,
+        *padded(m.objects),
+        *m.ids,
+        *("",) * (3 - len(m.ids)),
+    )
     proof = replay.prove(fact)
     assert proof is not None, f"the engine derived {fact} but no clause replays it"
     entry = topic_match(kb, m)
-    return TopicWhy(m.platform, m.topic, entry.filter if entry else (),
-                    _summary(replay.reader, proof), proof)
+    return TopicWhy(
+        m.platform, m.topic, entry.filter if entry else (), _summary(replay.reader, proof), proof
+    )
 
 
-def _why_not(kb: KnowledgeBase, replay: Replayer, q: int, platform: str,
-             topic: str | None) -> list[TopicWhyNot]:
+def _why_not(
+    kb: KnowledgeBase, replay: Replayer, q: int, platform: str, topic: str | None
+) -> list[TopicWhyNot]:
     key = replay.reader.ground[q].key
     candidates = replay.rows(("candidate", q, platform, None, None, None, None, None))
     if not candidates:
         failure = replay.refute(("candidate", q, platform, None, None, None, None, None))
-        return [TopicWhyNot(platform, topic, f"{key} has no candidate on {platform}: "
-                                             f"{_reason(kb, replay, failure)}", failure)]
+        return [
+            TopicWhyNot(
+                platform,
+                topic,
+                f"{key} has no candidate on {platform}: {_reason(kb, replay, failure)}",
+                failure,
+            )
+        ]
     out = []
     for _, _, _, _, g, *objects in candidates:
         arity = len(replay.reader.ground[q].args)
@@ -520,8 +596,9 @@ def _why_not(kb: KnowledgeBase, replay: Replayer, q: int, platform: str,
             reason = f"{mapped} rejected: {_reason(kb, replay, failure)}"
         else:
             failure = replay.refute(("matched_topic", q, platform, topic, None, *objects))
-            reason = f"{_reason(kb, replay, failure)}; {key} maps to {mapped}" + \
-                (f" on {platform}" if platform != kb.local else "")
+            reason = f"{_reason(kb, replay, failure)}; {key} maps to {mapped}" + (
+                f" on {platform}" if platform != kb.local else ""
+            )
         out.append(TopicWhyNot(platform, topic, reason, failure))
     return out
 
@@ -531,8 +608,9 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
     cond = failure.condition
     name = replay.reader.name
     if cond is None:
-        return failure.condition_text + (f" (there is: {failure.nearby[0]})"
-                                         if failure.nearby else "")
+        return failure.condition_text + (
+            f" (there is: {failure.nearby[0]})" if failure.nearby else ""
+        )
     pred, *a = cond
     if failure.negated:
         if pred == "excluded":
@@ -546,13 +624,11 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
     if pred == "feature_candidate":
         return f"{name(a[1])} has no counterpart on {a[0]} (no equivalence reaches it)"
     if pred == "topic_feature" and a[1] is not None:
-        carried = [name(r[4]) for r in replay.rows(("topic_feature", a[0], a[1], None, None,
-                                                    None))]
+        carried = [name(r[4]) for r in replay.rows(("topic_feature", a[0], a[1], None, None, None))]
         return f"{a[1]} carries {', '.join(carried) or 'nothing'}, not {name(a[3])}"
     if pred == "accepts" and None not in a[:4]:
         args = replay.rows(("topic_arg", a[0], a[1], a[2], a[3], None, None, None))
-        said = ", ".join(f"{r[5]} {name(r[6])}" if r[5] != "object" else name(r[6])
-                         for r in args)
+        said = ", ".join(f"{r[5]} {name(r[6])}" if r[5] != "object" else name(r[6]) for r in args)
         source = replay.reader.source(args[0]) if args else ""
         return f"argument {a[3]} is {said} ({source}), not {name(a[4])}"
     if isinstance(failure.because, Failure):
@@ -566,8 +642,9 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
     lines = []
     for node in itertools.islice(proof.find("feature_candidate"), 1):
         _, _, start, end = node.fact
-        chain = _chain(reader, node, str(start), str(end), ("equivalent_class", "bridge",
-                                                            "subclass_of"))
+        chain = _chain(
+            reader, node, str(start), str(end), ("equivalent_class", "bridge", "subclass_of")
+        )
         lines.append(f"feature: {chain}")
     seen = set()
     for node in proof.find("arg_candidate"):
@@ -581,18 +658,33 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
             _, _, topic, _, position, obj = node.fact
         else:  # carries(R, G, I, C, T, K): a sort argument found through C's sorts
             _, _, _, position, obj, topic, _ = node.fact
-        sort_args = [leaf for leaf in node.leaves() if leaf.fact[0] == "topic_arg"
-                     and leaf.fact[5] in ("some", "every")]
+        sort_args = [
+            leaf
+            for leaf in node.leaves()
+            if leaf.fact[0] == "topic_arg" and leaf.fact[5] in ("some", "every")
+        ]
         for told in (leaf for leaf in node.leaves() if leaf.fact[0] == "class_type"):
             if sort_args:
-                chain = _chain(reader, node, str(told.fact[3]), str(sort_args[0].fact[6]),
-                               ("subclass_of", "equivalent_class"))
-                entailed = f" [{told.source}]" if told.source and \
-                    told.source.startswith("entailed") else ""
-                lines.append(f"argument {position} of {topic}: {reader.name(obj)} : {chain}"
-                             f"{entailed}")
-    carried = (f"topic: {leaf.text} [{leaf.source}]" for leaf in proof.leaves()
-               if leaf.fact[0] == "topic_feature")
+                chain = _chain(
+                    reader,
+                    node,
+                    str(told.fact[3]),
+                    str(sort_args[0].fact[6]),
+                    ("subclass_of", "equivalent_class"),
+                )
+                entailed = (
+                    f" [{told.source}]"
+                    if told.source and told.source.startswith("entailed")
+                    else ""
+                )
+                lines.append(
+                    f"argument {position} of {topic}: {reader.name(obj)} : {chain}{entailed}"
+                )
+    carried = (
+        f"topic: {leaf.text} [{leaf.source}]"
+        for leaf in proof.leaves()
+        if leaf.fact[0] == "topic_feature"
+    )
     return tuple(lines) + tuple(dict.fromkeys(carried))
 
 
@@ -601,8 +693,10 @@ def _chain(reader: Reader, node: Proof, start: str, end: str, kinds: tuple[str, 
     edges = []
     for leaf in node.leaves():
         pred, *a = leaf.fact
-        if pred in ("same_rep", "sort_rep") and \
-                ("same_as" if pred == "same_rep" else "subclass_of") in kinds:
+        if (
+            pred in ("same_rep", "sort_rep")
+            and ("same_as" if pred == "same_rep" else "subclass_of") in kinds
+        ):
             edges += reader.told_path(leaf.fact)  # a class's representative: the told links
         if pred not in kinds:
             continue
@@ -629,6 +723,7 @@ def _chain(reader: Reader, node: Proof, start: str, end: str, kinds: tuple[str, 
 
 # ---- rendering -----------------------------------------------------------------------------
 
+
 def _rule_ref(rule: Rule | None) -> str:
     return str(rule.span) if rule else ""
 
@@ -646,8 +741,7 @@ def proof_json(p: Proof) -> dict[str, object]:
 
 
 def failure_json(f: Failure) -> dict[str, object]:
-    out: dict[str, object] = {"goal": f.text, "failed": f.condition_text,
-                              "negated": f.negated}
+    out: dict[str, object] = {"goal": f.text, "failed": f.condition_text, "negated": f.negated}
     if f.rule:
         out["rule"] = _rule_ref(f.rule)
     if f.nearby:
@@ -660,13 +754,34 @@ def failure_json(f: Failure) -> dict[str, object]:
 
 
 def to_json(e: Explanation) -> dict[str, object]:
-    return {"formula": e.formula, "features": [{
-        "feature": f.feature,
-        "why": [{"platform": w.platform, "topic": w.topic, "filter": dict(w.filter),
-                 "summary": list(w.summary), "proof": proof_json(w.proof)} for w in f.why],
-        "why_not": [{"platform": n.platform, "topic": n.topic, "reason": n.reason,
-                     "trace": failure_json(n.trace)} for n in f.why_not]}
-        for f in e.features]}
+    return {
+        "formula": e.formula,
+        "features": [
+            {
+                "feature": f.feature,
+                "why": [
+                    {
+                        "platform": w.platform,
+                        "topic": w.topic,
+                        "filter": dict(w.filter),
+                        "summary": list(w.summary),
+                        "proof": proof_json(w.proof),
+                    }
+                    for w in f.why
+                ],
+                "why_not": [
+                    {
+                        "platform": n.platform,
+                        "topic": n.topic,
+                        "reason": n.reason,
+                        "trace": failure_json(n.trace),
+                    }
+                    for n in f.why_not
+                ],
+            }
+            for f in e.features
+        ],
+    }
 
 
 def to_text(e: Explanation) -> str:
@@ -699,9 +814,12 @@ def _failure_lines(f: Failure, indent: int, out: list[str]) -> None:
     pad = " " * indent
     rule = f"  [{_rule_ref(f.rule)}]" if f.rule else ""
     verb = "holds" if f.negated else "fails"
-    out.append(f"{pad}{f.text}: {'' if f.negated else 'no '}{f.condition_text}"
-               f"{' (which excludes it)' if f.negated else ''}{rule}".replace(
-                   f": no no {f.condition_text}", f": no {f.condition_text}"))
+    out.append(
+        f"{pad}{f.text}: {'' if f.negated else 'no '}{f.condition_text}"
+        f"{' (which excludes it)' if f.negated else ''}{rule}".replace(
+            f": no no {f.condition_text}", f": no {f.condition_text}"
+        )
+    )
     out += [f"{pad}  there is: {n}" for n in f.nearby]
     if isinstance(f.because, Failure):
         _failure_lines(f.because, indent + 2, out)
@@ -712,7 +830,7 @@ def _failure_lines(f: Failure, indent: int, out: list[str]) -> None:
 
 def to_dot(e: Explanation) -> str:
     """Graphviz: one cluster per feature, proofs as trees, failures as red chains."""
-    lines = ["digraph explanation {", "  rankdir=LR;", '  node [shape=box, fontsize=10];']
+    lines = ["digraph explanation {", "  rankdir=LR;", "  node [shape=box, fontsize=10];"]
     counter = itertools.count()
 
     def quote(text: str) -> str:  # real newlines in `text` become DOT line breaks
@@ -746,8 +864,9 @@ def to_dot(e: Explanation) -> str:
             lines.append(f"  w{i}_{root} -> {root};")
         for n in f.why_not:
             root = failure(n.trace)
-            lines.append(f"  x{i}_{root} [label={quote('✘ ' + n.reason)}, shape=ellipse, "
-                         f"color=red];")
+            lines.append(
+                f"  x{i}_{root} [label={quote('✘ ' + n.reason)}, shape=ellipse, color=red];"
+            )
             lines.append(f"  x{i}_{root} -> {root};")
         lines.append("  }")
     lines.append("}")

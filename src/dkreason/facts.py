@@ -61,20 +61,26 @@ def ontology_facts(ont: Ontology) -> Facts:
     out["equivalent_class"] = [(p, a, b) for a, b in ont.equivalent]
     for f, sig in sorted(ont.features.items()):
         out["feature"].append((p, f, sig.arity))
-        out["feature_arg"] += [(p, f, i, s) for i, allowed in enumerate(sig.arg_sorts, 1)
-                               for s in allowed]
+        out["feature_arg"] += [
+            (p, f, i, s) for i, allowed in enumerate(sig.arg_sorts, 1) for s in allowed
+        ]
     out["individual"] = [(p, o) for o in sorted(ont.individuals)]
     reps = same_classes(ont)
     out["same_as"] = [(p, a, b) for a, b in ont.same_as]
     out["same_rep"] = [(p, o, r) for o, r in sorted(reps.items())]
-    out["class_type"] = [(p, r, c) for r, c in sorted({(reps.get(o, o), c)
-                                                      for o, c in told_types(ont)})]
-    steps = [*ont.subclass_of, *((s, THING) for s in sorts - has_super - {THING}),
-             *(e for a, b in ont.equivalent for e in ((a, b), (b, a)))]
+    out["class_type"] = [
+        (p, r, c) for r, c in sorted({(reps.get(o, o), c) for o, c in told_types(ont)})
+    ]
+    steps = [
+        *ont.subclass_of,
+        *((s, THING) for s in sorts - has_super - {THING}),
+        *(e for a, b in ont.equivalent for e in ((a, b), (b, a))),
+    ]
     out["sort_rep"] = [(p, c, r) for c, r in sorted(equivalent_sorts(sorts, steps).items())]
     out["id_property"] = [(p, o, v) for o, v in sorted(ont.ids.items(), key=str)]
-    out["name_digits"] = [(p, o, d) for o in sorted(ont.individuals)
-                          if (d := name_digits(local_name(o))) is not None]
+    out["name_digits"] = [
+        (p, o, d) for o in sorted(ont.individuals) if (d := name_digits(local_name(o))) is not None
+    ]
     return out
 
 
@@ -108,8 +114,7 @@ def same_classes(ont: Ontology) -> dict[str, str]:
     classes: dict[str, list[str]] = defaultdict(list)
     for o in parent:
         classes[root(o)].append(o)
-    return {o: name for members in classes.values() for name in [_named(members)]
-            for o in members}
+    return {o: name for members in classes.values() for name in [_named(members)] for o in members}
 
 
 def equivalent_sorts(sorts: Iterable[str], steps: list[tuple[str, str]]) -> dict[str, str]:
@@ -171,8 +176,9 @@ def spec_facts(platform: str, spec: ResolvedSpec) -> Facts:
     out["topic"] = [(platform, spec.name, spec.msgtype)]
     for k, f in enumerate(spec.features, 1):
         out["topic_feature"].append((platform, spec.name, k, f.iri, f.field))
-        out["topic_arg"] += [(platform, spec.name, k, i, a.kind, a.iri, a.id_field)
-                             for i, a in enumerate(f.args, 1)]
+        out["topic_arg"] += [
+            (platform, spec.name, k, i, a.kind, a.iri, a.id_field) for i, a in enumerate(f.args, 1)
+        ]
         fields = [a.id_field for a in f.args]
         out["topic_filter"].append((platform, spec.name, k, *fields, *[""] * (3 - len(fields))))
     if spec.entity is not None:

@@ -62,8 +62,11 @@ class Platform:
 
 def load_platforms(config: Config) -> dict[str, Platform]:
     """The platforms whose files the config names (a live federation fetches the others)."""
-    return {files.name: read_platform(files, config.imports)
-            for files in config.platforms if files.ontology}
+    return {
+        files.name: read_platform(files, config.imports)
+        for files in config.platforms
+        if files.ontology
+    }
 
 
 def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
@@ -98,9 +101,14 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
         return found
 
     parts: list[bytes | str] = [
-        files.name, *(str(p.resolve()) for p in files.ontology), str(specs), spec_data,
-        str(files.skip_imports), files.reasoning,
-        *(f"{k}={v.resolve()}" for k, v in sorted(imports.items()))]
+        files.name,
+        *(str(p.resolve()) for p in files.ontology),
+        str(specs),
+        spec_data,
+        str(files.skip_imports),
+        files.reasoning,
+        *(f"{k}={v.resolve()}" for k, v in sorted(imports.items())),
+    ]
     platform, _ = cache.cached("platform", parts, parsed, lambda found: cache.unchanged(found[1]))
     return platform
 
@@ -108,17 +116,25 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
 def load_mappings(config: Config) -> tuple[Mapping_, ...]:
     from .parse.cowl import read_bridge_rules
 
-    return tuple(Mapping_(m.source, m.target, str(m.file), read_bridge_rules(m.file))
-                 for m in config.mappings)
+    return tuple(
+        Mapping_(m.source, m.target, str(m.file), read_bridge_rules(m.file))
+        for m in config.mappings
+    )
 
 
 _CHECK_SLICE = 500
 
 
 class KnowledgeBase:
-    def __init__(self, local: str, platforms: dict[str, Platform],
-                 mappings: tuple[Mapping_, ...], policy: tuple[Path, ...] | None = None,
-                 config: Config | None = None, online: set[str] | None = None) -> None:
+    def __init__(
+        self,
+        local: str,
+        platforms: dict[str, Platform],
+        mappings: tuple[Mapping_, ...],
+        policy: tuple[Path, ...] | None = None,
+        config: Config | None = None,
+        online: set[str] | None = None,
+    ) -> None:
         """`platforms` are those whose knowledge is at hand; a mapping waits until both of its
         platforms are (live federations add them as they appear).  `policy`: the rule files
         (default: the shipped ones).  `online`: the platforms whose topics are used (default:
@@ -135,10 +151,13 @@ class KnowledgeBase:
         for path in (SCHEMA, *(shipped_policy() if policy is None else policy)):
             self.engine.load_file(path)
         self.engine.check_policy()
-        facts = merge(STATIC, {"local": [(local,)]},
-                      *(self._platform_facts(p) for p in platforms.values()),
-                      self._mapping_facts(), {"online": [
-                          (p,) for p in platforms if online is None or p in online]})
+        facts = merge(
+            STATIC,
+            {"local": [(local,)]},
+            *(self._platform_facts(p) for p in platforms.values()),
+            self._mapping_facts(),
+            {"online": [(p,) for p in platforms if online is None or p in online]},
+        )
         self._derive(facts)
         self._warn()
 
@@ -169,46 +188,70 @@ class KnowledgeBase:
 
         def whole(found: object) -> bool:  # a damaged entry is derived again
             arity = self.engine.views
-            return isinstance(found, dict) and found.keys() == arity.keys() and all(
-                isinstance(row, tuple) and len(row) == arity[name]
-                for name, rows in found.items() for row in rows)
+            return (
+                isinstance(found, dict)
+                and found.keys() == arity.keys()
+                and all(
+                    isinstance(row, tuple) and len(row) == arity[name]
+                    for name, rows in found.items()
+                    for row in rows
+                )
+            )
 
-        views = cache.cached("views", [version("pyDatalog"), *self.engine.texts,
-                                       content.digest()], compute, whole)
+        views = cache.cached(
+            "views", [version("pyDatalog"), *self.engine.texts, content.digest()], compute, whole
+        )
         if not computed:
             self.engine.restore(views)
 
     def _platform_facts(self, p: Platform) -> Facts:
-        return merge({"platform": [(p.name,)]}, ontology_facts(p.ontology),
-                     *(spec_facts(p.name, s) for s in p.resolved.values()))
+        return merge(
+            {"platform": [(p.name,)]},
+            ontology_facts(p.ontology),
+            *(spec_facts(p.name, s) for s in p.resolved.values()),
+        )
 
     def _mapping_facts(self) -> Facts:
         """Facts of the pending mappings whose platforms are both present, now active."""
-        ready = tuple(m for m in self.pending
-                      if m.source in self.platforms and m.target in self.platforms)
+        ready = tuple(
+            m for m in self.pending if m.source in self.platforms and m.target in self.platforms
+        )
         facts = self._facts_of(ready, check=True)
         self.pending = tuple(m for m in self.pending if m not in ready)
         self.mappings += ready
         return facts
 
     def _facts_of(self, mappings: tuple[Mapping_, ...], check: bool = False) -> Facts:
-        return {"mapping": [(m.source, m.target) for m in mappings],
-                "bridge": [(m.source, r.source, m.target, r.target, r.type) for m in mappings
-                           for r in (self._checked(m) if check else m.rules)]}
+        return {
+            "mapping": [(m.source, m.target) for m in mappings],
+            "bridge": [
+                (m.source, r.source, m.target, r.target, r.type)
+                for m in mappings
+                for r in (self._checked(m) if check else m.rules)
+            ],
+        }
 
     def _warn(self) -> None:
         # The platforms the policy searches besides the local one (rules/federation.dl's
         # context); a policy of one's own that defines none is taken at its word.
-        joined = {str(r) for _, r in self.engine.query("context", self.local, None)} \
-            if any(r.head.predicate == "context" for r in self.engine.rules) \
+        joined = (
+            {str(r) for _, r in self.engine.query("context", self.local, None)}
+            if any(r.head.predicate == "context" for r in self.engine.rules)
             else set(self.platforms)
-        self.warnings = [f"platform {name} is joined to {self.local} by no mapping file nor a "
-                         f"shared vocabulary: its topics are not used" for name in self.platforms
-                         if name != self.local and name not in joined]
+        )
+        self.warnings = [
+            f"platform {name} is joined to {self.local} by no mapping file nor a "
+            f"shared vocabulary: its topics are not used"
+            for name in self.platforms
+            if name != self.local and name not in joined
+        ]
         self.warnings += [note for p in self.platforms.values() for note in p.notes]
-        self.warnings += [f"mapping {m.source}→{m.target} ({m.file}) does not involve the "
-                          f"local platform {self.local}: unused" for m in self.mappings
-                          if self.local not in (m.source, m.target)]
+        self.warnings += [
+            f"mapping {m.source}→{m.target} ({m.file}) does not involve the "
+            f"local platform {self.local}: unused"
+            for m in self.mappings
+            if self.local not in (m.source, m.target)
+        ]
 
     @classmethod
     def from_config(cls, path: Path) -> KnowledgeBase:
@@ -225,9 +268,11 @@ class KnowledgeBase:
         at_hand = load_platforms(config)
         for files in config.platforms:
             if files.name not in at_hand:
-                raise ParseError(f"[platforms.{files.name}] has no ontology file: its knowledge "
-                                 f"comes from the network (dkreason monitor --live)",
-                                 Span(str(path)))
+                raise ParseError(
+                    f"[platforms.{files.name}] has no ontology file: its knowledge "
+                    f"comes from the network (dkreason monitor --live)",
+                    Span(str(path)),
+                )
         return cls(config.local, at_hand, load_mappings(config), config.rules, config)
 
     # ---- specs -------------------------------------------------------------------------
@@ -262,8 +307,7 @@ class KnowledgeBase:
             raise DkError(f"platform {p.name} is already known")
         self.platforms[p.name] = p
         try:
-            facts = merge(self._platform_facts(p), self._mapping_facts(),
-                          {"online": [(p.name,)]})
+            facts = merge(self._platform_facts(p), self._mapping_facts(), {"online": [(p.name,)]})
         except DkError:
             del self.platforms[p.name]
             raise
@@ -278,9 +322,14 @@ class KnowledgeBase:
             raise DkError(f"{name} is the local platform: its knowledge stays")
         p = self.platform(name)
         gone = tuple(m for m in self.mappings if name in (m.source, m.target))
-        self._change(merge(self._platform_facts(p), self._facts_of(gone),
-                           {"online": [(name,)] if self.is_online(name) else []}),
-                     self.engine.retract_rows)
+        self._change(
+            merge(
+                self._platform_facts(p),
+                self._facts_of(gone),
+                {"online": [(name,)] if self.is_online(name) else []},
+            ),
+            self.engine.retract_rows,
+        )
         del self.platforms[name]
         self.mappings = tuple(m for m in self.mappings if m not in gone)
         self.pending += gone
@@ -291,8 +340,10 @@ class KnowledgeBase:
         """Whether a known platform's topics are used; only what reads `online` is redone."""
         self.platform(name)
         if online != self.is_online(name):
-            self._change({"online": [(name,)]},
-                         self.engine.assert_rows if online else self.engine.retract_rows)
+            self._change(
+                {"online": [(name,)]},
+                self.engine.assert_rows if online else self.engine.retract_rows,
+            )
 
     def object_id(self, platform: str, iri: str) -> IdValue | None:
         """The id selecting the object in topic messages, by the policy's `object_id`."""
@@ -309,8 +360,11 @@ class KnowledgeBase:
         new = {s.name: s for s in specs}
         for spec in new.values():
             resolve_spec(p, spec)
-        removed = [n for n, s in p.specs.items()
-                   if n not in new or without_spans(s) != without_spans(new[n])]
+        removed = [
+            n
+            for n, s in p.specs.items()
+            if n not in new or without_spans(s) != without_spans(new[n])
+        ]
         added = [n for n in new if n not in p.specs or n in removed]
         for name in removed:
             self.remove_spec(platform, name)
@@ -318,25 +372,28 @@ class KnowledgeBase:
             self.add_spec(platform, new[name])
         return added, removed
 
-    def add_object(self, platform: str, name: str, sort: str, id_: IdValue | None = None
-                   ) -> str:
+    def add_object(self, platform: str, name: str, sort: str, id_: IdValue | None = None) -> str:
         """A new object of a sort (an rdf:type axiom); its IRI.  Matching sees it at once."""
         p = self.platform(platform)
         sort_iri = p.names.resolve(sort, ("sort",), Span("<api>"))
-        ns = sort_iri[:len(sort_iri) - len(local_name(sort_iri))]
+        ns = sort_iri[: len(sort_iri) - len(local_name(sort_iri))]
         iri = name[1:-1] if name.startswith("<") else ns + name
         kinds = p.names.kinds(iri)
         if kinds and "object" not in kinds:
-            raise NameError_(f"{name!r} is {article(min(kinds))} on {platform}, "
-                             f"not an object", Span("<api>"))
+            raise NameError_(
+                f"{name!r} is {article(min(kinds))} on {platform}, not an object", Span("<api>")
+            )
         if (iri, sort_iri) in p.ontology.types:
             return iri
         if iri in p.ontology.individuals:  # a further sort for its sameAs class
             [(_, _, rep)] = self.engine.query("same_rep", platform, iri, None)
             facts: Facts = {"class_type": [(platform, rep, sort_iri)]}
         else:  # a new object: a class of its own
-            facts = {"class_type": [(platform, iri, sort_iri)], "individual": [(platform, iri)],
-                     "same_rep": [(platform, iri, iri)]}
+            facts = {
+                "class_type": [(platform, iri, sort_iri)],
+                "individual": [(platform, iri)],
+                "same_rep": [(platform, iri, iri)],
+            }
             digits = name_digits(local_name(iri))
             if digits is not None:
                 facts["name_digits"] = [(platform, iri, digits)]
@@ -363,26 +420,41 @@ class KnowledgeBase:
         """Every argument of the named specs fits its feature's signature (rules/signature.dl),
         each distinct use of an object or sort asked once: 100k specs naming a few objects
         cost a few checks."""
-        uses: list[Row] = list(dict.fromkeys((p.name, f.iri, i, a.kind, a.iri) for name in names
-                                  for f in p.resolved[name].features
-                                  for i, a in enumerate(f.args, 1)))
+        uses: list[Row] = list(
+            dict.fromkeys(
+                (p.name, f.iri, i, a.kind, a.iri)
+                for name in names
+                for f in p.resolved[name].features
+                for i, a in enumerate(f.args, 1)
+            )
+        )
         if not uses:
             return
         # Asked in slices: an ask's tables are ~5 KB a use, and a load's peak memory is the
         # heap plus the largest of them (5k specs: 34 MB at once, 4 MB a slice).
-        fitting = {row for at in range(0, len(uses), _CHECK_SLICE)
-                   for row in self.engine.ask("spec_arg_fits",
-                                              {"spec_arg": uses[at:at + _CHECK_SLICE]},
-                                              p.name, None, None, None, None)}
+        fitting = {
+            row
+            for at in range(0, len(uses), _CHECK_SLICE)
+            for row in self.engine.ask(
+                "spec_arg_fits",
+                {"spec_arg": uses[at : at + _CHECK_SLICE]},
+                p.name,
+                None,
+                None,
+                None,
+                None,
+            )
+        }
         for name in names:
             spec, resolved = p.specs[name], p.resolved[name]
             for feature, rfeature in zip(spec.features, resolved.features, strict=True):
-                for i, (arg, rarg) in enumerate(zip(feature.args, rfeature.args,
-                                                    strict=True), 1):
+                for i, (arg, rarg) in enumerate(zip(feature.args, rfeature.args, strict=True), 1):
                     if (p.name, rfeature.iri, i, rarg.kind, rarg.iri) not in fitting:
-                        raise SortError(f"topic {name}: argument {i} of {feature.name} "
-                                        f"does not fit: {self.misfit(p, rfeature.iri, i, rarg)}",
-                                        arg.span)
+                        raise SortError(
+                            f"topic {name}: argument {i} of {feature.name} "
+                            f"does not fit: {self.misfit(p, rfeature.iri, i, rarg)}",
+                            arg.span,
+                        )
 
     def misfit(self, p: Platform, feature: str, i: int, arg: ResolvedArg | str) -> str:
         """Why an object or sort does not fit argument i of a feature, in one phrase."""
@@ -392,16 +464,19 @@ class KnowledgeBase:
             iri = arg if isinstance(arg, str) else arg.iri
             sorts = self.sorts_of(p.name, iri)
             shown = ", ".join(local_name(s) for s in sorts) or "of no sort"
-            return (f"{local_name(iri)} is a{'n' if shown[0] in 'AEIOU' else ''} {shown}, "
-                    f"{fname} needs {allowed}")
+            return (
+                f"{local_name(iri)} is a{'n' if shown[0] in 'AEIOU' else ''} {shown}, "
+                f"{fname} needs {allowed}"
+            )
         return f"sort {local_name(arg.iri)} is not subsumed by {allowed}, which {fname} needs"
 
     def sorts_of(self, platform: str, iri: str) -> list[str]:
         """The most specific told sorts of an object, for messages."""
         ont = self.platform(platform).ontology
         told = sorted({c for o, c in ont.types if o == iri})
-        return told or sorted({str(s) for (_, _, s) in self.engine.query("is_a", platform, iri,
-                                                                           None)})
+        return told or sorted(
+            {str(s) for (_, _, s) in self.engine.query("is_a", platform, iri, None)}
+        )
 
     # ---- mappings ----------------------------------------------------------------------
 
@@ -412,22 +487,34 @@ class KnowledgeBase:
                 want = "individual" if rule.type == "same" else "class"
                 found = iri in (ont.individuals if rule.type == "same" else ont.classes)
                 if not found:
-                    other = "a class" if iri in ont.classes else \
-                        "an individual" if iri in ont.individuals else "absent"
-                    raise ParseError(f"bridge rule {n} ({rule.type}): {side} <{iri}> is {other} "
-                                     f"in {ont.platform} ({ont.file}), expected {article(want)}",
-                                     rule.span)
+                    other = (
+                        "a class"
+                        if iri in ont.classes
+                        else "an individual"
+                        if iri in ont.individuals
+                        else "absent"
+                    )
+                    raise ParseError(
+                        f"bridge rule {n} ({rule.type}): {side} <{iri}> is {other} "
+                        f"in {ont.platform} ({ont.file}), expected {article(want)}",
+                        rule.span,
+                    )
         return m.rules
 
 
 def with_object(ont: Ontology, iri: str, sort: str, id_: IdValue | None) -> Ontology:
     """`ont` with one more rdf:type axiom (and the object's id, if given)."""
-    return replace(ont, individuals=ont.individuals | {iri}, types=(*ont.types, (iri, sort)),
-                   ids=dict(ont.ids) | ({iri: id_} if id_ is not None else {}))
+    return replace(
+        ont,
+        individuals=ont.individuals | {iri},
+        types=(*ont.types, (iri, sort)),
+        ids=dict(ont.ids) | ({iri: id_} if id_ is not None else {}),
+    )
 
 
-def make_platform(ontology: Ontology, specs: Iterable[TopicSpec],
-                  specs_path: Path | None = None) -> Platform:
+def make_platform(
+    ontology: Ontology, specs: Iterable[TopicSpec], specs_path: Path | None = None
+) -> Platform:
     """A platform's knowledge, each spec's names resolved (a bad one raises, naming it)."""
     platform = Platform(ontology, _name_index(ontology), specs_path=specs_path)
     for spec in specs:
@@ -436,12 +523,16 @@ def make_platform(ontology: Ontology, specs: Iterable[TopicSpec],
 
 
 def _name_index(ont: Ontology) -> NameIndex:
-    return NameIndex(ont.platform, ont.prefixes, {
-        "feature": ont.features.keys(), "sort": ont.sorts, "object": ont.individuals})
+    return NameIndex(
+        ont.platform,
+        ont.prefixes,
+        {"feature": ont.features.keys(), "sort": ont.sorts, "object": ont.individuals},
+    )
 
 
 def resolve_spec(p: Platform, spec: TopicSpec) -> ResolvedSpec:
     """Names → IRIs and arity check; well-sortedness is left to the rules."""
+
     def arg(a: TopicArg) -> ResolvedArg:
         kind: tuple[Kind, ...] = ("object",) if a.kind == "object" else ("sort",)
         return ResolvedArg(a.kind, p.names.resolve(a.name, kind, a.span), a.id_field or "")
@@ -451,8 +542,11 @@ def resolve_spec(p: Platform, spec: TopicSpec) -> ResolvedSpec:
         iri = p.names.resolve(f.name, ("feature",), f.span)
         arity = p.ontology.features[iri].arity
         if len(f.args) != arity:
-            raise SortError(f"topic {spec.name}: {f.name} takes {arity} argument"
-                            f"{'s' if arity != 1 else ''}, not {len(f.args)}", f.span)
+            raise SortError(
+                f"topic {spec.name}: {f.name} takes {arity} argument"
+                f"{'s' if arity != 1 else ''}, not {len(f.args)}",
+                f.span,
+            )
         features.append(ResolvedFeature(iri, f.field, tuple(arg(a) for a in f.args)))
     entity = arg(spec.entity) if spec.entity is not None else None
     return ResolvedSpec(spec.name, spec.msgtype, tuple(features), entity)

@@ -44,8 +44,9 @@ class KnowledgeManager:
         """The stream request for `formula`: every ground feature and the topics to merge."""
         return self.request(self.plan(formula))
 
-    def explain(self, formula: str, feature: str | None = None,
-                topic: str | None = None) -> Explanation:
+    def explain(
+        self, formula: str, feature: str | None = None, topic: str | None = None
+    ) -> Explanation:
         """Why each topic of the request matched; for a feature without topics, or a named
         topic that was not chosen, the closest candidates and the first condition that failed."""
         from .explain import explain
@@ -55,8 +56,12 @@ class KnowledgeManager:
         matches, _ = match(self.kb, ground)
         return explain(self.kb, formula, ground, matches, feature, topic)
 
-    def monitor(self, formulas: str | Sequence[str | Parsed], source: Source | str | Path,
-                policy: StreamPolicy | None = None) -> Iterator[Event]:
+    def monitor(
+        self,
+        formulas: str | Sequence[str | Parsed],
+        source: Source | str | Path,
+        policy: StreamPolicy | None = None,
+    ) -> Iterator[Event]:
         """Verdicts and stream-constraint violations as they happen, over a recording (MCAP,
         ROS 1 bag, rosbag2 folder, JSON lines) or any other `Source`."""
         from .monitor import Monitor
@@ -64,8 +69,9 @@ class KnowledgeManager:
         from .stream.sources import open_source
 
         opened = source if not isinstance(source, str | Path) else open_source(Path(source))
-        return Monitor(self, [formulas] if isinstance(formulas, str) else formulas,
-                       policy or StreamPolicy()).run(opened)
+        return Monitor(
+            self, [formulas] if isinstance(formulas, str) else formulas, policy or StreamPolicy()
+        ).run(opened)
 
     # ---- topic specifications ----------------------------------------------------------
 
@@ -74,6 +80,7 @@ class KnowledgeManager:
         p = self.kb.platform(platform or self.local)
         if isinstance(spec, str):
             from .parse.sslt import parse_text
+
             parsed = parse_text(spec, "<topic>").specs
             if len(parsed) != 1:
                 raise DkError(f"add_topic takes one topic specification, got {len(parsed)}")
@@ -99,8 +106,10 @@ class KnowledgeManager:
     def get_topic_specification(self, name: str, platform: str | None = None) -> TopicSpec:
         p = self.kb.platform(platform or self.local)
         if name not in p.specs:
-            raise NameError_(f"no topic {name!r} on {p.name} (topics: "
-                             f"{', '.join(p.specs) or 'none'})", Span("<api>"))
+            raise NameError_(
+                f"no topic {name!r} on {p.name} (topics: {', '.join(p.specs) or 'none'})",
+                Span("<api>"),
+            )
         return p.specs[name]
 
     def list_topic_specifications(self, platform: str | None = None) -> list[TopicSpec]:
@@ -124,8 +133,9 @@ class KnowledgeManager:
 
     # ---- persistence: the file is edited through its parsed model (parse/specedit.py) ----
 
-    def _persist(self, p: Platform, *, added: TopicSpec | None = None,
-                 removed: str | None = None) -> None:
+    def _persist(
+        self, p: Platform, *, added: TopicSpec | None = None, removed: str | None = None
+    ) -> None:
         if p.specs_path is not None:
             from .parse.specedit import edit
 

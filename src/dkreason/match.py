@@ -62,8 +62,10 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
         elif c["Answer"] == "rejected":
             rejected.append(Rejected(q, platform, what, objects))
         else:
-            raise MissingIdError(f"object {local_name(str(c['Arg1']))} on {platform} has no id "
-                                 f"(no id property and no digits ending its name), but topic "
-                                 f"{what} filters on {c['Filter1']}",
-                                 Span(kb.platforms[platform].ontology.file))
+            raise MissingIdError(
+                f"object {local_name(str(c['Arg1']))} on {platform} has no id "
+                f"(no id property and no digits ending its name), but topic "
+                f"{what} filters on {c['Filter1']}",
+                Span(kb.platforms[platform].ontology.file),
+            )
     return matches, rejected

@@ -19,6 +19,7 @@ IdValue = int | str
 
 # ---- topic specifications (SSL_T, thesis listing 4.2) -------------------------------------
 
+
 @dataclass(frozen=True, slots=True)
 class TopicArg:
     """One argument of a topic feature, or the entity of a sort/object topic.
@@ -60,6 +61,7 @@ class TopicSpec:
 
 
 # ---- ontologies and mappings ----------------------------------------------------------------
+
 
 @dataclass(frozen=True, slots=True)
 class Signature:
@@ -121,6 +123,7 @@ class Mapping_:
 
 # ---- formulas: the features they need -------------------------------------------------------
 
+
 class FeatureKey(NamedTuple):
     """A ground feature as the state stream names it (`Close[uav1, uav2]`): made from typed
     parts, never parsed from text.  A named tuple, so states (dicts keyed by it) hash it in C
@@ -176,6 +179,7 @@ class GroundFeature:
 
 # ---- the stream request (thesis 5.6: state stream → features → topics → arguments) ---------
 
+
 @dataclass(frozen=True, slots=True)
 class TopicMatch:
     """A topic to merge for a feature: where to read the value, which messages to keep."""
@@ -190,8 +194,12 @@ class TopicMatch:
 
     def to_json(self, local: str) -> dict[str, object]:
         out: dict[str, object] = {
-            "platform": self.platform, "topic": self.topic, "msgtype": self.msgtype,
-            "field": self.field, "filter": dict(self.filter)}
+            "platform": self.platform,
+            "topic": self.topic,
+            "msgtype": self.msgtype,
+            "field": self.field,
+            "filter": dict(self.filter),
+        }
         if self.platform != local:
             out["as"] = {"feature": self.as_feature, "args": list(self.as_args)}
         return out
@@ -214,9 +222,17 @@ class StreamRequest:
     namespaces: tuple[tuple[str, str], ...] = ()  # platform → ROS namespace, where set
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"formula": self.formula, "features": [
-            {"feature": f.feature.name, "args": list(f.feature.args),
-             "topics": [t.to_json(self.local) for t in f.topics]} for f in self.features]}
+        out: dict[str, Any] = {
+            "formula": self.formula,
+            "features": [
+                {
+                    "feature": f.feature.name,
+                    "args": list(f.feature.args),
+                    "topics": [t.to_json(self.local) for t in f.topics],
+                }
+                for f in self.features
+            ],
+        }
         if self.warnings:
             out["warnings"] = list(self.warnings)
         return out

@@ -40,8 +40,14 @@ class _Group:
 class Monitor:
     """Formulas planned once (parsed, checked, expanded), then states in, verdicts out."""
 
-    def __init__(self, km: KnowledgeManager, formulas: Sequence[str | Parsed],
-                 policy: StreamPolicy, *, keep_states: bool = False) -> None:
+    def __init__(
+        self,
+        km: KnowledgeManager,
+        formulas: Sequence[str | Parsed],
+        policy: StreamPolicy,
+        *,
+        keep_states: bool = False,
+    ) -> None:
         self.km, self.policy, self.keep_states = km, policy, keep_states
         self.plan = km.plan(formulas)
         self.request = km.request(self.plan)
@@ -71,14 +77,21 @@ class Monitor:
         use in the formulas is checked against its fields' types before any message."""
         used = feature_uses((f.text, f.tree) for f in self.plan.formulas)
         self.processor = StreamProcessor(
-            self.request, self.policy, source, self._on_state, self.pending.append,
-            frozenset(k for k, (use, _) in used.items() if use == "string"))
+            self.request,
+            self.policy,
+            source,
+            self._on_state,
+            self.pending.append,
+            frozenset(k for k, (use, _) in used.items() if use == "string"),
+        )
         for k, (use, text) in used.items():
             for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
                 if kind != use:
-                    raise DkError(f"{text}: {k} is read from {topic} {field}, "
-                                  f"{_article(kind, ros_type)}, but the formula uses it as "
-                                  f"{USE[use]}")
+                    raise DkError(
+                        f"{text}: {k} is read from {topic} {field}, "
+                        f"{_article(kind, ros_type)}, but the formula uses it as "
+                        f"{USE[use]}"
+                    )
         return self.processor
 
     def _begin(self, formulas: list[FormulaPlan]) -> None:
@@ -95,8 +108,9 @@ class Monitor:
             self.waiting.remove(f)
         self.steps.clear()
 
-    def _on_state(self, time: int, values: dict[FeatureKey, Any],
-                  fresh: tuple[FeatureKey, ...] | None = None) -> None:
+    def _on_state(
+        self, time: int, values: dict[FeatureKey, Any], fresh: tuple[FeatureKey, ...] | None = None
+    ) -> None:
         if self.keep_states:
             self.states.append((time, dict(values)))
         if self.waiting:
@@ -113,8 +127,9 @@ class Monitor:
                 decided = [*decided, *out]
         if decided:
             self.decided += len(decided)
-            self.pending.extend(in_seconds(v) for v in
-                                sorted(decided, key=lambda v: self.order[v.formula]))
+            self.pending.extend(
+                in_seconds(v) for v in sorted(decided, key=lambda v: self.order[v.formula])
+            )
 
     def _due(self, fresh: tuple[FeatureKey, ...] | None) -> Iterable[_Group]:
         """The groups whose own state this is, in the order they began."""
@@ -145,19 +160,29 @@ class Monitor:
         assert self.processor is not None
         self.processor.finish(end)
         settled = [v for g in self.groups.values() for v in g.progressor.finish()]
-        self.pending.extend(in_seconds(v) for v in sorted(settled,
-                                                          key=lambda v: self.order[v.formula]))
+        self.pending.extend(
+            in_seconds(v) for v in sorted(settled, key=lambda v: self.order[v.formula])
+        )
         for f in self.waiting:  # never judged: some feature never had a value
-            missing = ", ".join(str(g.key) for g in f.ground
-                                if not any(s.get(g.key) is not None for _, s in self.states))
-            self.pending.append(Verdict(
-                f.text, None, None, True, "no state had a value for every feature it reads"
-                + (f" (never seen: {missing})" if missing and self.keep_states else "")))
+            missing = ", ".join(
+                str(g.key)
+                for g in f.ground
+                if not any(s.get(g.key) is not None for _, s in self.states)
+            )
+            self.pending.append(
+                Verdict(
+                    f.text,
+                    None,
+                    None,
+                    True,
+                    "no state had a value for every feature it reads"
+                    + (f" (never seen: {missing})" if missing and self.keep_states else ""),
+                )
+            )
         self.waiting = []
         return self.events()
 
-    def run(self, source: Source, progress: Callable[[int], None] | None = None
-            ) -> Iterator[Event]:
+    def run(self, source: Source, progress: Callable[[int], None] | None = None) -> Iterator[Event]:
         """Events as they happen: violations as seen, verdicts as decided, the rest at the end.
         An error in the source comes after every event decided before it."""
         try:
@@ -190,10 +215,10 @@ def _article(kind: str, ros_type: str) -> str:
 
 def in_seconds(v: Verdict) -> Verdict:
     """The progressor runs in nanoseconds; people read seconds."""
-    unknown = tuple(dataclasses.replace(u, start=seconds(u.start), end=seconds(u.end))
-                    for u in v.unknown)
-    return dataclasses.replace(v, time=None if v.time is None else seconds(v.time),
-                               unknown=unknown)
+    unknown = tuple(
+        dataclasses.replace(u, start=seconds(u.start), end=seconds(u.end)) for u in v.unknown
+    )
+    return dataclasses.replace(v, time=None if v.time is None else seconds(v.time), unknown=unknown)
 
 
 def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
@@ -206,8 +231,13 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     keys = [f.feature.key for f in monitor.request.features]
-    fig, axes = plt.subplots(max(len(keys), 1), 1, sharex=True, squeeze=False,
-                             figsize=(10, 1.5 * max(len(keys), 1) + 1.6))
+    fig, axes = plt.subplots(
+        max(len(keys), 1),
+        1,
+        sharex=True,
+        squeeze=False,
+        figsize=(10, 1.5 * max(len(keys), 1) + 1.6),
+    )
     times = [float(seconds(t)) for t, _ in monitor.states]
     for ax, key in zip(axes[:, 0], keys, strict=False):
         values = [state.get(key) for _, state in monitor.states]
@@ -219,14 +249,27 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
             if v is None and start is None:
                 start = t
             elif v is not None and start is not None:
-                ax.axvspan(start, t if t is not None else times[-1], color="grey", alpha=0.25,
-                           lw=0, label="unobserved")
+                ax.axvspan(
+                    start,
+                    t if t is not None else times[-1],
+                    color="grey",
+                    alpha=0.25,
+                    lw=0,
+                    label="unobserved",
+                )
                 start = None
-        ticks = [float(seconds(e.time)) for e in events
-                 if isinstance(e, Violation) and e.feature == key]
+        ticks = [
+            float(seconds(e.time)) for e in events if isinstance(e, Violation) and e.feature == key
+        ]
         if ticks:
-            ax.plot(ticks, [ax.get_ylim()[0]] * len(ticks), "|", color="tab:orange", ms=10,
-                    label="constraint violated")
+            ax.plot(
+                ticks,
+                [ax.get_ylim()[0]] * len(ticks),
+                "|",
+                color="tab:orange",
+                ms=10,
+                label="constraint violated",
+            )
         ax.set_ylabel(str(key), rotation=0, ha="right", va="center", fontsize=9)
         handles, labels = ax.get_legend_handles_labels()
         if handles:

@@ -28,8 +28,9 @@ def local_name(iri: str) -> str:
 
 
 class NameIndex:
-    def __init__(self, platform: str, prefixes: Mapping[str, str],
-                 entities: Mapping[Kind, Iterable[str]]) -> None:
+    def __init__(
+        self, platform: str, prefixes: Mapping[str, str], entities: Mapping[Kind, Iterable[str]]
+    ) -> None:
         self.platform = platform
         self.prefixes = dict(prefixes)
         self._kinds: dict[str, set[Kind]] = defaultdict(set)
@@ -51,8 +52,11 @@ class NameIndex:
         elif ":" in written:
             prefix, _, rest = written.partition(":")
             if prefix not in self.prefixes:
-                raise NameError_(f"unknown prefix {prefix!r} in {written!r} on {self.platform} "
-                                 f"(declared: {', '.join(sorted(self.prefixes)) or 'none'})", span)
+                raise NameError_(
+                    f"unknown prefix {prefix!r} in {written!r} on {self.platform} "
+                    f"(declared: {', '.join(sorted(self.prefixes)) or 'none'})",
+                    span,
+                )
             candidates = [self.prefixes[prefix] + rest]
         else:
             candidates = self._by_local.get(written, [])
@@ -61,17 +65,24 @@ class NameIndex:
             return fitting[0]
         if len(fitting) > 1:
             both = " and ".join(f"<{iri}>" for iri in sorted(fitting))
-            raise NameError_(f"ambiguous {wanted} {written!r} on {self.platform}: {both}; "
-                             f"write a prefixed name or a full <IRI>", span)
+            raise NameError_(
+                f"ambiguous {wanted} {written!r} on {self.platform}: {both}; "
+                f"write a prefixed name or a full <IRI>",
+                span,
+            )
         other = sorted(k for iri in candidates for k in self.kinds(iri))
         if other:
-            raise NameError_(f"{written!r} is {article(other[0])} on {self.platform}, "
-                             f"not {article(wanted)}", span)
-        known = [n for n, iris in self._by_local.items()
-                 if any(self.kinds(i) & set(kinds) for i in iris)]
+            raise NameError_(
+                f"{written!r} is {article(other[0])} on {self.platform}, not {article(wanted)}",
+                span,
+            )
+        known = [
+            n for n, iris in self._by_local.items() if any(self.kinds(i) & set(kinds) for i in iris)
+        ]
         close = difflib.get_close_matches(written, known, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise NameError_(f"unknown {wanted} {written!r} on {self.platform}{hint}", span)
+
 
 def article(noun: str) -> str:
     return f"{'an' if noun[0] in 'aeiou' else 'a'} {noun}"

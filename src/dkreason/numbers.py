@@ -41,8 +41,9 @@ def exact(value: Any, what: str = "time") -> Fraction:
     if not value.is_finite():
         raise DkError(f"{what} must be finite, not {value}")
     exponent = value.as_tuple().exponent
-    if value and (value.adjusted() > MAX_ADJUSTED or
-                  (isinstance(exponent, int) and exponent < MIN_EXPONENT)):
+    if value and (
+        value.adjusted() > MAX_ADJUSTED or (isinstance(exponent, int) and exponent < MIN_EXPONENT)
+    ):
         raise DkError(f"{what} {_short(value)} is out of range or finer than 1e{MIN_EXPONENT}")
     return Fraction(value)
 

@@ -19,23 +19,42 @@ def request(kb: KnowledgeBase, plan: Plan) -> StreamRequest:
     return build_request(kb, plan.text, ground, matches, rejected)
 
 
-def build_request(kb: KnowledgeBase, formula: str, ground: list[GroundFeature],
-                  matches: list[Match], rejected: list[Rejected]) -> StreamRequest:
+def build_request(
+    kb: KnowledgeBase,
+    formula: str,
+    ground: list[GroundFeature],
+    matches: list[Match],
+    rejected: list[Rejected],
+) -> StreamRequest:
     per_feature: dict[int, dict[TopicMatch, None]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
         if topic is not None:
             per_feature[m.query][topic] = None
     features = tuple(
-        FeatureRequest(g, tuple(sorted(per_feature[q], key=lambda t: (
-            t.platform != kb.local, t.platform, kb.platforms[t.platform].rank[t.topic],
-            t.filter))))
-        for q, g in enumerate(ground))
+        FeatureRequest(
+            g,
+            tuple(
+                sorted(
+                    per_feature[q],
+                    key=lambda t: (
+                        t.platform != kb.local,
+                        t.platform,
+                        kb.platforms[t.platform].rank[t.topic],
+                        t.filter,
+                    ),
+                )
+            ),
+        )
+        for q, g in enumerate(ground)
+    )
     warnings = [*kb.warnings, *_warnings(kb, ground, rejected)]
-    namespaces = tuple((p.name, p.namespace) for p in (kb.config.platforms if kb.config else ())
-                       if p.namespace is not None)
-    return StreamRequest(formula, kb.local, features, tuple(dict.fromkeys(warnings)),
-                         namespaces)
+    namespaces = tuple(
+        (p.name, p.namespace)
+        for p in (kb.config.platforms if kb.config else ())
+        if p.namespace is not None
+    )
+    return StreamRequest(formula, kb.local, features, tuple(dict.fromkeys(warnings)), namespaces)
 
 
 def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
@@ -45,22 +64,37 @@ def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
     for arg, value in zip(feature.args, m.ids, strict=True):
         if arg.id_field and filter_.setdefault(arg.id_field, value) != value:
             return None  # one field would need two values: this topic cannot carry the tuple
-    return TopicMatch(m.platform, m.topic, spec.msgtype, feature.field,
-                      tuple(filter_.items()), local_name(feature.iri),
-                      tuple(local_name(o) for o in m.objects))
+    return TopicMatch(
+        m.platform,
+        m.topic,
+        spec.msgtype,
+        feature.field,
+        tuple(filter_.items()),
+        local_name(feature.iri),
+        tuple(local_name(o) for o in m.objects),
+    )
 
 
-def _warnings(kb: KnowledgeBase, ground: list[GroundFeature],
-              rejected: list[Rejected]) -> list[str]:
+def _warnings(
+    kb: KnowledgeBase, ground: list[GroundFeature], rejected: list[Rejected]
+) -> list[str]:
     """Remote candidates the remote ontology rejects: a mapping error to tell the user about."""
     out = []
     for r in rejected:
         platform = kb.platforms[r.platform]
-        fits = {i for i, o in enumerate(r.objects, 1)
-                if kb.engine.query("fits", r.platform, r.feature, i, o)}
-        why = "; ".join(kb.misfit(platform, r.feature, i, o)
-                        for i, o in enumerate(r.objects, 1) if i not in fits)
+        fits = {
+            i
+            for i, o in enumerate(r.objects, 1)
+            if kb.engine.query("fits", r.platform, r.feature, i, o)
+        }
+        why = "; ".join(
+            kb.misfit(platform, r.feature, i, o)
+            for i, o in enumerate(r.objects, 1)
+            if i not in fits
+        )
         mapped = f"{local_name(r.feature)}[{', '.join(local_name(o) for o in r.objects)}]"
-        out.append(f"{ground[r.query].key}: maps to {mapped} on {r.platform}, which "
-                   f"{r.platform}'s ontology rejects: {why}")
+        out.append(
+            f"{ground[r.query].key}: maps to {mapped} on {r.platform}, which "
+            f"{r.platform}'s ontology rejects: {why}"
+        )
     return out

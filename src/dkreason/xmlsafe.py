@@ -19,15 +19,24 @@ def check(data: bytes, file: str) -> None:
     parser = pyexpat.ParserCreate()
 
     def refuse(what: str) -> None:
-        raise ParseError(f"{what} refused (external references are not followed)",
-                         Span(file, parser.CurrentLineNumber, parser.CurrentColumnNumber + 1))
+        raise ParseError(
+            f"{what} refused (external references are not followed)",
+            Span(file, parser.CurrentLineNumber, parser.CurrentColumnNumber + 1),
+        )
 
     def doctype(name: str, system_id: str | None, public_id: str | None, _internal: int) -> None:
         if system_id or public_id:
             refuse(f"external DTD {system_id or public_id!r}")
 
-    def entity(name: str, _is_param: int, _value: str | None, _base: str | None,
-               system_id: str | None, public_id: str | None, _notation: str | None) -> None:
+    def entity(
+        name: str,
+        _is_param: int,
+        _value: str | None,
+        _base: str | None,
+        system_id: str | None,
+        public_id: str | None,
+        _notation: str | None,
+    ) -> None:
         if system_id or public_id:
             refuse(f"external entity {name!r} ({system_id or public_id})")
 
@@ -37,8 +46,10 @@ def check(data: bytes, file: str) -> None:
     try:
         parser.Parse(data, True)
     except pyexpat.ExpatError as exc:
-        raise ParseError(f"malformed XML: {pyexpat.ErrorString(exc.code)}",
-                         Span(file, exc.lineno, exc.offset + 1)) from None
+        raise ParseError(
+            f"malformed XML: {pyexpat.ErrorString(exc.code)}",
+            Span(file, exc.lineno, exc.offset + 1),
+        ) from None
 
 
 class Extent(NamedTuple):

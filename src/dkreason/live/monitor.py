@@ -67,21 +67,29 @@ class Change:
     last_sample: int | None = None  # source_lost: ns valid time of the feature's newest sample
 
     def to_json(self) -> dict[str, Any]:
-        out = {"event": self.event, "time": None if self.time is None else seconds(self.time),
-               "platform": self.platform}
-        out |= {k: v for k, v in (("feature", self.feature), ("topic", self.topic),
-                                  ("detail", self.detail)) if v}
+        out = {
+            "event": self.event,
+            "time": None if self.time is None else seconds(self.time),
+            "platform": self.platform,
+        }
+        out |= {
+            k: v
+            for k, v in (("feature", self.feature), ("topic", self.topic), ("detail", self.detail))
+            if v
+        }
         if self.last_sample is not None:
             out["last_sample"] = seconds(self.last_sample)
         return out
 
     def __str__(self) -> str:
         when = "before start" if self.time is None else f"at {_shown(self.time)}"
-        what = {"joined": f"platform {self.platform} joined",
-                "left": f"platform {self.platform} left",
-                "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
-                "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
-                "source_lost": f"source lost: {self.feature} has no topic left"}[self.event]
+        what = {
+            "joined": f"platform {self.platform} joined",
+            "left": f"platform {self.platform} left",
+            "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
+            "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
+            "source_lost": f"source lost: {self.feature} has no topic left",
+        }[self.event]
         if self.last_sample is not None:
             what += f"; its last sample is from {_shown(self.last_sample)}"
         return f"{when}: {what}" + (f" ({self.detail})" if self.detail else "")
@@ -97,8 +105,11 @@ def _shown(t: int) -> str:
         return f"{seconds(t)} s"
     import datetime
 
-    return datetime.datetime.fromtimestamp(t / 10**9, datetime.UTC).isoformat(
-        timespec="milliseconds").replace("+00:00", "Z")
+    return (
+        datetime.datetime.fromtimestamp(t / 10**9, datetime.UTC)
+        .isoformat(timespec="milliseconds")
+        .replace("+00:00", "Z")
+    )
 
 
 class _Live:
@@ -134,9 +145,16 @@ def _logged(n: int) -> bool:
 
 
 class LiveMonitor:
-    def __init__(self, config: Path, formulas: list[str], policy: StreamPolicy, session: Any,
-                 wait: float = 10.0, ask_timeout: float = 3.0,
-                 trust: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        config: Path,
+        formulas: list[str],
+        policy: StreamPolicy,
+        session: Any,
+        wait: float = 10.0,
+        ask_timeout: float = 3.0,
+        trust: dict[str, Any] | None = None,
+    ) -> None:
         """`trust`: platform → Ed25519 public key (wire.trusted_keys); the samples of those
         platforms must be signed by it."""
         self.formulas = parse(formulas)  # a typo is reported at once, not after the wait
@@ -162,12 +180,18 @@ class LiveMonitor:
         self.end: int | None = None  # ns: samples after it are not taken
         self.received = 0  # samples taken
         self.stop = threading.Event()
-        self.declared = [session.liveliness().declare_subscriber(
-            f"{wire.ROOT}/*/alive", self._on_alive, history=True)]
+        self.declared = [
+            session.liveliness().declare_subscriber(
+                f"{wire.ROOT}/*/alive", self._on_alive, history=True
+            )
+        ]
         for p in sorted(self.names):
-            self.declared.append(session.declare_subscriber(
-                wire.key(p, "changed"), lambda s, p=p: self.events.put(
-                    ("changed", p, s.payload.to_bytes()))))
+            self.declared.append(
+                session.declare_subscriber(
+                    wire.key(p, "changed"),
+                    lambda s, p=p: self.events.put(("changed", p, s.payload.to_bytes())),
+                )
+            )
 
     # ---- zenoh callbacks (other threads): only enqueue ----------------------------------
 
@@ -182,15 +206,17 @@ class LiveMonitor:
     def _ask(self, p: str, what: str) -> Any:
         for reply in self.session.get(wire.key(p, what), timeout=self.ask_timeout):
             if reply.ok is not None:
-                return wire.decode(reply.ok.payload.to_bytes(), wire.MAX_KNOWLEDGE,
-                                   f"{p}'s {what}")
+                return wire.decode(reply.ok.payload.to_bytes(), wire.MAX_KNOWLEDGE, f"{p}'s {what}")
         raise wire.WireError(f"{p} did not answer the query for its {what}")
 
     def _ontology(self, p: str) -> dict[str, str]:
         ont = self._ask(p, "ontology")
-        if not isinstance(ont, dict) or not isinstance(ont.get("turtle"), str) or \
-                not isinstance(ont.get("file"), str):
-            raise wire.WireError(f"{p}'s ontology: expected {{\"file\": …, \"turtle\": …}}")
+        if (
+            not isinstance(ont, dict)
+            or not isinstance(ont.get("turtle"), str)
+            or not isinstance(ont.get("file"), str)
+        ):
+            raise wire.WireError(f'{p}\'s ontology: expected {{"file": …, "turtle": …}}')
         return {"file": ont["file"], "text": ont["turtle"], "digest": str(ont.get("digest"))}
 
     def _fetch(self, p: str, ont: dict[str, str] | None = None) -> Platform:
@@ -201,25 +227,25 @@ class LiveMonitor:
 
         ont = ont or self._ontology(p)
         name = Path(ont["file"]).name or "ontology"  # shown in messages only
-        ontology = parse_ontology(ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p,
-                                  fmt="turtle")
+        ontology = parse_ontology(
+            ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p, fmt="turtle"
+        )
         self.digests[p] = ont["digest"]
         for iri, sort, id_ in self._objects(p):
             if (iri, sort) not in ontology.types:
                 ontology = with_object(ontology, iri, sort, id_)
-        return make_platform(ontology, parse_text(self._specs_text(p),
-                                                  wire.key(p, "specs")).specs)
+        return make_platform(ontology, parse_text(self._specs_text(p), wire.key(p, "specs")).specs)
 
     def _specs_text(self, p: str) -> str:
         specs = self._ask(p, "specs")
         if not isinstance(specs, dict) or not isinstance(specs.get("sslt"), str):
-            raise wire.WireError(f"{p}'s specs: expected {{\"sslt\": …}}")
+            raise wire.WireError(f'{p}\'s specs: expected {{"sslt": …}}')
         return str(specs["sslt"])
 
     def _objects(self, p: str) -> list[tuple[str, str, Any]]:
         objects = self._ask(p, "objects")
         out = []
-        for iri, info in (objects.items() if isinstance(objects, dict) else ()):
+        for iri, info in objects.items() if isinstance(objects, dict) else ():
             sorts = info.get("sorts") if isinstance(info, dict) else None
             id_ = info.get("id") if isinstance(info, dict) else None
             if not isinstance(sorts, list) or not isinstance(id_, (int, str, type(None))):
@@ -240,13 +266,17 @@ class LiveMonitor:
         for iri, sort, id_ in new:
             self.kb.add_object(p, f"<{iri}>", f"<{sort}>", id_)
         if added or removed or new:
-            log.info("%s changed: specs added %s, removed %s; %d new object types", p,
-                     ", ".join(added) or "none", ", ".join(removed) or "none", len(new))
+            log.info(
+                "%s changed: specs added %s, removed %s; %d new object types",
+                p,
+                ", ".join(added) or "none",
+                ", ".join(removed) or "none",
+                len(new),
+            )
 
     # ---- the loop ----------------------------------------------------------------------
 
-    def run(self, until: Fraction | None = None, duration: float | None = None
-            ) -> Iterator[Event]:
+    def run(self, until: Fraction | None = None, duration: float | None = None) -> Iterator[Event]:
         """Events as they happen, until every formula is decided, the stream clock passes
         `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts."""
         yield from self._gather()
@@ -312,10 +342,18 @@ class LiveMonitor:
             for event in self.events.drain(min(left, 0.1), most=1):  # the rest waits for run
                 yield from self._handle(event)
         if local not in self.known:
-            raise DkError(f"the local platform {local} did not appear within {self.wait:g} s "
-                          f"(is `dkreason serve` running for it, on a reachable endpoint?)")
-        self.kb = KnowledgeBase(local, dict(self.known), self.mappings, self.config.rules,
-                                self.config, online=self.present & set(self.known))
+            raise DkError(
+                f"the local platform {local} did not appear within {self.wait:g} s "
+                f"(is `dkreason serve` running for it, on a reachable endpoint?)"
+            )
+        self.kb = KnowledgeBase(
+            local,
+            dict(self.known),
+            self.mappings,
+            self.config.rules,
+            self.config,
+            online=self.present & set(self.known),
+        )
 
     def _handle(self, event: tuple[Any, ...]) -> list[Event]:
         kind, p = event[0], event[1]
@@ -331,11 +369,12 @@ class LiveMonitor:
                 return self._changed(p)
         except DkError as exc:  # a peer's bad payload or knowledge: its fault, not ours
             self._reject(p, kind, str(exc), getattr(exc, "kind", "knowledge"))
-        except Exception as exc:  # noqa: BLE001 - one bad sample must not end monitoring
+        except Exception as exc:
             if kind != "sample":
                 raise
-            self._reject(p, kind, f"unexpected {type(exc).__name__}: {str(exc)[:200]}",
-                         type(exc).__name__)
+            self._reject(
+                p, kind, f"unexpected {type(exc).__name__}: {str(exc)[:200]}", type(exc).__name__
+            )
         return []
 
     def _stranger(self, p: str) -> None:
@@ -343,12 +382,18 @@ class LiveMonitor:
         self.strangers += 1
         if len(self.seen_strangers) < 10 and p not in self.seen_strangers:
             self.seen_strangers.add(p)
-            log.warning("ignoring platform %s: not in the config%s", p,
-                        "" if len(self.seen_strangers) < 10 else
-                        " (further unknown platforms are counted, not named)")
+            log.warning(
+                "ignoring platform %s: not in the config%s",
+                p,
+                ""
+                if len(self.seen_strangers) < 10
+                else " (further unknown platforms are counted, not named)",
+            )
         elif _logged(self.strangers) and self.strangers >= 100:
-            log.warning("ignored %d announcements or samples of platforms outside the config",
-                        self.strangers)
+            log.warning(
+                "ignored %d announcements or samples of platforms outside the config",
+                self.strangers,
+            )
 
     def _reject(self, p: str, what: str, why: str, kind: str = "knowledge") -> None:
         """Logged once per peer and kind of fault, then at 10, 100, 1000… rejections."""
@@ -356,8 +401,9 @@ class LiveMonitor:
         if _logged(n):
             log.warning("rejected %s from %s (%s, %d so far): %s", what, p, kind, n, why)
 
-    def _sample(self, p: str, topic: str, payload: bytes, signature: bytes | None,
-                name: str) -> None:
+    def _sample(
+        self, p: str, topic: str, payload: bytes, signature: bytes | None, name: str
+    ) -> None:
         """A sample of `name` (`p/topic`)."""
         pt = (p, topic)
         if p not in self.present or pt not in self.subs:
@@ -413,8 +459,11 @@ class LiveMonitor:
         if ont is not None and ont["digest"] != before:
             if p == self.config.local:
                 self.digests[p] = ont["digest"]
-                log.warning("%s came back with another ontology; the formulas keep the one "
-                            "they were checked against until restart", p)
+                log.warning(
+                    "%s came back with another ontology; the formulas keep the one "
+                    "they were checked against until restart",
+                    p,
+                )
             else:
                 log.info("%s came back with another ontology: its knowledge is replaced", p)
                 fresh = self._fetch(p, ont)
@@ -452,26 +501,44 @@ class LiveMonitor:
     def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
         now = self.watermark()
         before = self.topics
-        self.topics = {f.feature.key: {(t.platform, t.topic) for t in f.topics}
-                       for f in request.features}
+        self.topics = {
+            f.feature.key: {(t.platform, t.topic) for t in f.topics} for f in request.features
+        }
         changes: list[Event] = []
         wanted = {pt: key for key, pts in self.topics.items() for pt in pts}
         for (q, t), key in sorted(wanted.items()):
             if (q, t) not in self.subs:
                 self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
-                    wire.key(q, "topic", t), lambda s, q=q, t=t, name=f"{q}/{t}": self.events.put(
-                        ("sample", q, t, s.payload.to_bytes(),
-                         None if s.attachment is None else s.attachment.to_bytes(), name)))
+                    wire.key(q, "topic", t),
+                    lambda s, q=q, t=t, name=f"{q}/{t}": self.events.put(
+                        (
+                            "sample",
+                            q,
+                            t,
+                            s.payload.to_bytes(),
+                            None if s.attachment is None else s.attachment.to_bytes(),
+                            name,
+                        )
+                    ),
+                )
                 changes.append(Change("subscribed", now, q, feature=str(key), topic=t))
-        for (q, t) in sorted(set(self.subs) - set(wanted)):
+        for q, t in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()
             self.clocks.pop((q, t), None)
             changes.append(Change("unsubscribed", now, q, why, topic=t))
         for key, pts in before.items():
             if pts and not self.topics.get(key):
-                changes.append(Change("source_lost", now, p or "", why, feature=str(key),
-                                      last_sample=self.processor.newest(key)))
+                changes.append(
+                    Change(
+                        "source_lost",
+                        now,
+                        p or "",
+                        why,
+                        feature=str(key),
+                        last_sample=self.processor.newest(key),
+                    )
+                )
         return changes
 
     def close(self) -> None:

@@ -23,10 +23,14 @@ EVENT_SCHEMA = {
     "description": "A verdict, a stream constraint violation or a federation change",
     "type": "object",
     "properties": {
-        "formula": {"type": "string"}, "verdict": {"type": ["boolean", "null"]},
-        "violation": {"type": "string"}, "event": {"type": "string"},
-        "time": {"type": ["number", "null"]}, "feature": {"type": "string"},
-        "topic": {"type": "string"}, "detail": {"type": "string"},
+        "formula": {"type": "string"},
+        "verdict": {"type": ["boolean", "null"]},
+        "violation": {"type": "string"},
+        "event": {"type": "string"},
+        "time": {"type": ["number", "null"]},
+        "feature": {"type": "string"},
+        "topic": {"type": "string"},
+        "detail": {"type": "string"},
     },
 }
 
@@ -52,37 +56,47 @@ class Recorder:
         self.writer.start(profile="ros2", library="dkreason")
         self.channels: dict[str, int] = {}
         self.sequence = 0
-        schema = self.writer.register_schema(name="dkreason/Event", encoding="jsonschema",
-                                             data=json.dumps(EVENT_SCHEMA).encode())
+        schema = self.writer.register_schema(
+            name="dkreason/Event", encoding="jsonschema", data=json.dumps(EVENT_SCHEMA).encode()
+        )
         self.events = self.writer.register_channel(EVENTS, "json", schema)
 
-    def message(self, topic: str, msgtype: str, log_time: int, publish_time: int,
-                payload: bytes) -> None:
+    def message(
+        self, topic: str, msgtype: str, log_time: int, publish_time: int, payload: bytes
+    ) -> None:
         channel = self.channels.get(topic)
         if channel is None:
             text, _ = self.store.generate_msgdef(msgtype, ros_version=2)
-            schema = self.writer.register_schema(name=msgtype, encoding="ros2msg",
-                                                 data=text.encode())
+            schema = self.writer.register_schema(
+                name=msgtype, encoding="ros2msg", data=text.encode()
+            )
             channel = self.channels[topic] = self.writer.register_channel(topic, "cdr", schema)
         self._add(channel, log_time, publish_time, payload)
 
     def event(self, time: int, event: dict[str, Any]) -> None:
         """A verdict, violation or change (`to_json()`), logged at `time` (ns)."""
-        self._add(self.events, time, time,
-                  json.dumps(event, ensure_ascii=False, default=str).encode())
+        self._add(
+            self.events, time, time, json.dumps(event, ensure_ascii=False, default=str).encode()
+        )
 
     def _add(self, channel: int, log_time: int, publish_time: int, data: bytes) -> None:
         self.sequence += 1
         try:
-            self.writer.add_message(channel_id=channel, log_time=max(log_time, 0),
-                                    publish_time=max(publish_time, 0), data=data,
-                                    sequence=self.sequence & 0xFFFFFFFF)
+            self.writer.add_message(
+                channel_id=channel,
+                log_time=max(log_time, 0),
+                publish_time=max(publish_time, 0),
+                data=data,
+                sequence=self.sequence & 0xFFFFFFFF,
+            )
         except OSError as exc:
             self.closed = True  # nothing more goes in; closing is quiet
             with contextlib.suppress(OSError):
                 self.file.close()
-            raise RecordError(f"--record {self.path}: {exc.strerror or exc}; the messages "
-                              f"before it are in the file") from None
+            raise RecordError(
+                f"--record {self.path}: {exc.strerror or exc}; the messages "
+                f"before it are in the file"
+            ) from None
 
     def close(self) -> None:
         """The file's index and summary written (a file cut short still reads, up to the
@@ -96,5 +110,7 @@ class Recorder:
         except OSError as exc:
             with contextlib.suppress(OSError):
                 self.file.close()
-            raise RecordError(f"--record {self.path}: {exc.strerror or exc}; the file is cut "
-                              f"short (it reads as a damaged recording)") from None
+            raise RecordError(
+                f"--record {self.path}: {exc.strerror or exc}; the file is cut "
+                f"short (it reads as a damaged recording)"
+            ) from None

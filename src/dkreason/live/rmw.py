@@ -32,8 +32,9 @@ TOKENS = f"{ADMIN}/**"
 MAX_TOKEN = 4096  # characters of one token's key expression
 NO_HASH = "TypeHashNotSupported"  # what Humble-era rmw_zenoh writes, and ours for custom types
 # REP-2011 hashes of the types dkreason itself publishes (rosidl computes them at build time)
-HASHES = {"std_msgs/msg/String":
-          "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"}
+HASHES = {
+    "std_msgs/msg/String": "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+}
 QOS = "::,7:,:,:,,"  # rmw_zenoh's default profile (reliable, volatile, keep last 7)
 BRIDGE_QOS = ":::"
 _DDS = re.compile(r"^([A-Za-z_]\w*)::(msg|srv|action)::dds_::(\w+)_$")
@@ -57,8 +58,13 @@ class Publisher:
     bridged: bool  # announced by zenoh-bridge-ros2dds
 
     def describe(self) -> str:
-        where = f" by {_join(self.namespace, self.node)}" if self.node is not None else \
-            " through the bridge" if self.bridged else ""
+        where = (
+            f" by {_join(self.namespace, self.node)}"
+            if self.node is not None
+            else " through the bridge"
+            if self.bridged
+            else ""
+        )
         return f"{self.topic} ({self.msgtype}){where}"
 
 
@@ -101,8 +107,7 @@ def parse_token(key: str) -> Publisher | None:
         if parts[2] != "MP":
             return None
         if len(parts) != 6:
-            raise WireError(f"bridge publisher token with {len(parts)} parts: {key[:120]}",
-                            "token")
+            raise WireError(f"bridge publisher token with {len(parts)} parts: {key[:120]}", "token")
         data_key = parts[3].replace("§", "/")
         topic = _name(data_key, "/", "topic")
         msgtype = parts[4].replace("§", "/")
@@ -114,8 +119,7 @@ def parse_token(key: str) -> Publisher | None:
     if parts[5] != "MP":
         return None
     if len(parts) != 13:
-        raise WireError(f"rmw_zenoh publisher token with {len(parts)} parts: {key[:120]}",
-                        "token")
+        raise WireError(f"rmw_zenoh publisher token with {len(parts)} parts: {key[:120]}", "token")
     if not parts[1].isdigit():
         raise WireError(f"domain {parts[1][:20]!r} is not a number: {key[:120]}", "token")
     domain = int(parts[1])
@@ -128,18 +132,48 @@ def parse_token(key: str) -> Publisher | None:
     return Publisher(key, topic, msgtype, data_key, parts[8], namespace, domain, False)
 
 
-def publisher_token(session: str, node_id: int, entity_id: int, namespace: str, node: str,
-                    topic: str, msgtype: str, domain: int = 0) -> str:
+def publisher_token(
+    session: str,
+    node_id: int,
+    entity_id: int,
+    namespace: str,
+    node: str,
+    topic: str,
+    msgtype: str,
+    domain: int = 0,
+) -> str:
     """rmw_zenoh's token for a publisher (what `Ros2Node` declares)."""
-    return "/".join((ADMIN, str(domain), session, str(node_id), str(entity_id), "MP", "%",
-                     _mangle(namespace), node, _mangle(topic), dds_type(msgtype),
-                     HASHES.get(msgtype, NO_HASH), QOS))
+    return "/".join(
+        (
+            ADMIN,
+            str(domain),
+            session,
+            str(node_id),
+            str(entity_id),
+            "MP",
+            "%",
+            _mangle(namespace),
+            node,
+            _mangle(topic),
+            dds_type(msgtype),
+            HASHES.get(msgtype, NO_HASH),
+            QOS,
+        )
+    )
 
 
 def bridge_token(bridge: str, topic: str, msgtype: str) -> str:
     """zenoh-bridge-ros2dds' token for a publisher it routes from DDS."""
-    return "/".join((ADMIN, bridge, "MP", topic.strip("/").replace("/", "§"),
-                     msgtype.replace("/", "§"), BRIDGE_QOS))
+    return "/".join(
+        (
+            ADMIN,
+            bridge,
+            "MP",
+            topic.strip("/").replace("/", "§"),
+            msgtype.replace("/", "§"),
+            BRIDGE_QOS,
+        )
+    )
 
 
 def data_key(topic: str, msgtype: str, domain: int = 0) -> str:
@@ -162,8 +196,9 @@ def attachment(sequence: int, source_time: int, gid: bytes, labelled: bool = Fal
     if not labelled:
         return _PLAIN.pack(sequence, source_time, 16, gid)
     items = (struct.pack("<q", sequence), struct.pack("<q", source_time), b"\x10" + gid)
-    return b"".join(bytes([len(label)]) + label + item
-                    for label, item in zip(_LABELS, items, strict=True))
+    return b"".join(
+        bytes([len(label)]) + label + item for label, item in zip(_LABELS, items, strict=True)
+    )
 
 
 def parse_attachment(data: bytes) -> tuple[int, int, bytes]:
@@ -176,15 +211,18 @@ def parse_attachment(data: bytes) -> tuple[int, int, bytes]:
     elif len(data) == 77:  # each item behind its ULEB-prefixed name
         at, values = 0, []
         for label, size in zip(_LABELS, (8, 8, 17), strict=True):
-            if data[at] != len(label) or data[at + 1:at + 1 + len(label)] != label:
+            if data[at] != len(label) or data[at + 1 : at + 1 + len(label)] != label:
                 break
             at += 1 + len(label)
-            values.append(data[at:at + size])
+            values.append(data[at : at + size])
             at += size
         else:
             if values[2][0] == 16:
-                return (int.from_bytes(values[0], "little", signed=True),
-                        int.from_bytes(values[1], "little", signed=True), values[2][1:])
+                return (
+                    int.from_bytes(values[0], "little", signed=True),
+                    int.from_bytes(values[1], "little", signed=True),
+                    values[2][1:],
+                )
     raise WireError(f"not an rmw_zenoh attachment ({len(data)} bytes)", "attachment")
 
 

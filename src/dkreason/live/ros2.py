@@ -60,9 +60,10 @@ def decode(read: Callable[[bytes], Any], payload: bytes, msgtype: str) -> Any:
     several kinds on a torn or lying payload), a WireError."""
     try:
         return read(payload)
-    except Exception as exc:  # noqa: BLE001 - see above
-        raise WireError(f"does not decode as {msgtype} "
-                        f"({str(exc)[:120] or type(exc).__name__})", "decode") from None
+    except Exception as exc:
+        raise WireError(
+            f"does not decode as {msgtype} ({str(exc)[:120] or type(exc).__name__})", "decode"
+        ) from None
 
 
 def held(now: int, topics: Iterable[tuple[int, int, int]]) -> int:
@@ -99,11 +100,22 @@ class _Sub:
 
 
 class Ros2Monitor:
-    def __init__(self, km: KnowledgeManager, formulas: list[str | Parsed], policy: StreamPolicy,
-                 session: Any, *, store: Any, domain: int = 0, bridge: bool = False,
-                 bind: Mapping[str, str] | None = None, remap: Mapping[str, str] | None = None,
-                 sim_time: bool = False, recorder: Recorder | None = None,
-                 keep_states: bool = False) -> None:
+    def __init__(
+        self,
+        km: KnowledgeManager,
+        formulas: list[str | Parsed],
+        policy: StreamPolicy,
+        session: Any,
+        *,
+        store: Any,
+        domain: int = 0,
+        bridge: bool = False,
+        bind: Mapping[str, str] | None = None,
+        remap: Mapping[str, str] | None = None,
+        sim_time: bool = False,
+        recorder: Recorder | None = None,
+        keep_states: bool = False,
+    ) -> None:
         """`store`: a rosbags typestore; `bind`: platform → ROS namespace whose nodes (or
         topics) are that platform's; `remap`: ROS topic name → the name it is bound by;
         `bridge`: take zenoh-bridge-ros2dds' publishers too."""
@@ -134,8 +146,11 @@ class Ros2Monitor:
         self.labelled = False  # the robots' attachments are in Jazzy's first layout
         self.received = 0
         self.stop = threading.Event()
-        self.declared = [session.liveliness().declare_subscriber(
-            rmw.TOKENS, direct(self._on_token), history=True)]
+        self.declared = [
+            session.liveliness().declare_subscriber(
+                rmw.TOKENS, direct(self._on_token), history=True
+            )
+        ]
 
     # ---- zenoh callbacks (other threads): only enqueue ----------------------------------
 
@@ -146,8 +161,15 @@ class Ros2Monitor:
 
     def _on_sample(self, key: str, sample: Any) -> None:
         attachment = sample.attachment
-        self._put(("sample", key, sample.payload.to_bytes(),
-                   None if attachment is None else attachment.to_bytes(), time.time_ns()))
+        self._put(
+            (
+                "sample",
+                key,
+                sample.payload.to_bytes(),
+                None if attachment is None else attachment.to_bytes(),
+                time.time_ns(),
+            )
+        )
 
     def _put(self, event: tuple[Any, ...]) -> None:
         """Memory stays bounded: a full queue holds zenoh's thread back (and so the link and
@@ -169,11 +191,14 @@ class Ros2Monitor:
         delays nobody, and a silent or skewed publisher holds nobody for long."""
         if self.sim_time:
             return self.clock
-        return held(time.time_ns(), ((s.arrived, s.newest, s.arrived - s.last_valid)
-                                     for s in self.subs.values()))
+        return held(
+            time.time_ns(),
+            ((s.arrived, s.newest, s.arrived - s.last_valid) for s in self.subs.values()),
+        )
 
-    def run(self, until: Fraction | None = None, duration: float | None = None,
-            wait: float = 10.0) -> Iterator[Event]:
+    def run(
+        self, until: Fraction | None = None, duration: float | None = None, wait: float = 10.0
+    ) -> Iterator[Event]:
         """Events as they happen until every formula is decided, the stream clock passes
         `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts.
         `wait` s after the start, each feature no publisher feeds yet is named, with the
@@ -197,9 +222,13 @@ class Ros2Monitor:
                         out += self._handle(event)
                     if self.dropped != self.told:
                         self.told = self.dropped
-                        log.warning("%d samples or announcements dropped so far: the monitor "
-                                    "fell more than %g s behind with %d queued", self.told,
-                                    PUT_WAIT, QUEUED)
+                        log.warning(
+                            "%d samples or announcements dropped so far: the monitor "
+                            "fell more than %g s behind with %d queued",
+                            self.told,
+                            PUT_WAIT,
+                            QUEUED,
+                        )
                     mark = self.watermark()
                     if mark is not None:
                         self.processor.advance(mark if end is None else min(mark, end))
@@ -225,11 +254,15 @@ class Ros2Monitor:
         for key in self.processor.keys:
             if not self.feeding.get(key):
                 looked = ", ".join(names.get(key, [])[:4]) or "no topic specification"
-                log.warning("no publisher yet for %s (it binds by %s); %s", key, looked,
-                            f"publishers seen: {', '.join(unbound[:8])}"
-                            f"{' …' if len(unbound) > 8 else ''}" if unbound else
-                            "no ROS 2 publisher seen (is --connect a router or robot, "
-                            "--domain right, --bridge needed?)")
+                log.warning(
+                    "no publisher yet for %s (it binds by %s); %s",
+                    key,
+                    looked,
+                    f"publishers seen: {', '.join(unbound[:8])}{' …' if len(unbound) > 8 else ''}"
+                    if unbound
+                    else "no ROS 2 publisher seen (is --connect a router or robot, "
+                    "--domain right, --bridge needed?)",
+                )
 
     def _idle(self) -> float:
         """How long to wait for the next event: on the wall clock, no longer than until the
@@ -286,8 +319,10 @@ class Ros2Monitor:
             return []
         self.seen[token] = pub
         if pub.bridged and not self.bridge:
-            self._warn(f"{pub.describe()}: announced by zenoh-bridge-ros2dds; skipped "
-                       f"(give --bridge to take it)")
+            self._warn(
+                f"{pub.describe()}: announced by zenoh-bridge-ros2dds; skipped "
+                f"(give --bridge to take it)"
+            )
             return []
         if not pub.bridged and pub.domain != self.domain:
             return []
@@ -297,13 +332,18 @@ class Ros2Monitor:
         if name is None:
             return []
         if pub.msgtype not in self.store.fielddefs:
-            self._warn(f"{pub.topic}: type {pub.msgtype} is not known (give its .msg file "
-                       f"with --msg, or --typestore); skipped")
+            self._warn(
+                f"{pub.topic}: type {pub.msgtype} is not known (give its .msg file "
+                f"with --msg, or --typestore); skipped"
+            )
             return []
         fits = []
         for key, m in self.wants[name]:
-            why = None if message_type_fits(pub.msgtype, m.msgtype) else \
-                f"carries {pub.msgtype}, but its specification says {m.msgtype}"
+            why = (
+                None
+                if message_type_fits(pub.msgtype, m.msgtype)
+                else f"carries {pub.msgtype}, but its specification says {m.msgtype}"
+            )
             for f in (m.field, *(k for k, _ in m.filter)):
                 why = why or fields.check(self.store.fielddefs, pub.msgtype, f)
             if why is not None:
@@ -319,7 +359,7 @@ class Ros2Monitor:
         for platform, ns in self.bind.items():
             prefix = "" if ns == "/" else ns
             if topic.startswith(prefix + "/"):
-                own = topic[len(prefix):]
+                own = topic[len(prefix) :]
             elif pub.namespace is not None and (pub.namespace + "/").startswith(prefix + "/"):
                 own = topic
             else:
@@ -328,8 +368,7 @@ class Ros2Monitor:
                 return f"{platform}:{own}"
         return next((n for n in (topic, topic[1:]) if n in self.wants), None)
 
-    def _subscribe(self, pub: rmw.Publisher, name: str, features: list[FeatureKey]
-                   ) -> list[Event]:
+    def _subscribe(self, pub: rmw.Publisher, name: str, features: list[FeatureKey]) -> list[Event]:
         import zenoh
 
         if name == CLOCK and pub.msgtype != CLOCK_TYPE:
@@ -340,31 +379,36 @@ class Ros2Monitor:
         if sub is not None:
             sub.publishers.add(pub.token)
             return []
-        wanted = ["msg.clock.sec", "msg.clock.nanosec"] if name == CLOCK else \
-            self.processor.wanted[name]
-        read, stamped = _ros_reader(self.store.fielddefs, pub.msgtype, wanted, False,
-                                    self.store.deserialize_cdr)
+        wanted = (
+            ["msg.clock.sec", "msg.clock.nanosec"] if name == CLOCK else self.processor.wanted[name]
+        )
+        read, stamped = _ros_reader(
+            self.store.fielddefs, pub.msgtype, wanted, False, self.store.deserialize_cdr
+        )
         self.store.get_msgdef(pub.msgtype)  # rosbags' decoder built now, not at a sample
-        sub = self.subs[pub.key] = _Sub(name, pub.topic, pub.msgtype, read, stamped, features,
-                                        publishers={pub.token})
+        sub = self.subs[pub.key] = _Sub(
+            name, pub.topic, pub.msgtype, read, stamped, features, publishers={pub.token}
+        )
 
         def take(sample: Any, key: str = pub.key) -> None:
             self._on_sample(key, sample)
 
         try:  # on sim time, samples and /clock ticks must keep their order across keys
             sub.handle = self.session.declare_subscriber(
-                pub.key, direct(take) if self.sim_time else take)
+                pub.key, direct(take) if self.sim_time else take
+            )
         except zenoh.ZError as exc:
             del self.subs[pub.key], self.taken[pub.token]
-            raise WireError(f"{pub.describe()}: cannot subscribe to {pub.key[:120]!r} "
-                            f"({str(exc)[:120]})", "token") from None
+            raise WireError(
+                f"{pub.describe()}: cannot subscribe to {pub.key[:120]!r} ({str(exc)[:120]})",
+                "token",
+            ) from None
         now = self.now()
         changes: list[Event] = []
         for key in features:
             self.feeding.setdefault(key, set()).add(pub.key)
             m = next(m for k, m in self.wants[name] if k == key)
-            changes.append(Change("subscribed", now, m.platform, pub.describe(), str(key),
-                                  m.topic))
+            changes.append(Change("subscribed", now, m.platform, pub.describe(), str(key), m.topic))
         return changes
 
     def _gone(self, token: str) -> list[Event]:
@@ -379,18 +423,26 @@ class Ros2Monitor:
         del self.subs[key]
         sub.handle.undeclare()
         now = self.now()
-        platform, topic = next(((m.platform, m.topic) for _, m in self.wants.get(sub.name, ())),
-                               ("", sub.topic))
-        changes: list[Event] = [Change("unsubscribed", now, platform,
-                                       f"{pub.describe()} went away", topic=topic)]
+        platform, topic = next(
+            ((m.platform, m.topic) for _, m in self.wants.get(sub.name, ())), ("", sub.topic)
+        )
+        changes: list[Event] = [
+            Change("unsubscribed", now, platform, f"{pub.describe()} went away", topic=topic)
+        ]
         for feature in sub.features:
             feeding = self.feeding[feature]
             feeding.discard(key)
             if not feeding:
-                changes.append(Change("source_lost", now, platform,
-                                      f"the last publisher of {sub.topic} went away",
-                                      feature=str(feature),
-                                      last_sample=self.processor.newest(feature)))
+                changes.append(
+                    Change(
+                        "source_lost",
+                        now,
+                        platform,
+                        f"the last publisher of {sub.topic} went away",
+                        feature=str(feature),
+                        last_sample=self.processor.newest(feature),
+                    )
+                )
         return changes
 
     # ---- samples -------------------------------------------------------------------------
@@ -401,8 +453,7 @@ class Ros2Monitor:
             return  # in flight when its subscription was dropped
         rmw.check_cdr(payload, MAX_PAYLOAD)
         if not sub.checked:  # a topic's first message decodes in full, or is refused
-            decode(lambda raw: self.store.deserialize_cdr(raw, sub.msgtype), payload,
-                   sub.msgtype)
+            decode(lambda raw: self.store.deserialize_cdr(raw, sub.msgtype), payload, sub.msgtype)
             sub.checked = True
         values = decode(sub.read, payload, sub.msgtype)
         if sub.name == CLOCK:
@@ -420,16 +471,20 @@ class Ros2Monitor:
             valid = self.clock if self.clock is not None else arrival
         else:
             valid = source_time if source_time is not None else arrival
-        available = (self.clock if self.clock is not None else valid) if self.sim_time \
-            else arrival
+        available = (self.clock if self.clock is not None else valid) if self.sim_time else arrival
         self.processor.put(sub.name, available, valid, values)
         self.received += 1
         sub.arrived, sub.last_valid = arrival, valid
         if valid > sub.newest:
             sub.newest = valid
         if self.recorder is not None:
-            self.recorder.message(sub.topic, sub.msgtype, available if stamped else valid,
-                                  source_time if source_time is not None else arrival, payload)
+            self.recorder.message(
+                sub.topic,
+                sub.msgtype,
+                available if stamped else valid,
+                source_time if source_time is not None else arrival,
+                payload,
+            )
 
     def close(self) -> None:
         for handle in [*self.declared, *(s.handle for s in self.subs.values())]:

@@ -40,13 +40,22 @@ class Ros2Publisher:
             token = rmw.bridge_token(node.session_id, topic, msgtype)
             self.key = topic.strip("/")
         else:
-            token = rmw.publisher_token(node.session_id, node.node_id, next(node.entities),
-                                        node.namespace, node.name, topic, msgtype, domain)
+            token = rmw.publisher_token(
+                node.session_id,
+                node.node_id,
+                next(node.entities),
+                node.namespace,
+                node.name,
+                topic,
+                msgtype,
+                domain,
+            )
             self.key = rmw.data_key(topic, msgtype, domain)
         self.gid = hashlib.blake2b(token.encode(), digest_size=16).digest()
         self.sequence = 0
         self.publisher = session.declare_publisher(
-            self.key, congestion_control=zenoh.CongestionControl.BLOCK)
+            self.key, congestion_control=zenoh.CongestionControl.BLOCK
+        )
         self.token = session.liveliness().declare_token(token)
 
     def put(self, cdr: bytes, source_time: int | None = None) -> None:
@@ -57,8 +66,9 @@ class Ros2Publisher:
             self.publisher.put(cdr)
             return
         stamp = time.time_ns() if source_time is None else source_time
-        self.publisher.put(cdr, attachment=rmw.attachment(self.sequence, stamp, self.gid,
-                                                          self.node.labelled))
+        self.publisher.put(
+            cdr, attachment=rmw.attachment(self.sequence, stamp, self.gid, self.node.labelled)
+        )
 
     def close(self) -> None:
         """The publisher goes away: its token is withdrawn."""
@@ -72,8 +82,15 @@ class Ros2Node:
 
     _ids = itertools.count()
 
-    def __init__(self, session: Any, name: str, namespace: str = "/", domain: int = 0,
-                 bridged: bool = False, labelled: bool = False) -> None:
+    def __init__(
+        self,
+        session: Any,
+        name: str,
+        namespace: str = "/",
+        domain: int = 0,
+        bridged: bool = False,
+        labelled: bool = False,
+    ) -> None:
         """`labelled`: attachments in the layout of Jazzy's first rmw_zenoh releases."""
         self.session, self.name, self.namespace = session, name, namespace
         self.domain, self.bridged, self.labelled = domain, bridged, labelled
@@ -111,9 +128,15 @@ class Announcer:
     formula reading its feature (`violations` when none does), and with `ros2` the same JSON
     once as std_msgs/msg/String on the ROS 2 topic `/dkreason/verdicts`."""
 
-    def __init__(self, session: Any, formulas: list[str], ros2: bool = False,
-                 domain: int = 0, labelled: Callable[[], bool] | None = None,
-                 reads: Callable[[FeatureKey], list[str]] | None = None) -> None:
+    def __init__(
+        self,
+        session: Any,
+        formulas: list[str],
+        ros2: bool = False,
+        domain: int = 0,
+        labelled: Callable[[], bool] | None = None,
+        reads: Callable[[FeatureKey], list[str]] | None = None,
+    ) -> None:
         """`labelled`: whether the robots' attachments are in Jazzy's first layout (the ROS 2
         monitor says what it has seen), which their subscribers then expect of ours too;
         `reads`: the formulas (as written) that read a feature."""
@@ -137,12 +160,19 @@ class Announcer:
             return
         ids = self._ids(event)
         for fid in ids:
-            self.session.put(f"dkreason/verdicts/{fid}", json.dumps(
-                {"id": fid, **event.to_json()}, ensure_ascii=False, default=str).encode())
+            self.session.put(
+                f"dkreason/verdicts/{fid}",
+                json.dumps(
+                    {"id": fid, **event.to_json()}, ensure_ascii=False, default=str
+                ).encode(),
+            )
         if self.topic is not None:
             self.topic.node.labelled = self.labelled is not None and self.labelled()
-            self.topic.put(cdr_string(json.dumps({"ids": ids, **event.to_json()},
-                                                  ensure_ascii=False, default=str)))
+            self.topic.put(
+                cdr_string(
+                    json.dumps({"ids": ids, **event.to_json()}, ensure_ascii=False, default=str)
+                )
+            )
 
     def close(self) -> None:
         if self.node is not None:
@@ -151,10 +181,21 @@ class Announcer:
 
 # ---- replaying a recording as live ROS 2 topics ---------------------------------------------
 
-def replay(path: Path, session: Any, *, speed: float = 1.0, domain: int = 0,
-           bridged: bool = False, clock: bool = True, wait_for: Collection[str] = (),
-           delay: float = 0.0, timeout: float = 30.0, stop: threading.Event | None = None,
-           heartbeat: float = 0.02) -> int:
+
+def replay(
+    path: Path,
+    session: Any,
+    *,
+    speed: float = 1.0,
+    domain: int = 0,
+    bridged: bool = False,
+    clock: bool = True,
+    wait_for: Collection[str] = (),
+    delay: float = 0.0,
+    timeout: float = 30.0,
+    stop: threading.Event | None = None,
+    heartbeat: float = 0.02,
+) -> int:
     """Publish a ROS 2 recording's messages as live topics, as its robots would: a node per
     robot (the first part of a topic's name: `/platform2/carstopic1` is robot platform2's),
     payloads as recorded, paced at `speed`.  With `clock`, a player node publishes `/clock`
@@ -177,7 +218,8 @@ def replay(path: Path, session: Any, *, speed: float = 1.0, domain: int = 0,
             node = nodes[robot] = Ros2Node(session, "replay", "/" + robot, domain, bridged)
         pubs[c.topic] = node.publisher(c.topic, c.msgtype)
     records: Iterator[tuple[Any, int, bytes]] = iter(
-        source.reader.messages(connections=source.connections))
+        source.reader.messages(connections=source.connections)
+    )
     head = next(records, None)
     first = head[1] if head is not None else 0
     last_tick, sent = -1, 0
@@ -200,8 +242,11 @@ def replay(path: Path, session: Any, *, speed: float = 1.0, domain: int = 0,
                 sent += 1
                 head = next(records, None)
             tick(now if head is None else min(now, head[1] - 1))
-            wait = heartbeat if head is None else \
-                min(heartbeat, max(0.0, (head[1] - now) / speed / NS))
+            wait = (
+                heartbeat
+                if head is None
+                else min(heartbeat, max(0.0, (head[1] - now) / speed / NS))
+            )
             stop.wait(wait)
     finally:
         source.close()
@@ -210,8 +255,14 @@ def replay(path: Path, session: Any, *, speed: float = 1.0, domain: int = 0,
     return sent
 
 
-def _wait(pubs: dict[str, Ros2Publisher], topics: list[str], ticks: Ros2Publisher | None,
-          delay: float, timeout: float, stop: threading.Event) -> None:
+def _wait(
+    pubs: dict[str, Ros2Publisher],
+    topics: list[str],
+    ticks: Ros2Publisher | None,
+    delay: float,
+    timeout: float,
+    stop: threading.Event,
+) -> None:
     """Until `delay` is over and every one of `topics` has a matching subscriber."""
     from ..errors import DkError
 

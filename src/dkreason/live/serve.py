@@ -28,8 +28,9 @@ log = logging.getLogger("dkreason.live")
 
 
 class PlatformNode:
-    def __init__(self, km: KnowledgeManager, session: Any, heartbeat: float = 0.02,
-                 sign: Any = None) -> None:
+    def __init__(
+        self, km: KnowledgeManager, session: Any, heartbeat: float = 0.02, sign: Any = None
+    ) -> None:
         """`sign`: (key expression, payload) → signature (wire.signer), or None."""
         self.km, self.session, self.sign = km, session, sign
         self.name = km.local
@@ -43,11 +44,17 @@ class PlatformNode:
         main = Path(platform.ontology.file)
         text, digest = self._served(main)
         self._ontology = wire.encode({"file": main.name, "turtle": text, "digest": digest})
-        self._answers = {"ontology": lambda: self._ontology, "specs": self._specs,
-                         "objects": self._objects}
-        self.queryables = [session.declare_queryable(
-            wire.key(self.name, what), lambda query, what=what: self._answer(query, what))
-            for what in self._answers]
+        self._answers = {
+            "ontology": lambda: self._ontology,
+            "specs": self._specs,
+            "objects": self._objects,
+        }
+        self.queryables = [
+            session.declare_queryable(
+                wire.key(self.name, what), lambda query, what=what: self._answer(query, what)
+            )
+            for what in self._answers
+        ]
         self.changes = session.declare_publisher(wire.key(self.name, "changed"))
         self.token = session.liveliness().declare_token(wire.key(self.name, "alive"))
 
@@ -70,8 +77,9 @@ class PlatformNode:
     def _specs(self) -> bytes:
         from ..parse.sslt import format_spec
 
-        return wire.encode({"sslt": "".join(f"{format_spec(s)}\n"
-                                            for s in self.km.list_topic_specifications())})
+        return wire.encode(
+            {"sslt": "".join(f"{format_spec(s)}\n" for s in self.km.list_topic_specifications())}
+        )
 
     def _objects(self) -> bytes:
         p = self.km.kb.platform(self.name)
@@ -79,8 +87,9 @@ class PlatformNode:
         for o, c in p.ontology.types:
             sorts[o].append(c)
         kb = self.km.kb
-        return wire.encode({o: {"sorts": s, "id": kb.object_id(p.name, o)}
-                            for o, s in sorts.items()})
+        return wire.encode(
+            {o: {"sorts": s, "id": kb.object_id(p.name, o)} for o, s in sorts.items()}
+        )
 
     def _changed(self) -> None:
         self.version += 1
@@ -127,21 +136,30 @@ class PlatformNode:
         with self.lock:
             self.specs_stamp = stamp
             try:
-                added, removed = self.km.kb.replace_specs(self.name,
-                                                          list(read_specs(path).specs))
+                added, removed = self.km.kb.replace_specs(self.name, list(read_specs(path).specs))
             except DkError as exc:
-                log.warning("%s: specs file not taken, keeping the previous specs: %s",
-                            self.name, exc)
+                log.warning(
+                    "%s: specs file not taken, keeping the previous specs: %s", self.name, exc
+                )
                 return
             if added or removed:
-                log.info("%s: specs file changed: added %s, removed %s", self.name,
-                         ", ".join(added) or "none", ", ".join(removed) or "none")
+                log.info(
+                    "%s: specs file changed: added %s, removed %s",
+                    self.name,
+                    ", ".join(added) or "none",
+                    ", ".join(removed) or "none",
+                )
                 self._changed()
 
     # ---- samples -----------------------------------------------------------------------
 
-    def publish(self, topic: str, msg: dict[str, Any], valid: int | None = None,
-                available: int | None = None) -> None:
+    def publish(
+        self,
+        topic: str,
+        msg: dict[str, Any],
+        valid: int | None = None,
+        available: int | None = None,
+    ) -> None:
         """A message of `topic`; times in ns on the stream clock (default: now)."""
         with self.lock:
             now = time.time_ns() if valid is None else valid
@@ -154,7 +172,8 @@ class PlatformNode:
 
             pub = self.publishers[topic] = self.session.declare_publisher(
                 wire.key(self.name, "topic", topic),
-                congestion_control=zenoh.CongestionControl.BLOCK)
+                congestion_control=zenoh.CongestionControl.BLOCK,
+            )
         return pub
 
     def _put(self, topic: str, available: int, valid: int, msg: Any) -> None:
@@ -196,8 +215,13 @@ class PlatformNode:
                 self._clock(last, end=True)  # the input is over: so is its stream
         self.closed.wait()
 
-    def serve(self, records: Iterator[Record] | None = None, origin: float | None = None,
-              speed: float = 1.0, watch: float = 0.5) -> None:
+    def serve(
+        self,
+        records: Iterator[Record] | None = None,
+        origin: float | None = None,
+        speed: float = 1.0,
+        watch: float = 0.5,
+    ) -> None:
         """Replay `records` (or only keep the clock, on wall time) until `close`.
 
         A record made at time t is published at wall time origin + (t - first)/speed with
@@ -217,8 +241,12 @@ class PlatformNode:
         while head is not None and head[1] < start:
             head, skipped = next(pending, None), skipped + 1
         if skipped:
-            log.info("%s: replay resumes at %.3f s, %d earlier messages skipped", self.name,
-                     start / NS, skipped)
+            log.info(
+                "%s: replay resumes at %.3f s, %d earlier messages skipped",
+                self.name,
+                start / NS,
+                skipped,
+            )
         next_watch = time.monotonic() + watch
         last = start
         while not self.closed.is_set():
@@ -255,6 +283,6 @@ def _own(records: Iterator[Record], platform: str) -> Iterator[Record]:
     prefix = f"/{platform}/"
     for topic, available, valid, msg in records:
         if topic.startswith(prefix):
-            yield topic[len(prefix):], available, valid, msg
+            yield topic[len(prefix) :], available, valid, msg
         elif topic.strip("/").count("/") == 0:
             yield topic.strip("/"), available, valid, msg

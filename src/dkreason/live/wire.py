@@ -97,8 +97,9 @@ def topic_message(payload: bytes, what: str) -> tuple[int, int, Any]:
         t = _time(data["clock"], what)
         return t, t, END if data.get("end") is True else None
     if not isinstance(data, dict) or not isinstance(data.get("msg"), dict):
-        raise WireError(f"{what}: expected {{\"valid\": ns, \"msg\": {{…}}}} or "
-                        f"{{\"clock\": ns}}", "shape")
+        raise WireError(
+            f'{what}: expected {{"valid": ns, "msg": {{…}}}} or {{"clock": ns}}', "shape"
+        )
     valid = _time(data.get("valid"), what)
     available = _time(data.get("available", valid), what)
     return available, valid, data["msg"]
@@ -106,8 +107,7 @@ def topic_message(payload: bytes, what: str) -> tuple[int, int, Any]:
 
 def _time(value: Any, what: str) -> int:
     if type(value) is not int:
-        raise WireError(f"{what}: times must be integer nanoseconds, not {str(value)[:40]}",
-                        "time")
+        raise WireError(f"{what}: times must be integer nanoseconds, not {str(value)[:40]}", "time")
     return value
 
 
@@ -129,8 +129,10 @@ def open_session(connect: list[str], listen: list[str], config_file: str | None 
 
     for endpoint in (*connect, *listen):
         if not ENDPOINT.match(endpoint):
-            raise DkError(f"zenoh: bad endpoint {endpoint!r} (expected <protocol>/<address>, "
-                          f"e.g. tcp/192.168.1.10:7447)")
+            raise DkError(
+                f"zenoh: bad endpoint {endpoint!r} (expected <protocol>/<address>, "
+                f"e.g. tcp/192.168.1.10:7447)"
+            )
     text = read_text(Path(config_file)) if config_file else None
     try:
         config = zenoh.Config.from_json5(text) if text is not None else zenoh.Config()
@@ -141,8 +143,10 @@ def open_session(connect: list[str], listen: list[str], config_file: str | None 
         return zenoh.open(config)
     except zenoh.ZError as exc:
         why = _zenoh_error(str(exc), config_file)
-        raise DkError(f"zenoh: cannot open a session (connect {connect}, listen {listen}"
-                      f"{', config ' + config_file if config_file else ''}): {why}") from None
+        raise DkError(
+            f"zenoh: cannot open a session (connect {connect}, listen {listen}"
+            f"{', config ' + config_file if config_file else ''}): {why}"
+        ) from None
 
 
 def _zenoh_error(text: str, config_file: str | None) -> str:
@@ -159,6 +163,7 @@ def _zenoh_error(text: str, config_file: str | None) -> str:
 # `key expression + "\n" + payload` as the Zenoh attachment; a monitor given `--trust FILE`
 # rejects (and counts) every sample of a listed platform whose signature is missing or wrong.
 
+
 def signer(path: Path) -> Any:
     """(key expression, payload) → signature, with the Ed25519 private key in PEM at `path`."""
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
@@ -169,8 +174,10 @@ def signer(path: Path) -> Any:
     except (ValueError, TypeError) as exc:
         raise DkError(f"{path}: not an unencrypted PEM private key ({exc})") from None
     if not isinstance(key, Ed25519PrivateKey):
-        raise DkError(f"{path}: not an Ed25519 key (make one with `openssl genpkey "
-                      f"-algorithm ed25519 -out {path.name}`)")
+        raise DkError(
+            f"{path}: not an Ed25519 key (make one with `openssl genpkey "
+            f"-algorithm ed25519 -out {path.name}`)"
+        )
     return lambda key_expr, payload: key.sign(key_expr.encode() + b"\n" + payload)
 
 
@@ -194,8 +201,9 @@ def trusted_keys(path: Path) -> dict[str, Any]:
         try:
             key = load_pem_public_key(pem.encode())
         except (ValueError, TypeError) as exc:
-            raise ParseError(f"{platform}: not a PEM public key ({str(exc)[:80]})",
-                             Span(str(path))) from None
+            raise ParseError(
+                f"{platform}: not a PEM public key ({str(exc)[:80]})", Span(str(path))
+            ) from None
         if not isinstance(key, Ed25519PublicKey):
             raise ParseError(f"{platform}: not an Ed25519 public key", Span(str(path)))
         keys[platform] = key
@@ -206,8 +214,7 @@ def verify(key: Any, key_expr: str, payload: bytes, signature: bytes | None) -> 
     from cryptography.exceptions import InvalidSignature
 
     if signature is None:
-        raise WireError(f"{key_expr}: unsigned sample from a platform that must sign",
-                        "unsigned")
+        raise WireError(f"{key_expr}: unsigned sample from a platform that must sign", "unsigned")
     try:
         key.verify(signature, key_expr.encode() + b"\n" + payload)
     except InvalidSignature:

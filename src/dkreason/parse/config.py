@@ -104,8 +104,12 @@ def read_config(path: Path) -> Config:
             raise fail(f"{where}: {key!r} holds a control character ({value!r})")
         return value
 
-    _only(data, {"local", "platforms", "mappings", "rules", "replace_rules", "imports"},
-          "top level", fail)
+    _only(
+        data,
+        {"local", "platforms", "mappings", "rules", "replace_rules", "imports"},
+        "top level",
+        fail,
+    )
     imports_raw = data.get("imports", {})
     if not isinstance(imports_raw, dict):
         raise fail("[imports] must be a table of ontology IRI = file")
@@ -117,19 +121,27 @@ def read_config(path: Path) -> Config:
     for name, table in platforms_raw.items():
         if not isinstance(table, dict):
             raise fail(f"platforms.{name} must be a table")
-        _only(table, {"ontology", "specs", "namespace", "imports", "reasoning"},
-              f"[platforms.{name}]", fail)
+        _only(
+            table,
+            {"ontology", "specs", "namespace", "imports", "reasoning"},
+            f"[platforms.{name}]",
+            fail,
+        )
         section = f"[platforms.{name}]"
         if "specs" in table and "ontology" not in table:
             raise fail(f"{section}: specs without an ontology")
         namespace = text(table, "namespace", section) if "namespace" in table else None
         if namespace is not None and not _NAMESPACE.fullmatch(namespace):
-            raise fail(f"{section}: namespace {namespace!r} is not an absolute ROS namespace "
-                       f"like /robot1")
+            raise fail(
+                f"{section}: namespace {namespace!r} is not an absolute ROS namespace like /robot1"
+            )
         written = table.get("ontology", [])
         listed = written if isinstance(written, list) and written else [written]
-        ontology = tuple(at(text({"ontology": x}, "ontology", section))
-                         for x in listed) if "ontology" in table else ()
+        ontology = (
+            tuple(at(text({"ontology": x}, "ontology", section)) for x in listed)
+            if "ontology" in table
+            else ()
+        )
         specs = at(text(table, "specs", section)) if "specs" in table else None
         skip = table.get("imports", "follow")
         if skip not in ("follow", "skip"):
@@ -137,13 +149,15 @@ def read_config(path: Path) -> Config:
         reasoning = table.get("reasoning", "none")
         if reasoning not in ("none", "owl-rl"):
             raise fail(f'{section}: reasoning must be "none" or "owl-rl", not {reasoning!r}')
-        platforms.append(PlatformFiles(name, ontology, specs, namespace, skip == "skip",
-                                       reasoning))
+        platforms.append(PlatformFiles(name, ontology, specs, namespace, skip == "skip", reasoning))
     names = [p.name for p in platforms]
     local = data.get("local", names[0] if len(names) == 1 else None)
     if local not in names:
-        raise fail(f"local = {local!r} names no platform (platforms: {', '.join(names)})"
-                   if local is not None else "several platforms: say which one is local")
+        raise fail(
+            f"local = {local!r} names no platform (platforms: {', '.join(names)})"
+            if local is not None
+            else "several platforms: say which one is local"
+        )
     mappings = []
     if not isinstance(data.get("mappings", []), list):
         raise fail("mappings must be an array of tables ([[mappings]])")
@@ -151,8 +165,10 @@ def read_config(path: Path) -> Config:
         if not isinstance(table, dict):
             raise fail(f"mappings entry {i} must be a table")
         _only(table, {"source", "target", "file"}, f"[[mappings]] {i}", fail)
-        src, tgt = text(table, "source", f"[[mappings]] {i}"), text(table, "target",
-                                                                      f"[[mappings]] {i}")
+        src, tgt = (
+            text(table, "source", f"[[mappings]] {i}"),
+            text(table, "target", f"[[mappings]] {i}"),
+        )
         for side in (src, tgt):
             if side not in names:
                 raise fail(f"[[mappings]] {i}: platform {side!r} is not configured")
@@ -160,8 +176,9 @@ def read_config(path: Path) -> Config:
             raise fail(f"[[mappings]] {i}: source and target are both {src!r}")
         mappings.append(MappingFiles(src, tgt, at(text(table, "file", f"[[mappings]] {i}"))))
     rules = data.get("rules", [])
-    if not isinstance(rules, list) or not all(isinstance(r, str) and r.isprintable()
-                                              for r in rules):
+    if not isinstance(rules, list) or not all(
+        isinstance(r, str) and r.isprintable() for r in rules
+    ):
         raise fail("rules must be a list of rule file paths")
     replace = data.get("replace_rules", False)
     if not isinstance(replace, bool):
@@ -177,16 +194,22 @@ def read_config(path: Path) -> Config:
 def _only(table: dict[str, Any], allowed: set[str], where: str, fail: Any) -> None:
     unknown = sorted(set(table) - allowed)
     if unknown:
-        raise fail(f"{where}: unknown key {unknown[0]!r} (expected one of "
-                   f"{', '.join(sorted(allowed))})")
+        raise fail(
+            f"{where}: unknown key {unknown[0]!r} (expected one of {', '.join(sorted(allowed))})"
+        )
 
 
 def _rule_path(base: Path, written: str, fail: Any) -> Path:
     if (base / written).is_file():
         return Path(os.path.normpath(base / written))
     shipped = written.removeprefix("rules/")
-    if shipped != written and (SHIPPED_RULES / shipped).is_file() and \
-            SHIPPED_RULES / shipped != SCHEMA:
+    if (
+        shipped != written
+        and (SHIPPED_RULES / shipped).is_file()
+        and SHIPPED_RULES / shipped != SCHEMA
+    ):
         return SHIPPED_RULES / shipped
-    raise fail(f"rule file {written!r} not found (relative to {base}, or rules/NAME.dl for "
-               f"one of dkreason's own)")
+    raise fail(
+        f"rule file {written!r} not found (relative to {base}, or rules/NAME.dl for "
+        f"one of dkreason's own)"
+    )

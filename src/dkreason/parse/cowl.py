@@ -20,27 +20,38 @@ def _local(tag: str) -> str:
 
 def read_bridge_rules(path: Path) -> tuple[BridgeRule, ...]:
     from .. import xmlsafe
+
     file = str(path)
     root, where = xmlsafe.parse(read_bytes(path), file)
     if _local(root.tag) != "mapping":
-        raise ParseError(f"root element is <{_local(root.tag)}>, expected <cowl:mapping>",
-                         Span(file, where[root][0]))
+        raise ParseError(
+            f"root element is <{_local(root.tag)}>, expected <cowl:mapping>",
+            Span(file, where[root][0]),
+        )
     rules = []
     for n, elem in enumerate((e for e in root.iter() if _local(e.tag) == "bridgeRule"), 1):
         span = Span(file, where[elem][0])
         kind = next((v for k, v in elem.attrib.items() if _local(k) == "br-type"), None)
         if kind not in BRIDGE_TYPES:
-            raise ParseError(f"bridge rule {n}: br-type {kind!r} is not one of "
-                             f"{', '.join(BRIDGE_TYPES)}", span)
+            raise ParseError(
+                f"bridge rule {n}: br-type {kind!r} is not one of {', '.join(BRIDGE_TYPES)}", span
+            )
         ends: dict[str, str] = {}
         for child in elem:
-            side = "source" if _local(child.tag).startswith("source") else \
-                "target" if _local(child.tag).startswith("target") else None
+            side = (
+                "source"
+                if _local(child.tag).startswith("source")
+                else "target"
+                if _local(child.tag).startswith("target")
+                else None
+            )
             resource = next((v for k, v in child.attrib.items() if _local(k) == "resource"), None)
             if side is None or not resource:
-                raise ParseError(f"bridge rule {n}: unexpected <{_local(child.tag)}>; expected "
-                                 f"sourceConcept/targetConcept with rdf:resource",
-                                 Span(file, where[child][0]))
+                raise ParseError(
+                    f"bridge rule {n}: unexpected <{_local(child.tag)}>; expected "
+                    f"sourceConcept/targetConcept with rdf:resource",
+                    Span(file, where[child][0]),
+                )
             if side in ends:
                 raise ParseError(f"bridge rule {n}: two {side} entities", span)
             ends[side] = resource.strip()

@@ -47,20 +47,31 @@ def entail(graph: Any, told: Ontology) -> Ontology:
     for obj, classes in typed.items():
         for cls in classes:  # the most specific only: the rules climb the told hierarchy
             if (obj, cls) in told_types or any(
-                    cls in supers[other] and other not in supers[cls] for other in classes):
+                cls in supers[other] and other not in supers[cls] for other in classes
+            ):
                 continue
-            types[(obj, cls)] = "entailed by OWL RL from " + \
-                _why_type(graph, out_of, into, URIRef(obj), URIRef(cls))
+            types[(obj, cls)] = "entailed by OWL RL from " + _why_type(
+                graph, out_of, into, URIRef(obj), URIRef(cls)
+            )
     same: dict[tuple[str, str], str] = {}
     known = set(told.same_as)  # told pairs, then entailed ones, either way round
     for a, b in ((s, o) for s, p, o in facts if p == OWL.sameAs):
         pair = (str(a), str(b))
-        if a != b and pair[0] in objects and pair[1] in objects and \
-                pair not in known and pair[::-1] not in known:
+        if (
+            a != b
+            and pair[0] in objects
+            and pair[1] in objects
+            and pair not in known
+            and pair[::-1] not in known
+        ):
             known.add(pair)
             same[pair] = f"entailed by OWL RL from {_why_same(graph, a, b)}"
-    return replace(told, types=(*told.types, *sorted(types)),
-                   same_as=(*told.same_as, *sorted(same)), entailed=types | same)
+    return replace(
+        told,
+        types=(*told.types, *sorted(types)),
+        same_as=(*told.same_as, *sorted(same)),
+        entailed=types | same,
+    )
 
 
 def _told_supers(told: Ontology) -> dict[str, set[str]]:
@@ -87,8 +98,13 @@ def _name(node: Any) -> str:
     return local_name(str(node))
 
 
-def _why_type(graph: Any, out_of: dict[Any, list[tuple[Any, Any]]],
-              into: dict[Any, list[tuple[Any, Any]]], s: Any, c: Any) -> str:
+def _why_type(
+    graph: Any,
+    out_of: dict[Any, list[tuple[Any, Any]]],
+    into: dict[Any, list[tuple[Any, Any]]],
+    s: Any,
+    c: Any,
+) -> str:
     """The told axiom a membership s : c follows from, in a few words (the first found of the
     OWL 2 RL rules that type an object: domain, range, hasValue, someValuesFrom,
     intersection), else the rule set itself."""

@@ -36,8 +36,10 @@ def max_input() -> int:
     unit = text[-1] if text[-1] in _UNITS else ""
     number = text[: len(text) - len(unit)]
     if not number.isascii() or not number.isdigit() or len(number) > 15:
-        raise DkError(f"DKREASON_MAX_INPUT={os.environ['DKREASON_MAX_INPUT']!r}: expected a "
-                      f"size such as 300M or 2G")
+        raise DkError(
+            f"DKREASON_MAX_INPUT={os.environ['DKREASON_MAX_INPUT']!r}: expected a "
+            f"size such as 300M or 2G"
+        )
     return int(number) * _UNITS[unit]
 
 
@@ -60,14 +62,14 @@ def regular(path: Path) -> os.stat_result:
     if stat.S_ISDIR(info.st_mode):
         raise DkError(f"{shown(path)}: is a directory, expected a file")
     if not stat.S_ISREG(info.st_mode):
-        raise DkError(f"{shown(path)}: not a regular file (a device, FIFO or socket is "
-                      f"not read)")
+        raise DkError(f"{shown(path)}: not a regular file (a device, FIFO or socket is not read)")
     return info
 
 
 def _too_big(path: Path, limit: int) -> DkError:
-    return DkError(f"{shown(path)}: larger than {limit} bytes (raise DKREASON_MAX_INPUT to "
-                   f"read it)")
+    return DkError(
+        f"{shown(path)}: larger than {limit} bytes (raise DKREASON_MAX_INPUT to read it)"
+    )
 
 
 def read_bytes(path: Path) -> bytes:
@@ -106,8 +108,11 @@ def lines(path: Path, name: str) -> Iterator[tuple[int, bytes]]:
             handle = open(path, "rb")  # noqa: SIM115 - closed below, also when abandoned
         except OSError as exc:
             raise DkError(f"{shown(path)}: cannot read ({exc.strerror})") from None
-    with contextlib.closing(handle) if handle is not sys.stdin.buffer else \
-            contextlib.nullcontext(handle):
+    with (
+        contextlib.closing(handle)
+        if handle is not sys.stdin.buffer
+        else contextlib.nullcontext(handle)
+    ):
         n = 0
         while line := handle.readline(MAX_LINE + 1):
             n += 1
@@ -123,9 +128,14 @@ def json_value(data: bytes | str, where: Span, exact: bool = True) -> Any:
     """One JSON document (numbers with a fraction or exponent as exact decimals unless not
     `exact`); any failure — syntax, encoding, nesting, a number too long — is a ParseError."""
     try:  # json.loads, with its decoder made once, not per document
-        text = data if isinstance(data, str) else data.decode(
-            "utf-8" if data[:1] == b"{" and data[1:2] != b"\0" else json.detect_encoding(data),
-            "surrogatepass")  # an object in UTF-8 (what peers send) needs no sniffing
+        text = (
+            data
+            if isinstance(data, str)
+            else data.decode(
+                "utf-8" if data[:1] == b"{" and data[1:2] != b"\0" else json.detect_encoding(data),
+                "surrogatepass",
+            )
+        )  # an object in UTF-8 (what peers send) needs no sniffing
         if text.startswith("\ufeff"):
             raise json.JSONDecodeError("Unexpected UTF-8 BOM (decode using utf-8-sig)", text, 0)
         return (_EXACT if exact else _FLOAT).decode(text)
@@ -143,6 +153,7 @@ def json_value(data: bytes | str, where: Span, exact: bool = True) -> Any:
 
 
 # ---- edits -------------------------------------------------------------------------------
+
 
 @contextlib.contextmanager
 def locked(path: Path) -> Iterator[Path]:

@@ -39,6 +39,7 @@ ANY = Interval(Fraction(0), None)
 
 # ---- expressions (numeric or boolean values of features) ------------------------------------
 
+
 @dataclass(frozen=True, slots=True)
 class Num:
     value: int | float
@@ -75,6 +76,7 @@ Expr = Num | Str | Ref | Arith | Unary
 
 
 # ---- formulas --------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True, slots=True)
 class BoolConst:
@@ -132,8 +134,17 @@ class Quant:
 Formula = BoolConst | Atom | Compare | Not | Connective | Temporal | Until | Quant
 
 _PREFIX = {"□": "always", "◇": "eventually"}
-_WORD = {"U": "until", "¬": "not", "∧": "and", "∨": "or", "→": "->", "↔": "<->",
-         "∀": "forall", "∃": "exists", "=": "=="}
+_WORD = {
+    "U": "until",
+    "¬": "not",
+    "∧": "and",
+    "∨": "or",
+    "→": "->",
+    "↔": "<->",
+    "∀": "forall",
+    "∃": "exists",
+    "=": "==",
+}
 
 
 class _ToAst(Transformer[Token, Any]):
@@ -146,14 +157,18 @@ class _ToAst(Transformer[Token, Any]):
 
     def feature(self, children: list[Token]) -> Ref:
         name, *args = children
-        return Ref(FeatureRef(str(name), tuple(Arg(str(a), None, self._span(a)) for a in args),
-                              self._span(name)))
+        return Ref(
+            FeatureRef(
+                str(name), tuple(Arg(str(a), None, self._span(a)) for a in args), self._span(name)
+            )
+        )
 
     def number(self, children: list[Token]) -> Num:
         text = str(children[0])
         if len(text) > MAX_NUMBER:
-            raise ParseError(f"number of {len(text)} characters (at most {MAX_NUMBER})",
-                             self._span(children[0]))
+            raise ParseError(
+                f"number of {len(text)} characters (at most {MAX_NUMBER})", self._span(children[0])
+            )
         return Num(int(text) if text.isdigit() else float(text))
 
     def boolean(self, children: list[Token]) -> BoolConst:
@@ -168,8 +183,9 @@ class _ToAst(Transformer[Token, Any]):
     def string(self, children: list[Token]) -> Str:
         text = str(children[0])
         if len(text) > MAX_NUMBER:
-            raise ParseError(f"string of {len(text)} characters (at most {MAX_NUMBER})",
-                             self._span(children[0]))
+            raise ParseError(
+                f"string of {len(text)} characters (at most {MAX_NUMBER})", self._span(children[0])
+            )
         return Str(re.sub(r"\\(.)", r"\1", text[1:-1]))
 
     def expr(self, children: list[Any]) -> Arith:
@@ -214,8 +230,9 @@ class _ToAst(Transformer[Token, Any]):
             return None
         text = str(token)
         if len(text) > MAX_NUMBER:
-            raise ParseError(f"time bound of {len(text)} characters (at most {MAX_NUMBER})",
-                             self._span(token))
+            raise ParseError(
+                f"time bound of {len(text)} characters (at most {MAX_NUMBER})", self._span(token)
+            )
         unit = text.lstrip("0123456789.")
         return Fraction(text[: len(text) - len(unit)]) * UNITS[unit or "s"]
 
@@ -233,9 +250,14 @@ class _ToAst(Transformer[Token, Any]):
 # Built at import, from lark's cache when the grammar is unchanged (a few ms, not the 40 ms
 # of an LALR analysis), so the first formula costs what later ones do.  The transformer runs
 # inside the LALR parser: the AST is built without a parse tree.
-_PARSER = Lark.open_from_package("dkreason.parse", "mtl.lark", parser="lalr",
-                                 maybe_placeholders=False, transformer=_ToAst(),
-                                 cache=lark_file("mtl"))
+_PARSER = Lark.open_from_package(
+    "dkreason.parse",
+    "mtl.lark",
+    parser="lalr",
+    maybe_placeholders=False,
+    transformer=_ToAst(),
+    cache=lark_file("mtl"),
+)
 
 
 def _nest(op: str, bindings: list[tuple[str, str, Span]], body: Formula) -> Formula:
@@ -256,8 +278,7 @@ def _formula(node: Any) -> Formula:
     if isinstance(node, Ref):
         return Atom(node.feature)
     if isinstance(node, Num | Str | Arith | Unary):
-        raise ParseError("a number is not a formula: compare it with something",
-                         _where(node))
+        raise ParseError("a number is not a formula: compare it with something", _where(node))
     return node  # type: ignore[no-any-return]
 
 
@@ -308,8 +329,9 @@ def _balanced(node: Any, depth: int) -> Any:
     if isinstance(node, Connective) and node.op in ASSOCIATIVE:
         return chain(node.op, [_balanced(n, depth + 1) for n in _links(node)])
     if isinstance(node, Compare | Connective | Arith | Until):
-        return replace(node, left=_balanced(node.left, depth + 1),
-                       right=_balanced(node.right, depth + 1))
+        return replace(
+            node, left=_balanced(node.left, depth + 1), right=_balanced(node.right, depth + 1)
+        )
     if isinstance(node, Not | Temporal | Unary):
         return replace(node, arg=_balanced(node.arg, depth + 1))
     if isinstance(node, Quant):
@@ -321,8 +343,10 @@ def _syntax_error(exc: UnexpectedInput, text: str) -> ParseError:
     span = Span(FILE, getattr(exc, "line", 1) or 1, getattr(exc, "column", 1) or 1)
     if isinstance(exc, UnexpectedEOF) or getattr(getattr(exc, "token", None), "type", "") == "$END":
         lines = text.splitlines() or [""]
-        return ParseError("syntax error: the formula ends too early",
-                          Span(FILE, len(lines), len(lines[-1].rstrip()) + 2))
+        return ParseError(
+            "syntax error: the formula ends too early",
+            Span(FILE, len(lines), len(lines[-1].rstrip()) + 2),
+        )
     if isinstance(exc, UnexpectedCharacters):
         return ParseError(f"syntax error: unexpected character {exc.char!r}", span)
     token = getattr(exc, "token", "")
@@ -332,12 +356,24 @@ def _syntax_error(exc: UnexpectedInput, text: str) -> ParseError:
     return ParseError(f"syntax error at {str(token)!r}{hint}", span)
 
 
-_EXPECTED = {"NAME": "a feature name", "NUMBER": "a number", "RPAR": "')'", "RSQB": "']'",
-             "LPAR": "'('", "CMP": "a comparison", "AND": "'and'", "OR": "'or'",
-             "DURATION": "a time bound", "IN": "'in'", "BVAR": "a variable", "$END": "the end"}
+_EXPECTED = {
+    "NAME": "a feature name",
+    "NUMBER": "a number",
+    "RPAR": "')'",
+    "RSQB": "']'",
+    "LPAR": "'('",
+    "CMP": "a comparison",
+    "AND": "'and'",
+    "OR": "'or'",
+    "DURATION": "a time bound",
+    "IN": "'in'",
+    "BVAR": "a variable",
+    "$END": "the end",
+}
 
 
 # ---- what the matcher needs: the features, with variables typed by their quantifier -------
+
 
 def features(formula: Formula) -> list[FeatureRef]:
     """Every feature occurrence, in order, arguments marked as constants or sorted variables."""
@@ -349,8 +385,9 @@ def _walk(node: Any, env: dict[str, str]) -> Iterator[FeatureRef]:
         yield from _walk(node.body, {**env, node.var: node.sort})
     elif isinstance(node, Atom | Ref):
         f = node.feature
-        yield FeatureRef(f.name, tuple(Arg(a.name, env.get(a.name), a.span) for a in f.args),
-                         f.span)
+        yield FeatureRef(
+            f.name, tuple(Arg(a.name, env.get(a.name), a.span) for a in f.args), f.span
+        )
     else:
         for child in children(node):
             yield from _walk(child, env)
@@ -397,7 +434,10 @@ def feature_key(text: str) -> FeatureKey | None:
     args = tuple(a.strip() for a in found.group(2).split(",")) if found.group(2) else ()
     return FeatureKey(found.group(1), args) if all(args) else None
 
+
 # lark compiles its lexers' expressions on first use (~9 ms): one formula using every kind of
 # token pays that here too.
-_PARSER.parse('forall x in S: always[0, 1ms] (A[x] > -1.5 * abs(B[x]) + 2 and not C[x] or '
-              'eventually D[x] == "s" -> E[x] until[0, 2] F[x] <-> true)')
+_PARSER.parse(
+    "forall x in S: always[0, 1ms] (A[x] > -1.5 * abs(B[x]) + 2 and not C[x] or "
+    'eventually D[x] == "s" -> E[x] until[0, 2] F[x] <-> true)'
+)

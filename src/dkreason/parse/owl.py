@@ -40,8 +40,9 @@ class Sources:
     skipped: tuple[str, ...]  # one warning line per import left out (imports = "skip")
 
 
-def read_sources(files: Sequence[Path], imports: Mapping[str, Path] | None = None,
-                 skip: bool = False) -> Sources:
+def read_sources(
+    files: Sequence[Path], imports: Mapping[str, Path] | None = None, skip: bool = False
+) -> Sources:
     """The files, then what they import (`owl:imports`), each once however many import it
     (cycles included).  An import is found in `imports` (IRI → file, the config's
     `[imports]`), else in an OASIS XML catalog (`catalog-v001.xml`, as Protégé writes it)
@@ -67,21 +68,25 @@ def read_sources(files: Sequence[Path], imports: Mapping[str, Path] | None = Non
         data = read_bytes(path)
         read.append((path, data))
         part = _graph(data, str(path), where.as_uri(), None)
-        names |= {str(o).rstrip("/#") for o in part.subjects(RDF.type, OWL.Ontology)
-                  if isinstance(o, URIRef)}
+        names |= {
+            str(o).rstrip("/#")
+            for o in part.subjects(RDF.type, OWL.Ontology)
+            if isinstance(o, URIRef)
+        }
         if iri:
             names.add(iri.rstrip("/#"))
         for _, _, wanted in sorted(part.triples((None, OWL.imports, None))):
             target = str(wanted)
             if target.rstrip("/#") in names:
                 continue
-            found = (imports or {}).get(target) or _catalog(path.parent, catalogs, read).get(
-                target)
+            found = (imports or {}).get(target) or _catalog(path.parent, catalogs, read).get(target)
             if found is not None:
                 todo.append((found, target))
                 continue
-            why = (f"owl:imports <{target}> is found neither in the config's [imports] nor in a "
-                   f"catalog-v001.xml beside it (nothing is fetched)")
+            why = (
+                f"owl:imports <{target}> is found neither in the config's [imports] nor in a "
+                f"catalog-v001.xml beside it (nothing is fetched)"
+            )
             if not skip:
                 raise ParseError(why, Span(str(path)))
             skipped.append(f"{path}: {why}; skipped")
@@ -94,8 +99,9 @@ def read_sources(files: Sequence[Path], imports: Mapping[str, Path] | None = Non
     return Sources(graph, tuple(read), tuple(skipped))
 
 
-def _catalog(folder: Path, catalogs: dict[Path, dict[str, Path]],
-             read: list[tuple[Path, bytes]]) -> dict[str, Path]:
+def _catalog(
+    folder: Path, catalogs: dict[Path, dict[str, Path]], read: list[tuple[Path, bytes]]
+) -> dict[str, Path]:
     """IRI → file of the catalog-v001.xml in `folder` (none: empty), read once."""
     if folder not in catalogs:
         path = folder / "catalog-v001.xml"
@@ -107,15 +113,20 @@ def _catalog(folder: Path, catalogs: dict[Path, dict[str, Path]],
             read.append((path, data))
             root, _ = xmlsafe.parse(data, str(path))
             for element in root.iter():
-                if element.tag.rsplit("}", 1)[-1] == "uri" and element.get("name") and \
-                        element.get("uri"):
-                    catalogs[folder][str(element.get("name"))] = \
-                        Path(os.path.normpath(folder / str(element.get("uri"))))
+                if (
+                    element.tag.rsplit("}", 1)[-1] == "uri"
+                    and element.get("name")
+                    and element.get("uri")
+                ):
+                    catalogs[folder][str(element.get("name"))] = Path(
+                        os.path.normpath(folder / str(element.get("uri")))
+                    )
     return catalogs[folder]
 
 
-def served(files: Sequence[Path], imports: Mapping[str, Path] | None = None,
-           skip: bool = False) -> tuple[str, str]:
+def served(
+    files: Sequence[Path], imports: Mapping[str, Path] | None = None, skip: bool = False
+) -> tuple[str, str]:
     """A platform's ontology as its live node serves it: every file and import merged, as
     Turtle (a peer never chooses the parser its monitor runs, nor follows imports), and the
     SHA-256 of what was read (what tells a returning platform's ontology from the one it
@@ -133,15 +144,28 @@ SYNTAXES = {"xml", "trix", "turtle", "nt", "nquads", "trig", "n3", "json-ld"}
 XML_SYNTAXES = {"xml", "trix", "owx"}
 OWL_SYNTAXES = {"ofn": "OWL Functional Syntax", "omn": "Manchester Syntax", "owx": "OWL/XML"}
 # Suffixes that say one syntax; any other (.owl, .rdf, .xml, none) is told by the content.
-_BY_SUFFIX = {".ttl": "turtle", ".nt": "nt", ".nq": "nquads", ".trig": "trig", ".n3": "n3",
-              ".jsonld": "json-ld", ".json": "json-ld", ".trix": "trix", ".ofn": "ofn",
-              ".omn": "omn", ".owx": "owx"}
+_BY_SUFFIX = {
+    ".ttl": "turtle",
+    ".nt": "nt",
+    ".nq": "nquads",
+    ".trig": "trig",
+    ".n3": "n3",
+    ".jsonld": "json-ld",
+    ".json": "json-ld",
+    ".trix": "trix",
+    ".ofn": "ofn",
+    ".omn": "omn",
+    ".owx": "owx",
+}
 
 
 # What may precede an ontology's first statement: a BOM, space, comments, an XML declaration
 # or document type.
-_PREAMBLE = re.compile(rb"^(\xef\xbb\xbf|\s|#[^\n]*\n|<\?xml[^>]*>|<!--.*?-->|"
-                       rb"<!DOCTYPE[^>]*(\[.*?\])?\s*>)*", re.S)
+_PREAMBLE = re.compile(
+    rb"^(\xef\xbb\xbf|\s|#[^\n]*\n|<\?xml[^>]*>|<!--.*?-->|"
+    rb"<!DOCTYPE[^>]*(\[.*?\])?\s*>)*",
+    re.S,
+)
 
 
 def syntax(data: bytes, file: str) -> str:
@@ -172,11 +196,15 @@ def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
 
     fmt = fmt or syntax(data, file)
     if fmt not in SYNTAXES and fmt not in OWL_SYNTAXES:
-        raise ParseError(f"syntax {fmt!r} is not read (use RDF/XML, Turtle, N-Triples, "
-                         f"N-Quads, TriG, TriX, N3, JSON-LD, OWL/XML, OWL Functional or "
-                         f"Manchester syntax)", Span(file))
+        raise ParseError(
+            f"syntax {fmt!r} is not read (use RDF/XML, Turtle, N-Triples, "
+            f"N-Quads, TriG, TriX, N3, JSON-LD, OWL/XML, OWL Functional or "
+            f"Manchester syntax)",
+            Span(file),
+        )
     if fmt in XML_SYNTAXES:
         from .. import xmlsafe
+
         xmlsafe.check(data, file)
     elif fmt == "json-ld":
         _local_contexts(json_value(data, Span(file)), file)
@@ -214,13 +242,17 @@ def _owl_to_rdf(data: bytes, file: str, fmt: str) -> bytes:
         if where:
             line, column = int(where.group(1)), int(where.group(2))
         elif offset:
-            before = data[:int(offset.group(1))]
+            before = data[: int(offset.group(1))]
             line, column = before.count(b"\n") + 1, len(before) - before.rfind(b"\n")
-        why = re.search(r"(ParserError|ValidityError|Error)\(\s*(\"[^\"]*\"|Error \{ "
-                        r"variant: \w+)", message)
+        why = re.search(
+            r"(ParserError|ValidityError|Error)\(\s*(\"[^\"]*\"|Error \{ "
+            r"variant: \w+)",
+            message,
+        )
         shown = why.group(2).strip('"').replace("Error { variant: ", "") if why else "unreadable"
-        raise ParseError(f"malformed {OWL_SYNTAXES[fmt]}: {shown}",
-                         Span(file, line, column)) from None
+        raise ParseError(
+            f"malformed {OWL_SYNTAXES[fmt]}: {shown}", Span(file, line, column)
+        ) from None
     return rdf.encode("utf-8")
 
 
@@ -232,19 +264,28 @@ def _local_contexts(doc: Any, file: str) -> None:
         if isinstance(node, dict):
             for key, value in node.items():
                 if key in ("@context", "@import") and (
-                        isinstance(value, str) or
-                        isinstance(value, list) and any(isinstance(v, str) for v in value)):
-                    shown = value if isinstance(value, str) else \
-                        next(v for v in value if isinstance(v, str))
-                    raise ParseError(f"JSON-LD context {shown[:100]!r} refused (external "
-                                     f"references are not followed)", Span(file))
+                    isinstance(value, str)
+                    or isinstance(value, list)
+                    and any(isinstance(v, str) for v in value)
+                ):
+                    shown = (
+                        value
+                        if isinstance(value, str)
+                        else next(v for v in value if isinstance(v, str))
+                    )
+                    raise ParseError(
+                        f"JSON-LD context {shown[:100]!r} refused (external "
+                        f"references are not followed)",
+                        Span(file),
+                    )
                 todo.append(value)
         elif isinstance(node, list):
             todo.extend(node)
 
 
-def parse_ontology(data: bytes, file: str, platform: str, base: str | None = None,
-                   fmt: str | None = None) -> Ontology:
+def parse_ontology(
+    data: bytes, file: str, platform: str, base: str | None = None, fmt: str | None = None
+) -> Ontology:
     """`file` names the data in messages and, unless `fmt` is given, tells its RDF syntax
     by its suffix.  Imports are not followed (a served ontology arrives merged)."""
     return ontology_of(_graph(data, file, base, fmt), file, platform)
@@ -266,14 +307,36 @@ def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
     # characteristics), datatypes, ontologies; their subjects are never objects (unless also
     # declared individuals: punning) and their types never sorts.
     declared_not_objects = {
-        OWL.ObjectProperty, OWL.DatatypeProperty, OWL.AnnotationProperty, RDF.Property,
-        OWL.OntologyProperty, OWL.TransitiveProperty, OWL.SymmetricProperty,
-        OWL.AsymmetricProperty, OWL.ReflexiveProperty, OWL.IrreflexiveProperty,
-        OWL.FunctionalProperty, OWL.InverseFunctionalProperty, OWL.DeprecatedProperty,
-        RDFS.Datatype, OWL.DataRange, OWL.Ontology}
-    meta = {OWL.Class, RDFS.Class, OWL.NamedIndividual, OWL.Restriction, OWL.DeprecatedClass,
-            OWL.AllDisjointClasses, OWL.AllDifferent, OWL.AllDisjointProperties, OWL.Axiom,
-            OWL.NegativePropertyAssertion, *declared_not_objects}
+        OWL.ObjectProperty,
+        OWL.DatatypeProperty,
+        OWL.AnnotationProperty,
+        RDF.Property,
+        OWL.OntologyProperty,
+        OWL.TransitiveProperty,
+        OWL.SymmetricProperty,
+        OWL.AsymmetricProperty,
+        OWL.ReflexiveProperty,
+        OWL.IrreflexiveProperty,
+        OWL.FunctionalProperty,
+        OWL.InverseFunctionalProperty,
+        OWL.DeprecatedProperty,
+        RDFS.Datatype,
+        OWL.DataRange,
+        OWL.Ontology,
+    }
+    meta = {
+        OWL.Class,
+        RDFS.Class,
+        OWL.NamedIndividual,
+        OWL.Restriction,
+        OWL.DeprecatedClass,
+        OWL.AllDisjointClasses,
+        OWL.AllDifferent,
+        OWL.AllDisjointProperties,
+        OWL.Axiom,
+        OWL.NegativePropertyAssertion,
+        *declared_not_objects,
+    }
     not_objects = {s for t in declared_not_objects for s in graph.subjects(RDF.type, t)}
     classes = {s for s in graph.subjects(RDF.type, OWL.Class) if named(s)}
     classes |= {s for s in graph.subjects(RDF.type, RDFS.Class) if named(s)}
@@ -281,9 +344,11 @@ def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
         for s, o in graph.subject_objects(pred):
             classes |= {n for n in (s, o) if named(n)}
     declared = {s for s in graph.subjects(RDF.type, OWL.NamedIndividual) if named(s)}
-    typed = [(s, o) for s, o in graph.subject_objects(RDF.type)
-             if named(s) and named(o) and o not in meta
-             and (s not in not_objects or s in declared)]
+    typed = [
+        (s, o)
+        for s, o in graph.subject_objects(RDF.type)
+        if named(s) and named(o) and o not in meta and (s not in not_objects or s in declared)
+    ]
     classes |= {o for _, o in typed}
     classes.add(URIRef(THING))
 
@@ -292,8 +357,10 @@ def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
         if not named(cls):
             continue
         parts = members(graph.value(sup, OWL.intersectionOf)) if isinstance(sup, BNode) else []
-        arity = next((ARITY[local_name(str(p))] for p in parts
-                      if named(p) and local_name(str(p)) in ARITY), None)
+        arity = next(
+            (ARITY[local_name(str(p))] for p in parts if named(p) and local_name(str(p)) in ARITY),
+            None,
+        )
         if arity is None:
             continue
         sorts: dict[int, tuple[str, ...]] = {}
@@ -306,45 +373,64 @@ def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
                 continue
             index = int(match.group(1))
             if index > arity:
-                raise ParseError(f"feature <{cls}> restricts arg{index} but is a "
-                                 f"{arity}-ary relation", Span(file))
+                raise ParseError(
+                    f"feature <{cls}> restricts arg{index} but is a {arity}-ary relation",
+                    Span(file),
+                )
             union = members(graph.value(filler, OWL.unionOf))
             sorts[index] = tuple(str(u) for u in union if named(u)) if union else (str(filler),)
         if str(cls) in features:
             raise ParseError(f"feature <{cls}> has two relation signatures", Span(file))
         features[str(cls)] = Signature(
-            str(cls), tuple(sorts.get(i, (THING,)) for i in range(1, arity + 1)))
+            str(cls), tuple(sorts.get(i, (THING,)) for i in range(1, arity + 1))
+        )
 
     individuals = declared | {s for s, _ in typed if s not in classes}
-    same = [(str(a), str(b)) for a, b in graph.subject_objects(OWL.sameAs)
-            if named(a) and named(b)]
+    same = [(str(a), str(b)) for a, b in graph.subject_objects(OWL.sameAs) if named(a) and named(b)]
     individuals |= {URIRef(x) for pair in same for x in pair}
 
     ids: dict[str, IdValue] = {}
     for ind in individuals:
-        values = {o for p, o in graph.predicate_objects(ind)
-                  if isinstance(o, Literal) and local_name(str(p)) == "id"}
+        values = {
+            o
+            for p, o in graph.predicate_objects(ind)
+            if isinstance(o, Literal) and local_name(str(p)) == "id"
+        }
         if len(values) > 1:
             shown = ", ".join(sorted(str(v) for v in values))
             raise ParseError(f"object <{ind}> has several id values ({shown})", Span(file))
         if values:
             (lit,) = values
             if lit.ill_typed:
-                raise ParseError(f"object <{ind}>: id {str(lit)[:40]!r} is not a valid "
-                                 f"{local_name(str(lit.datatype))}", Span(file))
+                raise ParseError(
+                    f"object <{ind}>: id {str(lit)[:40]!r} is not a valid "
+                    f"{local_name(str(lit.datatype))}",
+                    Span(file),
+                )
             value = lit.toPython()
-            ids[str(ind)] = value if isinstance(value, int) and not isinstance(value, bool) \
-                else str(lit)
+            ids[str(ind)] = (
+                value if isinstance(value, int) and not isinstance(value, bool) else str(lit)
+            )
 
     return Ontology(
-        platform=platform, file=file,
+        platform=platform,
+        file=file,
         classes=frozenset(str(c) for c in classes),
         features=features,
-        subclass_of=tuple(sorted((str(s), str(o)) for s, o in
-                                 graph.subject_objects(RDFS.subClassOf) if named(s) and named(o))),
-        equivalent=tuple(sorted((str(s), str(o)) for s, o in
-                                graph.subject_objects(OWL.equivalentClass)
-                                if named(s) and named(o))),
+        subclass_of=tuple(
+            sorted(
+                (str(s), str(o))
+                for s, o in graph.subject_objects(RDFS.subClassOf)
+                if named(s) and named(o)
+            )
+        ),
+        equivalent=tuple(
+            sorted(
+                (str(s), str(o))
+                for s, o in graph.subject_objects(OWL.equivalentClass)
+                if named(s) and named(o)
+            )
+        ),
         individuals=frozenset(str(i) for i in individuals),
         types=tuple(sorted((str(s), str(o)) for s, o in typed if s in individuals)),
         same_as=tuple(sorted(same)),

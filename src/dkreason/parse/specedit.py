@@ -22,31 +22,40 @@ def edit(path: Path, *, add: TopicSpec | None = None, remove: str | None = None)
     missing)."""
     with files.locked(path) as target:
         xml = target.suffix.lower() == ".xml"
-        data = files.read_bytes(target) if target.exists() else \
-            (sslt.format_xml(()).encode() if xml else b"")
+        data = (
+            files.read_bytes(target)
+            if target.exists()
+            else (sslt.format_xml(()).encode() if xml else b"")
+        )
         where = files.shown(path)
         current = sslt.parse_specs(data, where, xml=xml)
         names = [s.name for s in current.specs]
         intended = [s for s in current.specs if s.name != remove]
         if remove is not None and remove not in names:
-            raise NameError_(f"no topic {remove!r} to remove (topics: "
-                             f"{', '.join(names) or 'none'})", Span(where))
+            raise NameError_(
+                f"no topic {remove!r} to remove (topics: {', '.join(names) or 'none'})", Span(where)
+            )
         if add is not None:
             if add.name in names and add.name != remove:
-                raise NameError_(f"topic {add.name} is already specified (line "
-                                 f"{current.specs[names.index(add.name)].span.line})",
-                                 Span(where))
+                raise NameError_(
+                    f"topic {add.name} is already specified (line "
+                    f"{current.specs[names.index(add.name)].span.line})",
+                    Span(where),
+                )
             intended.append(add)
-        new = _apply(data, current, xml, names.index(remove) if remove is not None else None,
-                     add)
+        new = _apply(data, current, xml, names.index(remove) if remove is not None else None, add)
         if list(sslt.parse_specs(new, where, xml=xml).specs) != intended:
-            raise ParseError("this edit would change other topics of the file (an unusual "
-                             "layout); the file is left unchanged", Span(where))
+            raise ParseError(
+                "this edit would change other topics of the file (an unusual "
+                "layout); the file is left unchanged",
+                Span(where),
+            )
         files.write_atomic(target, new)
 
 
-def _apply(data: bytes, current: sslt.SpecFile, xml: bool, index: int | None,
-           add: TopicSpec | None) -> bytes:
+def _apply(
+    data: bytes, current: sslt.SpecFile, xml: bool, index: int | None, add: TopicSpec | None
+) -> bytes:
     """The edited file; XML extents count bytes, text extents characters."""
     encoding = _encoding(data) if xml else "utf-8"
     try:
@@ -63,8 +72,7 @@ def _apply(data: bytes, current: sslt.SpecFile, xml: bool, index: int | None,
         text = text[:start] + text[end:]
         tail -= end - start if tail >= end else 0
     if add is not None:
-        text = _insert_xml(text, tail, add, newline) if xml else \
-            _append_text(text, add, newline)
+        text = _insert_xml(text, tail, add, newline) if xml else _append_text(text, add, newline)
     return text.encode(encoding, errors="xmlcharrefreplace" if xml else "strict")
 
 
@@ -124,5 +132,4 @@ def _insert_xml(text: str, tail: int, add: TopicSpec, newline: str) -> str:
     if open_at < 0:
         raise DkError("cannot add a topic: no <Topic_specs> element")
     head = text[open_at:tail].rstrip()[:-2].rstrip()
-    return (text[:open_at] + head + ">" + newline + topic + newline + "</Topic_specs>"
-            + text[tail:])
+    return text[:open_at] + head + ">" + newline + topic + newline + "</Topic_specs>" + text[tail:]

@@ -28,9 +28,14 @@ from .files import decode, read_bytes
 def _parser() -> Lark:
     # The transformer runs inside the LALR parser (no parse tree): spans come from tokens.
     # Built on first use (a specs file the cache does not hold), its tables from lark's cache.
-    return Lark.open_from_package("dkreason.parse", "sslt.lark", parser="lalr",
-                                  maybe_placeholders=False, transformer=_ToModel(),
-                                  cache=lark_file("sslt"))
+    return Lark.open_from_package(
+        "dkreason.parse",
+        "sslt.lark",
+        parser="lalr",
+        maybe_placeholders=False,
+        transformer=_ToModel(),
+        cache=lark_file("sslt"),
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -45,6 +50,7 @@ class SpecFile:
 
 
 # ---- text ------------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True, slots=True)
 class _Entry:
@@ -92,13 +98,19 @@ class _ToModel(Transformer[Token, Any]):
         return text
 
     def arg(self, children: list[Any]) -> _Arg:
-        return _Arg(str(children[0]), str(children[1]) if len(children) > 1 else None,
-                    _span(children[0]))
+        return _Arg(
+            str(children[0]), str(children[1]) if len(children) > 1 else None, _span(children[0])
+        )
 
     def sort_entry(self, children: list[Any]) -> _Entry:
         kind, name, field = children
-        return _Entry(str(kind), str(name), str(field), _span(kind),  # type: ignore[arg-type]
-                      field.end_pos or 0)
+        return _Entry(
+            str(kind),  # type: ignore[arg-type]
+            str(name),
+            str(field),
+            _span(kind),
+            field.end_pos or 0,
+        )
 
     def object_entry(self, children: list[Any]) -> _Entry:
         name, field = children
@@ -109,8 +121,7 @@ class _ToModel(Transformer[Token, Any]):
         args = tuple(c for c in rest if isinstance(c, _Arg))
         field = next(c for c in rest if isinstance(c, Token))
         entries = [c for c in rest if isinstance(c, _Entry)]
-        return [_Feature(str(name), args, str(field), _span(name), field.end_pos or 0),
-                *entries]
+        return [_Feature(str(name), args, str(field), _span(name), field.end_pos or 0), *entries]
 
     def topic(self, children: list[Any]) -> tuple[TopicSpec, int, int]:
         keyword, name, msgtype, *items = children
@@ -118,8 +129,11 @@ class _ToModel(Transformer[Token, Any]):
         span, lines = _span(keyword), (keyword.start_pos or 0, max(x.end for x in flat))
         if isinstance(flat[0], _Entry):
             if len(flat) > 1:
-                raise ParseError(f"topic {name} lists {len(flat)} entities; a sort or object "
-                                 f"topic carries exactly one", span)
+                raise ParseError(
+                    f"topic {name} lists {len(flat)} entities; a sort or object "
+                    f"topic carries exactly one",
+                    span,
+                )
             entry = flat[0]
             entity = TopicArg(entry.kind, entry.name, entry.field, entry.span)
             return (TopicSpec(str(name), str(msgtype), (), entity, span), *lines)
@@ -142,19 +156,29 @@ def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
     for entry in entries:
         slot = next((i for i, a in enumerate(feature.args) if a.alias == entry.name), None)
         if slot is None:
-            slot = next((i for i, a in enumerate(feature.args)
-                         if a.name == entry.name and a.alias is None and i not in bound), None)
+            slot = next(
+                (
+                    i
+                    for i, a in enumerate(feature.args)
+                    if a.name == entry.name and a.alias is None and i not in bound
+                ),
+                None,
+            )
         if slot is None:
-            raise ParseError(f"'for {entry.name}' names no unbound argument of {feature.name}",
-                             entry.span)
+            raise ParseError(
+                f"'for {entry.name}' names no unbound argument of {feature.name}", entry.span
+            )
         if slot in bound:
             raise ParseError(f"argument {slot + 1} of {feature.name} bound twice", entry.span)
         bound[slot] = entry
     args = []
     for i, a in enumerate(feature.args):
         found = bound.get(i)
-        args.append(TopicArg(found.kind, a.name, found.field, a.span) if found
-                    else TopicArg("object", a.name, None, a.span))
+        args.append(
+            TopicArg(found.kind, a.name, found.field, a.span)
+            if found
+            else TopicArg("object", a.name, None, a.span)
+        )
     return TopicFeature(feature.name, feature.field, tuple(args), feature.span)
 
 
@@ -178,25 +202,43 @@ def _syntax_error(exc: UnexpectedInput, file: str) -> ParseError:
     if isinstance(exc, UnexpectedEOF):
         return ParseError(f"syntax error: unexpected end of input, expected {wanted}", span)
     if isinstance(exc, UnexpectedCharacters):
-        return ParseError(f"syntax error: unexpected character {exc.char!r}"
-                          + (f", expected {wanted}" if wanted else ""), span)
+        return ParseError(
+            f"syntax error: unexpected character {exc.char!r}"
+            + (f", expected {wanted}" if wanted else ""),
+            span,
+        )
     token = getattr(exc, "token", None)
     return ParseError(f"syntax error: unexpected {str(token)!r}, expected {wanted}", span)
 
 
-_TERMINALS = {"NAME": "a name", "PNAME": "a prefixed name", "IRI": "an <IRI>",
-              "FIELD": "a message field like msg.id", "SORT_TYPE": "'some' or 'every'",
-              "COMMA": "','", "EQUAL": "'='", "LPAR": "'('", "RPAR": "')'", "COLON": "':'",
-              "TOPIC": "'topic'", "CONTAINS": "'contains'", "FOR": "'for'", "AS": "'as'",
-              "SORT": "'sort'", "$END": "end of input"}
+_TERMINALS = {
+    "NAME": "a name",
+    "PNAME": "a prefixed name",
+    "IRI": "an <IRI>",
+    "FIELD": "a message field like msg.id",
+    "SORT_TYPE": "'some' or 'every'",
+    "COMMA": "','",
+    "EQUAL": "'='",
+    "LPAR": "'('",
+    "RPAR": "')'",
+    "COLON": "':'",
+    "TOPIC": "'topic'",
+    "CONTAINS": "'contains'",
+    "FOR": "'for'",
+    "AS": "'as'",
+    "SORT": "'sort'",
+    "$END": "end of input",
+}
 
 
 def _no_duplicates(specs: tuple[TopicSpec, ...]) -> None:
     seen: dict[str, TopicSpec] = {}
     for spec in specs:
         if spec.name in seen:
-            raise ParseError(f"topic {spec.name} is specified twice (first at "
-                             f"line {seen[spec.name].span.line})", spec.span)
+            raise ParseError(
+                f"topic {spec.name} is specified twice (first at line {seen[spec.name].span.line})",
+                spec.span,
+            )
         seen[spec.name] = spec
 
 
@@ -215,34 +257,43 @@ def format_spec(spec: TopicSpec) -> str:
     head = f"topic {topic_name_text(spec.name)}:{spec.msgtype} contains "
     if spec.entity is not None:
         e = spec.entity
-        return head + (f"{e.name} = {e.id_field}" if e.kind == "object"
-                       else f"{e.kind} {e.name} = {e.id_field}")
+        return head + (
+            f"{e.name} = {e.id_field}"
+            if e.kind == "object"
+            else f"{e.kind} {e.name} = {e.id_field}"
+        )
     parts = []
     for f in spec.features:
         repeated = {a.name for a in f.args if sum(b.name == a.name for b in f.args) > 1}
         labels = [f"arg{i + 1}" if a.name in repeated else a.name for i, a in enumerate(f.args)]
-        args = ", ".join(f"{a.name} as {lab}" if a.name in repeated else a.name
-                         for a, lab in zip(f.args, labels, strict=True))
-        entries = [(f"{lab} = {a.id_field}" if a.kind == "object"
-                    else f"{a.kind} {lab} = {a.id_field}")
-                   for a, lab in zip(f.args, labels, strict=True) if a.id_field is not None]
-        parts.append(f"{f.name}({args}) = {f.field}" + (f" for {', '.join(entries)}"
-                                                           if entries else ""))
+        args = ", ".join(
+            f"{a.name} as {lab}" if a.name in repeated else a.name
+            for a, lab in zip(f.args, labels, strict=True)
+        )
+        entries = [
+            (f"{lab} = {a.id_field}" if a.kind == "object" else f"{a.kind} {lab} = {a.id_field}")
+            for a, lab in zip(f.args, labels, strict=True)
+            if a.id_field is not None
+        ]
+        parts.append(
+            f"{f.name}({args}) = {f.field}" + (f" for {', '.join(entries)}" if entries else "")
+        )
     return head + ", ".join(parts)
 
 
 # ---- XML (DTD of listing 4.5, cleaned: specs/topic_specs.dtd) ------------------------------
 
+
 def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
     from .. import xmlsafe
+
     root, where = xmlsafe.parse(data, file)
 
     def span(elem: Any) -> Span:
         return Span(file, where[elem].line if elem in where else 0)
 
     if root.tag != "Topic_specs":
-        raise ParseError(f"root element is <{root.tag}>, expected <Topic_specs>",
-                         span(root))
+        raise ParseError(f"root element is <{root.tag}>, expected <Topic_specs>", span(root))
     specs, extents = [], []
     for topic in root:
         tspan = span(topic)
@@ -256,17 +307,21 @@ def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
             if child.tag == "feature":
                 args = tuple(_xml_arg(a, span(a), in_feature=True) for a in child)
                 if not args:
-                    raise ParseError(f"feature {_attr(child, 'name', cspan)} in topic {name} "
-                                     f"has no arguments", cspan)
-                features.append(TopicFeature(_attr(child, "name", cspan),
-                                             _attr(child, "value", cspan), args, cspan))
+                    raise ParseError(
+                        f"feature {_attr(child, 'name', cspan)} in topic {name} has no arguments",
+                        cspan,
+                    )
+                features.append(
+                    TopicFeature(
+                        _attr(child, "name", cspan), _attr(child, "value", cspan), args, cspan
+                    )
+                )
             elif child.tag not in ("sort", "object"):
                 raise ParseError(f"unexpected <{child.tag}> in topic {name}", cspan)
         if features and len(features) != len(children):
             raise ParseError(f"topic {name} mixes features with a sort or object", tspan)
         if not features and len(children) != 1:
-            raise ParseError(f"topic {name} must hold features, or one sort, or one object",
-                             tspan)
+            raise ParseError(f"topic {name} must hold features, or one sort, or one object", tspan)
         entity = None if features else _xml_arg(children[0], span(children[0]), in_feature=False)
         specs.append(TopicSpec(name, msgtype, tuple(features), entity, tspan))
         extents.append((where[topic].start, where[topic].end))
@@ -292,8 +347,12 @@ def _xml_arg(elem: Any, span: Span, *, in_feature: bool) -> TopicArg:
         every = _attr(elem, "all_objects", span)
         if every not in ("true", "false"):
             raise ParseError(f"all_objects must be true or false, not {every!r}", span)
-        return TopicArg("every" if every == "true" else "some", _attr(elem, "name", span),
-                        _attr(elem, "value", span), span)
+        return TopicArg(
+            "every" if every == "true" else "some",
+            _attr(elem, "name", span),
+            _attr(elem, "value", span),
+            span,
+        )
     raise ParseError(f"unexpected <{elem.tag}>, expected <object> or <sort>", span)
 
 
@@ -303,8 +362,10 @@ def format_xml_topic(spec: TopicSpec, indent: str = "  ") -> str:
             value = "" if a.id_field is None else f" value={quoteattr(a.id_field)}"
             return f"{pad}<object name={quoteattr(a.name)}{value}/>"
         every = "true" if a.kind == "every" else "false"
-        return (f"{pad}<sort all_objects=\"{every}\" name={quoteattr(a.name)} "
-                f"value={quoteattr(a.id_field or '')}/>")
+        return (
+            f'{pad}<sort all_objects="{every}" name={quoteattr(a.name)} '
+            f"value={quoteattr(a.id_field or '')}/>"
+        )
 
     lines = [f"{indent}<Topic msgtype={quoteattr(spec.msgtype)} name={quoteattr(spec.name)}>"]
     if spec.entity is not None:
@@ -319,11 +380,15 @@ def format_xml_topic(spec: TopicSpec, indent: str = "  ") -> str:
 
 def format_xml(specs: tuple[TopicSpec, ...]) -> str:
     body = "\n".join(format_xml_topic(s) for s in specs)
-    return ('<?xml version="1.0" encoding="UTF-8"?>\n<Topic_specs>\n'
-            + (body + "\n" if body else "") + "</Topic_specs>\n")
+    return (
+        '<?xml version="1.0" encoding="UTF-8"?>\n<Topic_specs>\n'
+        + (body + "\n" if body else "")
+        + "</Topic_specs>\n"
+    )
 
 
 # ---- files -------------------------------------------------------------------------------------
+
 
 def read_specs(path: Path) -> SpecFile:
     return parse_specs(read_bytes(path), str(path), xml=is_xml(path))

@@ -71,8 +71,12 @@ def shape(f: Formula) -> Shape | None:
     if isinstance(body, Connective) and body.op in ("->", "or") and is_state(body.left):
         trigger = body.left if body.op == "->" else Not(body.left)
         body = body.right
-    if isinstance(body, Not) and isinstance(body.arg, Temporal) and body.arg.op == "always" \
-            and is_state(body.arg.arg):
+    if (
+        isinstance(body, Not)
+        and isinstance(body.arg, Temporal)
+        and body.arg.op == "always"
+        and is_state(body.arg.arg)
+    ):
         body = Temporal("eventually", body.arg.interval, Not(body.arg.arg))
     if isinstance(body, Temporal) and body.op == "eventually" and is_state(body.arg):
         lo, hi = exact(body.interval.lo), exact(body.interval.hi)
@@ -93,8 +97,7 @@ def shapes(f: Formula) -> list[Shape] | None:
 class Member:
     """One fused formula: its shape and how to report it."""
 
-    def __init__(self, s: Shape, on_false: Callable[[Why], None],
-                 unit: Fraction | int = 1) -> None:
+    def __init__(self, s: Shape, on_false: Callable[[Why], None], unit: Fraction | int = 1) -> None:
         self.shape, self.on_false, self.unit = s, on_false, unit
         self.hi: Time | float = INF if s.hi is None else s.hi
         self.unknown = False
@@ -109,8 +112,13 @@ class Member:
 
     def fail_now(self, t: Time, values: dict[FeatureKey, Any]) -> None:
         shown = ", ".join(f"{k} = {values[k]}" for k in features(self.shape.a))
-        self.fail(Why(render(self.shape.a), t, f"was false at {self.fmt(t)}" +
-                      (f" ({shown})" if shown else "")))
+        self.fail(
+            Why(
+                render(self.shape.a),
+                t,
+                f"was false at {self.fmt(t)}" + (f" ({shown})" if shown else ""),
+            )
+        )
 
     def expire(self, ti: Time) -> None:
         s = self.shape
@@ -161,16 +169,18 @@ class Group:
         members, failed = self.members, False
         strong = self._oldest(False)
         if strong is not None:
-            while members and (t - strong > members[0].hi or
-                               (closing and t - strong == members[0].hi)):
+            while members and (
+                t - strong > members[0].hi or (closing and t - strong == members[0].hi)
+            ):
                 members.pop(0).expire(strong)
                 self.unknown_upto = max(self.unknown_upto - 1, 0)
                 failed = True
         weak = self._oldest(True)
         if weak is not None:
             while self.unknown_upto < len(members) and (
-                    t - weak > members[self.unknown_upto].hi or
-                    (closing and t - weak == members[self.unknown_upto].hi)):
+                t - weak > members[self.unknown_upto].hi
+                or (closing and t - weak == members[self.unknown_upto].hi)
+            ):
                 members[self.unknown_upto].unknown = True
                 self.unknown_upto += 1
         return failed
@@ -258,8 +268,11 @@ def threshold(f: Formula) -> tuple[FeatureKey, str, int | float] | None:
     return None if not isinstance(left, Ref) or c is None else (key(left.feature), op, c)
 
 
-_FOLD: dict[str, Callable[[Any, Any], Any]] = {"+": operator.add, "-": operator.sub,
-                                               "*": operator.mul}
+_FOLD: dict[str, Callable[[Any, Any], Any]] = {
+    "+": operator.add,
+    "-": operator.sub,
+    "*": operator.mul,
+}
 
 
 def _constant(e: Any) -> int | float | None:
@@ -284,8 +297,9 @@ class Thresholds:
     """Invariants `always (X op c)` over one feature and op: the members a value x breaks
     are those whose c is on x's side, a prefix when sorted by c."""
 
-    def __init__(self, op: str, members: list[tuple[int | float, Member]],
-                 on_unknown: Callable[[], None]) -> None:
+    def __init__(
+        self, op: str, members: list[tuple[int | float, Member]], on_unknown: Callable[[], None]
+    ) -> None:
         self.on_unknown = on_unknown
         self.broken = _COMPARE[_BREAKS[op]]  # broken(c, x): x breaks `x op c`
         members.sort(key=operator.itemgetter(0), reverse=op in (">", ">="))  # broken first
@@ -324,8 +338,7 @@ class FusedSet:
         self.run: Callable[[Time, Any], bool] | None = None
         self.make: Callable[[int, Any], tuple[Stepper, Held]] | None = None
 
-    def add(self, s: Shape, on_false: Callable[[Why], None],
-            unit: Fraction | int = 1) -> Member:
+    def add(self, s: Shape, on_false: Callable[[Why], None], unit: Fraction | int = 1) -> Member:
         m = Member(s, on_false, unit)
         self.members.append(m)
         if s.kind == "response":
@@ -361,8 +374,9 @@ _SYNC = "\0sync"  # in `fast`: where the owner's position is brought up to date 
 # out to what reads it)
 
 
-def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
-                                      Callable[[int, Any], tuple[Stepper, Held]]]:
+def _generate(
+    fs: FusedSet,
+) -> tuple[Callable[[Time, Any], bool], Callable[[int, Any], tuple[Stepper, Held]]]:
     """`step(t, v) -> decided?` for the current members, compiled once; and `make`, which
     gives `fast`: the same as the owning progressor's whole `step_state` (its state kept, its
     verdicts returned), which it calls instead (`Progressor.stepper`) while every formula it
@@ -382,8 +396,9 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
         for f in (m.shape.a, m.shape.b) if id(m) not in shared else ():
             if f is not None and f != TRUE:
                 formulas.setdefault(f, f"e{len(formulas)}")
-    keys = list(dict.fromkeys([*(k for f in formulas for k in features(f)),
-                               *(k for k, _ in thresholds)]))
+    keys = list(
+        dict.fromkeys([*(k for f in formulas for k in features(f)), *(k for k, _ in thresholds)])
+    )
     scope: dict[str, Any] = {"fs": fs, "slow": evaluate}
     names, reading = reads(keys, "v", scope)
 
@@ -395,16 +410,26 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
     by_known: dict[str, list[tuple[Formula, str]]] = {}  # formulas tested alike, tested once
     for f, var in formulas.items():
         bools = _boolean_keys(f)
-        known = " and ".join(f"type({names[k]}) is bool" if k in bools else
-                             f"{names[k]} is not None" for k in features(f)) or "True"
+        known = (
+            " and ".join(
+                f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None"
+                for k in features(f)
+            )
+            or "True"
+        )
         by_known.setdefault(known, []).append((f, var))
     for known, alike in by_known.items():
-        lines += [f"    if {known}:", *(f"        {var} = {_py(f, names)}" for f, var in alike),
-                  "    else:"]
+        lines += [
+            f"    if {known}:",
+            *(f"        {var} = {_py(f, names)}" for f, var in alike),
+            "    else:",
+        ]
         lines.append(_SYNC)  # the unknown's span is noted at the owner's position
         for f, var in alike:
-            lines += [f"        {var} = slow({const(f)}, v, t)",
-                      f"        fs.note_unknown(v, {const(features(f))})"]
+            lines += [
+                f"        {var} = slow({const(f)}, v, t)",
+                f"        fs.note_unknown(v, {const(features(f))})",
+            ]
     lines.append("    decided = False")
 
     def value(f: Formula) -> str:
@@ -414,45 +439,58 @@ def _generate(fs: FusedSet) -> tuple[Callable[[Time, Any], bool],
         group, x = Thresholds(op, members, functools.partial(fs.on_unknown, [k])), names[k]
         # the first threshold is fixed until one breaks (which regenerates this code): a
         # state that breaks none costs one comparison, not a call
-        lines += [f"    if {x} is None or {const(group.cs[0])} {_BREAKS[op]} {x}:", _SYNC,
-                  f"        if {const(group.step)}(t, {x}, v):",
-                  "            decided = True"]
+        lines += [
+            f"    if {x} is None or {const(group.cs[0])} {_BREAKS[op]} {x}:",
+            _SYNC,
+            f"        if {const(group.step)}(t, {x}, v):",
+            "            decided = True",
+        ]
     for m in fs.members:
         if m.shape.kind == "invariant" and id(m) not in shared:
             var, me = value(m.shape.a), const(m)
-            lines += [f"    if {var} is not True:",
-                      f"        if {var} is False:",
-                      f"            {me}.fail_now(t, v)",
-                      "            decided = True",
-                      "        else:",
-                      f"            {me}.unknown = True"]
+            lines += [
+                f"    if {var} is not True:",
+                f"        if {var} is False:",
+                f"            {me}.fail_now(t, v)",
+                "            decided = True",
+                "        else:",
+                f"            {me}.unknown = True",
+            ]
     for (a, b, lo), responses in fs.groups.items():
         # with no position waiting, a state changes nothing when the trigger is known false
         # or, for a window from now on, the target holds: no call
-        idle = [*([f"{value(a)} is False"] if a != TRUE else []),
-                *([f"{value(b)} is True"] if lo == 0 else [])]
+        idle = [
+            *([f"{value(a)} is False"] if a != TRUE else []),
+            *([f"{value(b)} is True"] if lo == 0 else []),
+        ]
         guard = f"(not ({' or '.join(idle)}) or {const(responses.pending)}) and " if idle else ""
-        lines += [f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
-                  "        decided = True"]
+        lines += [
+            f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
+            "        decided = True",
+        ]
     scope["P"] = fs.owner
     body = "\n".join(line for line in lines if line != _SYNC)
-    fast = "\n".join("            P.pos, P.last_input = pos, last_input"
-                     if line == _SYNC else "    " + line for line in lines)
-    source = (f"def step(t, v):\n{body}\n    return decided\n"
-              "def make(pos, last_input):\n"
-              "    def fast(t, v, given=None):\n"
-              "        nonlocal pos, last_input\n"
-              "        pos += 1\n"
-              "        last_input = t if given is None else given\n"
-              f"{fast}\n"
-              "        if decided:  # regenerated at the next state, by the owner's own step\n"
-              "            P.pos, P.last_input = pos, last_input\n"
-              "            fs.run = fs.make = None\n"
-              "            P.stepper, P.held = P.step_state, None\n"
-              "            return P._decided(False) if P.decided else []\n"
-              "        return ()\n"
-              "    def held():\n"
-              "        return pos, last_input\n"
-              "    return fast, held\n")
-    exec(compile(source, "<fused monitors>", "exec"), scope)  # noqa: S102 - our own code
+    fast = "\n".join(
+        "            P.pos, P.last_input = pos, last_input" if line == _SYNC else "    " + line
+        for line in lines
+    )
+    source = (
+        f"def step(t, v):\n{body}\n    return decided\n"
+        "def make(pos, last_input):\n"
+        "    def fast(t, v, given=None):\n"
+        "        nonlocal pos, last_input\n"
+        "        pos += 1\n"
+        "        last_input = t if given is None else given\n"
+        f"{fast}\n"
+        "        if decided:  # regenerated at the next state, by the owner's own step\n"
+        "            P.pos, P.last_input = pos, last_input\n"
+        "            fs.run = fs.make = None\n"
+        "            P.stepper, P.held = P.step_state, None\n"
+        "            return P._decided(False) if P.decided else []\n"
+        "        return ()\n"
+        "    def held():\n"
+        "        return pos, last_input\n"
+        "    return fast, held\n"
+    )
+    exec(compile(source, "<fused monitors>", "exec"), scope)
     return scope["step"], scope["make"]

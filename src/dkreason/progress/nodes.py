@@ -232,8 +232,9 @@ class WindowNode(Node):
     positions wait with absolute windows [t+a, t+b]; a decisive child value settles every
     waiting position whose window holds it, and a window closes at the state reaching its end."""
 
-    def __init__(self, ctx: Ctx, op: str, lo: Time, hi: Time | None, child: Node,
-                 interval: str) -> None:
+    def __init__(
+        self, ctx: Ctx, op: str, lo: Time, hi: Time | None, child: Node, interval: str
+    ) -> None:
         super().__init__(ctx)
         self.decisive = op == "eventually"
         self.lo, self.hi, self.child = lo, hi, child
@@ -315,10 +316,23 @@ class WindowNode(Node):
             del self.entries[0], self.times[0]
             value = None if unknown else (not self.decisive)
             within = f"[{self.fmt(ti + self.lo)}, {self.fmt(hi)}]"
-            how = "was unknown within" if unknown else "never held within" if self.decisive \
+            how = (
+                "was unknown within"
+                if unknown
+                else "never held within"
+                if self.decisive
                 else "held throughout"
-            self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {self.fmt(ti)}",
-                                        Why(self.child.text, ti, f"{how} {within}")))
+            )
+            self._resolve(
+                i,
+                value,
+                Why(
+                    self.text,
+                    ti,
+                    f"is {_word(value)} at {self.fmt(ti)}",
+                    Why(self.child.text, ti, f"{how} {within}"),
+                ),
+            )
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
         j, tj = key
@@ -352,8 +366,15 @@ class NextNode(Node):
         for i, ti in ready:
             gap = now - ti
             if gap < self.lo or (self.hi is not None and gap > self.hi):
-                self._resolve(i, False, Why(self.text, ti, f"is false at {self.fmt(ti)}: the next "
-                                                           f"state came {self.fmt(gap)} later"))
+                self._resolve(
+                    i,
+                    False,
+                    Why(
+                        self.text,
+                        ti,
+                        f"is false at {self.fmt(ti)}: the next state came {self.fmt(gap)} later",
+                    ),
+                )
                 continue
             v = self.child.request(pos, now, self, i)
             if v is not PENDING:
@@ -366,8 +387,9 @@ class NextNode(Node):
 
     def finish(self) -> None:
         for i, ti in self.waiting:
-            self._resolve(i, False, Why(self.text, ti,
-                                        f"is false at {self.fmt(ti)}: no next state"))
+            self._resolve(
+                i, False, Why(self.text, ti, f"is false at {self.fmt(ti)}: no next state")
+            )
         self.waiting = []
 
 
@@ -375,8 +397,9 @@ class UntilNode(Node):
     """φ until_[a,b] ψ: waiting positions are re-evaluated over the history of (φ, ψ) values
     with pending values read as unknown; a True or False result is final (Kleene monotony)."""
 
-    def __init__(self, ctx: Ctx, lo: Time, hi: Time | None, left: Node, right: Node,
-                 interval: str) -> None:
+    def __init__(
+        self, ctx: Ctx, lo: Time, hi: Time | None, left: Node, right: Node, interval: str
+    ) -> None:
         super().__init__(ctx)
         self.lo, self.hi, self.left, self.right = lo, hi, left, right
         self.level = max(left.level, right.level) + 1
@@ -416,8 +439,9 @@ class UntilNode(Node):
         while True:
             row = self.hist.get(j)
             if row is None:  # not recorded yet (this state, or one to come): open unless closed
-                if not at_end and (j <= self.ctx.pos or self.hi is None or
-                                   self.ctx.now < ti + self.hi):
+                if not at_end and (
+                    j <= self.ctx.pos or self.hi is None or self.ctx.now < ti + self.hi
+                ):
                     open_ = True
                     result = kleene("or", result, kleene("and", None, phi))
                 break
@@ -477,13 +501,24 @@ class PastNode(Node):
     Bounded windows drop rows older than any future window; unbounded ones fold settled rows
     into a running Kleene aggregate, so memory stays bounded either way."""
 
-    def __init__(self, ctx: Ctx, op: str, lo: Time, hi: Time | None, left: Node | None,
-                 right: Node, interval: str) -> None:
+    def __init__(
+        self,
+        ctx: Ctx,
+        op: str,
+        lo: Time,
+        hi: Time | None,
+        left: Node | None,
+        right: Node,
+        interval: str,
+    ) -> None:
         super().__init__(ctx)
         self.op, self.lo, self.hi, self.left, self.right = op, lo, hi, left, right
         self.level = max(right.level, left.level if left else 0) + 1
-        self.text = (f"({left.text}) since{interval} ({right.text})" if left is not None
-                     else f"{op}{interval} ({right.text})")
+        self.text = (
+            f"({left.text}) since{interval} ({right.text})"
+            if left is not None
+            else f"{op}{interval} ({right.text})"
+        )
         self.hist: deque[list[Any]] = deque()  # [position, time, φ (since), ψ]
         self.entries: list[tuple[int, Time]] = []
         self.decisive = op != "historically"
@@ -515,8 +550,11 @@ class PastNode(Node):
             while self.hist and self.hist[0][1] < oldest_open - self.hi:
                 self.hist.popleft()
         else:  # settled rows inside every open window fold into the aggregate
-            while len(self.hist) > 1 and self.hist[0][1] <= oldest_open - self.lo and \
-                    PENDING not in self.hist[0][2:]:
+            while (
+                len(self.hist) > 1
+                and self.hist[0][1] <= oldest_open - self.lo
+                and PENDING not in self.hist[0][2:]
+            ):
                 _, _, pj, sj = self.hist.popleft()
                 if self.op == "since":
                     self.folded = kleene("or", sj, kleene("and", pj, self.folded))
@@ -554,8 +592,7 @@ class PastNode(Node):
             open_ = open_ or pj is PENDING or sj is PENDING
             if ti - tj >= self.lo:
                 s = None if sj is PENDING else sj
-                result = kleene(combine, result, s if self.op != "since" else
-                                kleene("and", s, phi))
+                result = kleene(combine, result, s if self.op != "since" else kleene("and", s, phi))
                 if result is self.decisive:
                     return result
             if self.op == "since":

@@ -36,8 +36,11 @@ class UnknownSpan:
     end: Any
 
     def to_json(self) -> dict[str, Any]:
-        return {"feature": str(self.feature), "from": _json_time(self.start),
-                "to": _json_time(self.end)}
+        return {
+            "feature": str(self.feature),
+            "from": _json_time(self.start),
+            "to": _json_time(self.end),
+        }
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,9 +58,13 @@ class Verdict:
     unknown: tuple[UnknownSpan, ...] = field(default=())
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"formula": self.formula, "verdict": self.verdict,
-                               "time": _json_time(self.time), "at_end": self.at_end,
-                               "witness": self.witness}
+        out: dict[str, Any] = {
+            "formula": self.formula,
+            "verdict": self.verdict,
+            "time": _json_time(self.time),
+            "at_end": self.at_end,
+            "witness": self.witness,
+        }
         if self.verdict is None:
             out["unknown"] = [u.to_json() for u in self.unknown]
         return out
@@ -110,8 +117,9 @@ class _Monitor:
 _UNSEEN: list[tuple[FeatureKey, Any]] = [(FeatureKey(""), object())]  # no state has this key
 
 
-def _spelling(values: Mapping[Any, Any], keys: set[FeatureKey], time: Any
-              ) -> list[tuple[FeatureKey, Any]]:
+def _spelling(
+    values: Mapping[Any, Any], keys: set[FeatureKey], time: Any
+) -> list[tuple[FeatureKey, Any]]:
     """Each feature in `keys` and the key that stands for it in `values`: itself, or text
     (`"Close[uav1, uav2]"`), read here once per spelling, not once a state."""
     spelled = {k if isinstance(k, FeatureKey) else feature_key(k): k for k in values}
@@ -150,8 +158,9 @@ class Progressor:
         if tree is None:
             tree = parse_formula(formula)
             for q in quantifiers(tree):
-                raise DkError(f"{q.span}: quantifier over {q.sort} needs a knowledge base "
-                              f"(give --config)")
+                raise DkError(
+                    f"{q.span}: quantifier over {q.sort} needs a knowledge base (give --config)"
+                )
         parsed = scaled(tree, Fraction(1) / self.unit)
         self._general()  # the general step while this one is new
         monitor = _Monitor(formula, features(parsed))
@@ -172,15 +181,18 @@ class Progressor:
         self.keys.update(monitor.keys)
         self.spelling = _UNSEEN
 
-    def step(self, time: Any, values: Mapping[FeatureKey, Any] | Mapping[str, Any]
-             ) -> list[Verdict]:
+    def step(
+        self, time: Any, values: Mapping[FeatureKey, Any] | Mapping[str, Any]
+    ) -> list[Verdict]:
         """Feed one state; return the verdicts it decides.  Values are keyed by `FeatureKey`
         (as the stream processor makes them); keys written as text (`"Close[uav1, uav2]"`) are
         read at this boundary, once per spelling."""
         t = time if type(time) is int else exact_time(time)
         if not t > self.stepped[0]:
-            raise DkError(f"time {time} is not after the previous state's time "
-                          f"{self.stepped[1]} (times must increase strictly)")
+            raise DkError(
+                f"time {time} is not after the previous state's time "
+                f"{self.stepped[1]} (times must increase strictly)"
+            )
         self.stepped = (t, time)
         typed = {}  # the features the formulas read, as the caller spells them
         try:
@@ -191,8 +203,9 @@ class Progressor:
             typed = {k: values[s] for k, s in self.spelling}
         return [*self.stepper(t, typed, time)]
 
-    def step_state(self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
-                   ) -> list[Verdict]:
+    def step_state(
+        self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
+    ) -> list[Verdict]:
         """`step` for the stream processor's states, checked already: exact times that
         increase, every feature a value (`given`: the time as the caller wrote it)."""
         self.pos += 1
@@ -262,18 +275,27 @@ class Progressor:
             witness = None
             if m.value is False and m.why is not None:
                 if m.members:  # the fused step names the failing part only
-                    witness = Why(m.text, m.first, f"is false at {fmt(m.first, self.unit)}",
-                                  m.why).render()
+                    witness = Why(
+                        m.text, m.first, f"is false at {fmt(m.first, self.unit)}", m.why
+                    ).render()
                 else:  # the root node's reason, with the formula as the user wrote it
                     witness = Why(m.text, m.why.at, m.why.detail, m.why.cause).render()
             unknown: tuple[UnknownSpan, ...] = ()
             if m.value is None:
-                unknown = tuple(UnknownSpan(k, s[0], s[1]) for k in m.keys
-                                for s in self.unknown.get(k, ()))
-                witness = "the data left it undecided: " + (", ".join(
-                    f"{u.feature} unknown from {fmt(u.start, self.unit)} to "
-                    f"{fmt(u.end, self.unit)}" for u in unknown)
-                    if unknown else "no state was seen" if not m.started else "")
+                unknown = tuple(
+                    UnknownSpan(k, s[0], s[1]) for k in m.keys for s in self.unknown.get(k, ())
+                )
+                witness = "the data left it undecided: " + (
+                    ", ".join(
+                        f"{u.feature} unknown from {fmt(u.start, self.unit)} to "
+                        f"{fmt(u.end, self.unit)}"
+                        for u in unknown
+                    )
+                    if unknown
+                    else "no state was seen"
+                    if not m.started
+                    else ""
+                )
             out.append(Verdict(m.text, m.value, self.last_input, at_end, witness, unknown))
         return out
 

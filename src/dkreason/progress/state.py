@@ -34,8 +34,14 @@ from ..parse.formula import (
 Value = bool | None
 StateFn = Callable[[Mapping[FeatureKey, Any], Any], Value]  # (values, time)
 
-_CMP = {"<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
-        "==": operator.eq, "!=": operator.ne}
+_CMP = {
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+    "==": operator.eq,
+    "!=": operator.ne,
+}
 _ARITH = {"+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv}
 
 
@@ -128,6 +134,7 @@ def feature_uses(formulas: Iterable[tuple[str, Any]]) -> dict[FeatureKey, tuple[
 
 # ---- three-valued interpreter (the slow path, and the reference for the fast one) ----------
 
+
 def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) -> Value:
     if isinstance(f, BoolConst):
         return f.value
@@ -135,8 +142,10 @@ def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) 
         v = values[key(f.feature)]
         if v is None or isinstance(v, bool):
             return v
-        raise DkError(f"feature {key(f.feature)} is used as a condition but has the value "
-                      f"{v!r} at time {time}")
+        raise DkError(
+            f"feature {key(f.feature)} is used as a condition but has the value "
+            f"{v!r} at time {time}"
+        )
     if isinstance(f, Compare):
         if is_text(f):
             left, right = _text(f.left, values, time), _text(f.right, values, time)
@@ -175,8 +184,10 @@ def _text(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> str | None
     if isinstance(e, Ref):
         v = values[key(e.feature)]
         if v is not None and not isinstance(v, str):
-            raise DkError(f"feature {key(e.feature)} is compared with a string but has the "
-                          f"value {v!r} at time {time}")
+            raise DkError(
+                f"feature {key(e.feature)} is compared with a string but has the "
+                f"value {v!r} at time {time}"
+            )
         return v
     raise DkError(f"only a feature compares with a string, not {render(e)}")
 
@@ -189,8 +200,10 @@ def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
     if isinstance(e, Ref):
         v = values[key(e.feature)]
         if v is not None and not isinstance(v, int | float) and not hasattr(v, "__truediv__"):
-            raise DkError(f"feature {key(e.feature)} is compared as a number but has the "
-                          f"value {v!r} at time {time}")
+            raise DkError(
+                f"feature {key(e.feature)} is compared as a number but has the "
+                f"value {v!r} at time {time}"
+            )
         return v
     if isinstance(e, Unary):
         v = _number(e.arg, values, time)
@@ -207,8 +220,10 @@ def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
 
 # ---- generated two-valued fast path ------------------------------------------------------------
 
-def reads(keys: list[FeatureKey], values: str, scope: dict[str, Any]
-          ) -> tuple[dict[FeatureKey, str], list[str]]:
+
+def reads(
+    keys: list[FeatureKey], values: str, scope: dict[str, Any]
+) -> tuple[dict[FeatureKey, str], list[str]]:
     """Generated code's local names for `keys` and the lines reading them from `values`; the
     keys themselves are bound in `scope` (K0, K1, …): objects, not source text."""
     names = {k: f"v{i}" for i, k in enumerate(keys)}
@@ -223,16 +238,21 @@ def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
     names, lines = reads(keys, "values", scope)
     bools = _boolean_keys(f)
     body = _py(f, names)
-    known = " and ".join(
-        (f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None")
-        for k in keys) or "True"
+    known = (
+        " and ".join(
+            (f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None") for k in keys
+        )
+        or "True"
+    )
     reads_ = "".join(f"    {line}\n" for line in lines)
-    source = (f"def state(values, time=None):\n{reads_}"
-              f"    if {known}:\n"
-              f"        try:\n            return {body}\n"
-              f"        except (ZeroDivisionError, TypeError):\n            pass\n"
-              f"    return slow(formula, values, time)\n")
-    exec(compile(source, f"<state {render(f)}>", "exec"), scope)  # noqa: S102 - our own code
+    source = (
+        f"def state(values, time=None):\n{reads_}"
+        f"    if {known}:\n"
+        f"        try:\n            return {body}\n"
+        f"        except (ZeroDivisionError, TypeError):\n            pass\n"
+        f"    return slow(formula, values, time)\n"
+    )
+    exec(compile(source, f"<state {render(f)}>", "exec"), scope)
     return scope["state"], keys
 
 
@@ -259,6 +279,10 @@ def _py(n: Any, names: dict[FeatureKey, str]) -> str:
         return f"(not {_py(n.arg, names)})"
     if isinstance(n, Connective):
         a, b = _py(n.left, names), _py(n.right, names)
-        return {"and": f"({a} and {b})", "or": f"({a} or {b})",
-                "->": f"((not {a}) or {b})", "<->": f"({a} == {b})"}[n.op]
+        return {
+            "and": f"({a} and {b})",
+            "or": f"({a} or {b})",
+            "->": f"((not {a}) or {b})",
+            "<->": f"({a} == {b})",
+        }[n.op]
     raise TypeError(type(n).__name__)

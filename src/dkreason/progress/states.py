@@ -18,8 +18,9 @@ from .progressor import exact_time
 from .state import USE
 
 
-def read_states(path: Path, uses: Mapping[FeatureKey, str] | None = None
-                ) -> Iterator[tuple[Any, dict[FeatureKey, Any]]]:
+def read_states(
+    path: Path, uses: Mapping[FeatureKey, str] | None = None
+) -> Iterator[tuple[Any, dict[FeatureKey, Any]]]:
     """(time, values) per line; a value is a boolean, a number, a string or null (unknown);
     NaN and infinities are unknown too.  `uses`: how the formulas use each feature (bool,
     number, string); a value of another kind is an error naming the file and line."""
@@ -28,8 +29,11 @@ def read_states(path: Path, uses: Mapping[FeatureKey, str] | None = None
             continue
         where = Span(str(path), n)
         row = files.json_value(line, where)
-        if not isinstance(row, dict) or "time" not in row or \
-                not isinstance(row.get("values"), dict):
+        if (
+            not isinstance(row, dict)
+            or "time" not in row
+            or not isinstance(row.get("values"), dict)
+        ):
             raise ParseError('expected {"time": …, "values": {…}}', where)
         try:
             exact_time(row["time"])  # finite and bounded, before the progressor converts it
@@ -43,14 +47,24 @@ def read_states(path: Path, uses: Mapping[FeatureKey, str] | None = None
             if isinstance(value, Decimal):
                 value = float(value)
             elif value is not None and not isinstance(value, bool | int | float | str):
-                raise ParseError(f"value of {text} must be a boolean, a number, a string or "
-                                 f"null, not {type(value).__name__}", where)
+                raise ParseError(
+                    f"value of {text} must be a boolean, a number, a string or "
+                    f"null, not {type(value).__name__}",
+                    where,
+                )
             values[key] = datum(value)
             use = (uses or {}).get(key)
             if use is not None and value is not None:
-                kind = "bool" if isinstance(value, bool) else \
-                    "string" if isinstance(value, str) else "number"
+                kind = (
+                    "bool"
+                    if isinstance(value, bool)
+                    else "string"
+                    if isinstance(value, str)
+                    else "number"
+                )
                 if kind != use:
-                    raise ParseError(f"{text} is {USE[kind]} ({value!r}), but a formula uses "
-                                     f"it as {USE[use]}", where)
+                    raise ParseError(
+                        f"{text} is {USE[kind]} ({value!r}), but a formula uses it as {USE[use]}",
+                        where,
+                    )
         yield row["time"], values

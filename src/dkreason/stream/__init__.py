@@ -2,5 +2,13 @@
 
 # rosbags' standard message definitions, by name (--typestore): here, so the CLI's help
 # names them without importing the readers.
-TYPESTORES = ("ros1_noetic", "ros2_foxy", "ros2_galactic", "ros2_humble", "ros2_iron",
-              "ros2_jazzy", "ros2_kilted", "latest")
+TYPESTORES = (
+    "ros1_noetic",
+    "ros2_foxy",
+    "ros2_galactic",
+    "ros2_humble",
+    "ros2_iron",
+    "ros2_jazzy",
+    "ros2_kilted",
+    "latest",
+)

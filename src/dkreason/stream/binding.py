@@ -28,13 +28,17 @@ def recording_names(m: TopicMatch, local: str, namespace: str | None) -> list[st
         shared = [own]
     else:  # the thesis' layout: /P/T, and /T on the local platform
         shared = [f"/{m.platform}/{t}", *([f"/{t}"] if m.platform == local else [])]
-    return [f"{m.platform}:{own}", f"{m.platform}:{own[1:]}",
-            *(n for full in shared for n in (full, full[1:]))]
+    return [
+        f"{m.platform}:{own}",
+        f"{m.platform}:{own[1:]}",
+        *(n for full in shared for n in (full, full[1:])),
+    ]
 
 
 def message_type_fits(recorded: str, written: str) -> bool:
     """`turtlesim/msg/Pose` (ROS 2) or `turtlesim/Pose` (ROS 1) is what a spec writes as
     `Pose`, `turtlesim/Pose` or `turtlesim/msg/Pose`."""
+
     def parts(t: str) -> tuple[str | None, str]:
         pieces = t.split("/")
         return (pieces[0] if len(pieces) > 1 else None), pieces[-1]
@@ -53,8 +57,12 @@ class Recordings:
     """Several recordings as one source, merged by record time as they stream (each is read
     in order, so memory stays flat); `remap` reads a recording topic under another name."""
 
-    def __init__(self, recordings: Sequence[Recording],
-                 remap: Mapping[str, str] | None = None, clock: str = "auto") -> None:
+    def __init__(
+        self,
+        recordings: Sequence[Recording],
+        remap: Mapping[str, str] | None = None,
+        clock: str = "auto",
+    ) -> None:
         if not recordings:
             raise DkError("no recording given")
         self.parts = list(recordings)
@@ -64,9 +72,11 @@ class Recordings:
         notes = [n for r in self.parts if (n := getattr(r.source, "note", None))]
         self.clock = self._clock() if clock == "auto" else clock
         if clock == "auto" and self.clock == "record":
-            notes.append("the header stamps run on another clock than the record time "
-                         f"(about {self._offset:.0f} s apart: simulated time?); valid times "
-                         "are the record time (--clock header to use the stamps)")
+            notes.append(
+                "the header stamps run on another clock than the record time "
+                f"(about {self._offset:.0f} s apart: simulated time?); valid times "
+                "are the record time (--clock header to use the stamps)"
+            )
         self.note = "; ".join(notes)
 
     _offset = 0.0
@@ -82,8 +92,7 @@ class Recordings:
             topics = r.source.types()  # none known (JSON lines): times are written, not stamped
             messages = r.source.messages({t: [] for t in topics}) if topics else iter(())
             try:
-                for _, (_, available, valid, _) in zip(range(self.SAMPLE), messages,
-                                                       strict=False):
+                for _, (_, available, valid, _) in zip(range(self.SAMPLE), messages, strict=False):
                     if valid != available:
                         offsets.append(available - valid)
             except DkError:  # damage this early is reported when the recording is read
@@ -104,7 +113,7 @@ class Recordings:
         if r.platform is not None:
             if not shown.startswith(f"{r.platform}:"):
                 return None
-            shown = shown[len(r.platform) + 1:]
+            shown = shown[len(r.platform) + 1 :]
         return self.unmap.get(_slash(shown), shown)
 
     def types(self) -> dict[str, str]:
@@ -138,9 +147,14 @@ class Recordings:
         return None if None in ends else max(e for e in ends if e is not None)
 
     def count(self, topics: set[str] | None) -> int | None:
-        counts = [r.source.count(None if topics is None else
-                                 {o for t in topics if (o := self._own(r, t)) is not None})
-                  for r in self.parts]
+        counts = [
+            r.source.count(
+                None
+                if topics is None
+                else {o for t in topics if (o := self._own(r, t)) is not None}
+            )
+            for r in self.parts
+        ]
         return None if None in counts else sum(c for c in counts if c is not None)
 
     def messages(self, wanted: Wanted) -> Iterator[Message]:

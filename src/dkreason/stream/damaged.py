@@ -59,8 +59,14 @@ def kind_of(path: Path) -> tuple[Kind, Path] | None:
 class SequentialSource:
     """A Source over a damaged or unindexed recording (see the module docstring)."""
 
-    def __init__(self, path: Path, kind: Kind, msg_files: Sequence[Path], why: str,
-                 typestore: str | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        kind: Kind,
+        msg_files: Sequence[Path],
+        why: str,
+        typestore: str | None = None,
+    ) -> None:
         from .sources import _msg_types, _typestore
 
         self.name, self.path, self.kind = str(path), path, kind
@@ -85,8 +91,9 @@ class SequentialSource:
             try:
                 self.store.register(get_types_from_msg(item[2], item[1]))
             except Exception as exc:  # rosbags raises several kinds for bad definitions
-                raise DkError(f"{self.name}: message definition {item[1]} unreadable "
-                              f"({str(exc)[:200]})") from None
+                raise DkError(
+                    f"{self.name}: message definition {item[1]} unreadable ({str(exc)[:200]})"
+                ) from None
         elif item[0] == "channel":
             self.channels[item[1]] = (item[2], item[3])
 
@@ -119,8 +126,9 @@ class SequentialSource:
     def messages(self, wanted: dict[str, list[str]]) -> Iterator[tuple[str, int, int, Any]]:
         from .sources import NS, _ros_reader
 
-        deserialize = self.store.deserialize_ros1 if self.kind == "ros1" else \
-            self.store.deserialize_cdr
+        deserialize = (
+            self.store.deserialize_ros1 if self.kind == "ros1" else self.store.deserialize_cdr
+        )
         readers: dict[Any, tuple[Any, bool]] = {}
         n = 0
         try:
@@ -133,19 +141,27 @@ class SequentialSource:
                 if topic not in wanted:
                     continue
                 if channel not in readers:
-                    readers[channel] = _ros_reader(self.store.fielddefs, msgtype, wanted[topic],
-                                                   self.kind == "ros1", deserialize)
+                    readers[channel] = _ros_reader(
+                        self.store.fielddefs,
+                        msgtype,
+                        wanted[topic],
+                        self.kind == "ros1",
+                        deserialize,
+                    )
                 read, stamped = readers[channel]
                 try:
                     values = read(raw)
-                except Exception as exc:  # noqa: BLE001 - a torn message is damage too
-                    raise _Cut(f"message {n + 1} on {topic} does not decode as {msgtype}: "
-                               f"{str(exc)[:100]}") from None
+                except Exception as exc:
+                    raise _Cut(
+                        f"message {n + 1} on {topic} does not decode as {msgtype}: {str(exc)[:100]}"
+                    ) from None
                 n += 1
                 yield topic, t_ns, values[-2] * NS + values[-1] if stamped else t_ns, values
         except _Cut as cut:
-            raise DamagedRecording(f"{self.name}: damaged recording: {cut}; {n} messages "
-                                   f"before it were monitored, the rest is lost") from None
+            raise DamagedRecording(
+                f"{self.name}: damaged recording: {cut}; {n} messages "
+                f"before it were monitored, the rest is lost"
+            ) from None
 
 
 # ---- MCAP ---------------------------------------------------------------------------------
@@ -165,7 +181,7 @@ class _Bytes:
         if self.pos + n > len(self.data):
             raise _Cut("a record ends early")
         self.pos += n
-        return self.data[self.pos - n:self.pos]
+        return self.data[self.pos - n : self.pos]
 
     def u16(self) -> int:
         return int.from_bytes(self.take(2), "little")
@@ -187,8 +203,8 @@ def _mcap_records(data: memoryview) -> Iterator[tuple[int, memoryview]]:
     while pos < len(data):
         if pos + 9 > len(data):
             raise _Cut("the file ends in the middle of a record")
-        op, size = data[pos], int.from_bytes(data[pos + 1:pos + 9], "little")
-        content = data[pos + 9:pos + 9 + size]
+        op, size = data[pos], int.from_bytes(data[pos + 1 : pos + 9], "little")
+        content = data[pos + 9 : pos + 9 + size]
         if len(content) < size:
             if op == 0x06:  # a chunk: its complete records are still good
                 yield from _mcap_chunk(content, torn=True)
@@ -204,7 +220,7 @@ def _mcap_chunk(content: memoryview, torn: bool = False) -> Iterator[tuple[int, 
     chunk.take(8 + 8 + 8 + 4)  # start and end time, uncompressed size and CRC
     compression = chunk.text()
     size = chunk.u64()
-    records = chunk.data[chunk.pos:chunk.pos + size]
+    records = chunk.data[chunk.pos : chunk.pos + size]
     if compression == "zstd":
         import zstandard
 
@@ -236,14 +252,14 @@ def _mcap(path: Path) -> Iterator[Item]:
                 yield from _mcap_item(inner, _Bytes(body), schemas)
     except _Cut as cut:
         raise _Cut(f"{cut} ({len(data):,} bytes)") from None
-    except Exception as exc:  # noqa: BLE001 - a torn compressed chunk, a bad string
+    except Exception as exc:
         raise _Cut(f"{str(exc)[:120]} ({len(data):,} bytes)") from None
 
 
 def _mcap_item(op: int, r: _Bytes, schemas: dict[int, str]) -> Iterator[Item]:
     if op == 0x05:  # message
         channel, _, log_time, _ = r.u16(), r.u32(), r.u64(), r.u64()
-        yield "message", channel, log_time, bytes(r.data[r.pos:])
+        yield "message", channel, log_time, bytes(r.data[r.pos :])
     elif op == 0x03:  # schema
         id_, name, encoding = r.u16(), r.text(), r.text()
         text = bytes(r.take(r.u32())).decode("utf-8", "replace")
@@ -258,11 +274,12 @@ def _mcap_item(op: int, r: _Bytes, schemas: dict[int, str]) -> Iterator[Item]:
 
 # ---- ROS 1 bags (format 2.0) -------------------------------------------------------------
 
+
 def _fields(header: bytes) -> dict[str, bytes]:
     out, i = {}, 0
     while i + 4 <= len(header):
         (size,) = struct.unpack_from("<I", header, i)
-        name, _, value = header[i + 4:i + 4 + size].partition(b"=")
+        name, _, value = header[i + 4 : i + 4 + size].partition(b"=")
         out[name.decode("ascii", "replace")] = value
         i += 4 + size
     return out
@@ -323,14 +340,14 @@ def _ros1_item(op: bytes, fields_: dict[str, bytes], body: bytes) -> Iterator[It
         msgtype = conn.get("type", b"").decode()
         rostype = msgtype.replace("/", "/msg/", 1) if "/msg/" not in msgtype else msgtype
         yield "type", rostype, conn.get("message_definition", b"").decode("utf-8", "replace")
-        yield "channel", struct.unpack("<I", fields_["conn"])[0], \
-            fields_["topic"].decode(), rostype
+        yield "channel", struct.unpack("<I", fields_["conn"])[0], fields_["topic"].decode(), rostype
     elif op == b"\x02":  # message data
         sec, nsec = struct.unpack("<II", fields_["time"])
         yield "message", struct.unpack("<I", fields_["conn"])[0], sec * 10**9 + nsec, body
 
 
 # ---- rosbag2 sqlite3 -----------------------------------------------------------------------
+
 
 def declared_size(path: Path) -> int:
     """The bytes an sqlite3 file's header says it holds (0: not known)."""
@@ -365,14 +382,15 @@ def _db3_rows(path: Path) -> Iterator[Item]:
         tables = {row[0] for row in db.execute("SELECT name FROM sqlite_master")}
         if "message_definitions" in tables:
             for name, encoding, text in db.execute(
-                    "SELECT topic_type, encoding, encoded_message_definition "
-                    "FROM message_definitions"):
+                "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions"
+            ):
                 if encoding == "ros2msg":
                     yield "type", name, text
         for id_, topic, msgtype in db.execute("SELECT id, name, type FROM topics"):
             yield "channel", id_, topic, msgtype
         for topic_id, stamp, data in db.execute(
-                "SELECT topic_id, timestamp, data FROM messages ORDER BY id"):
+            "SELECT topic_id, timestamp, data FROM messages ORDER BY id"
+        ):
             n += 1
             yield "message", topic_id, stamp, data
     except sqlite3.Error as exc:

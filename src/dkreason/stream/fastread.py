@@ -17,10 +17,21 @@ from typing import Any
 
 from .fields import path
 
-_FORMAT = {"bool": ("?", 1), "int8": ("b", 1), "uint8": ("B", 1), "byte": ("B", 1),
-           "char": ("B", 1), "int16": ("h", 2), "uint16": ("H", 2), "int32": ("i", 4),
-           "uint32": ("I", 4), "float32": ("f", 4), "int64": ("q", 8), "uint64": ("Q", 8),
-           "float64": ("d", 8)}
+_FORMAT = {
+    "bool": ("?", 1),
+    "int8": ("b", 1),
+    "uint8": ("B", 1),
+    "byte": ("B", 1),
+    "char": ("B", 1),
+    "int16": ("h", 2),
+    "uint16": ("H", 2),
+    "int32": ("i", 4),
+    "uint32": ("I", 4),
+    "float32": ("f", 4),
+    "int64": ("q", 8),
+    "uint64": ("Q", 8),
+    "float64": ("d", 8),
+}
 
 Extractor = Callable[[bytes], tuple[Any, ...] | None]
 
@@ -29,8 +40,13 @@ class _Unsupported(Exception):
     pass
 
 
-def compile_extractor(fielddefs: Mapping[str, Any], msgtype: str, fields: Sequence[str],
-                      ros1: bool, otherwise: Extractor | None = None) -> Extractor | None:
+def compile_extractor(
+    fielddefs: Mapping[str, Any],
+    msgtype: str,
+    fields: Sequence[str],
+    ros1: bool,
+    otherwise: Extractor | None = None,
+) -> Extractor | None:
     """A function returning the values of `fields` (in order) from one serialised message,
     or None when the type's layout is not one it can read.  A message it cannot read (big
     endian) goes to `otherwise` (None without it), inside the one call."""
@@ -51,12 +67,15 @@ def compile_extractor(fielddefs: Mapping[str, Any], msgtype: str, fields: Sequen
         return None  # some field is not in the type (the processor reports it)
     import struct
 
-    scope: dict[str, Any] = {"unpack": struct.unpack_from,
-                             "otherwise": otherwise or (lambda raw: None)}
+    scope: dict[str, Any] = {
+        "unpack": struct.unpack_from,
+        "otherwise": otherwise or (lambda raw: None),
+    }
     head = "" if ros1 else "    if raw[1] != 1:\n        return otherwise(raw)  # big-endian CDR\n"
     body = code.body(len(fields), scope)
-    exec(compile(f"def extract(raw):\n{head}{body}", f"<extract {msgtype}>", "exec"),  # noqa: S102
-         scope)  # our own code
+    exec(
+        compile(f"def extract(raw):\n{head}{body}", f"<extract {msgtype}>", "exec"), scope
+    )  # our own code
     extract: Extractor = scope["extract"]
     return extract
 
@@ -80,8 +99,9 @@ class _Code:
             return ""
         return f"    o = ((o - 4 + {size - 1}) & {-size}) + 4\n"
 
-    def primitive(self, fmt: str, size: int, values: Sequence[tuple[int, int]] = (),
-                  count: int = 1) -> None:
+    def primitive(
+        self, fmt: str, size: int, values: Sequence[tuple[int, int]] = (), count: int = 1
+    ) -> None:
         """`count` primitives of one format; `values`: (element, value number) to read."""
         code = self._align(size)
         for element, n in values:
@@ -117,16 +137,23 @@ class _Code:
         if order == list(range(count)):  # every value, in order, at known offsets
             return "    return fixed(raw)\n"
         lines = [f"    {''.join(f'v{n}, ' for n in order)}= fixed(raw)"] if order else []
-        return "\n".join([*lines, *self.lines,
-                          f"    return ({''.join(f'v{n}, ' for n in range(count))})\n"])
+        return "\n".join(
+            [*lines, *self.lines, f"    return ({''.join(f'v{n}, ' for n in range(count))})\n"]
+        )
 
 
 def _under(key: tuple[Any, ...], prefix: tuple[Any, ...]) -> bool:
     return key[: len(prefix)] == prefix
 
 
-def _walk(fielddefs: Mapping[str, Any], msgtype: str, prefix: tuple[Any, ...],
-          wanted: dict[tuple[Any, ...], int], code: _Code, finish: bool) -> None:
+def _walk(
+    fielddefs: Mapping[str, Any],
+    msgtype: str,
+    prefix: tuple[Any, ...],
+    wanted: dict[tuple[Any, ...], int],
+    code: _Code,
+    finish: bool,
+) -> None:
     """Emit code reading the wanted fields of `msgtype`; stop early unless `finish` (the
     caller needs the offset after the whole message)."""
     if msgtype not in fielddefs:
@@ -148,8 +175,7 @@ def _walk(fielddefs: Mapping[str, Any], msgtype: str, prefix: tuple[Any, ...],
         elif kind == 3 and int(spec[0][0]) == 1 and spec[0][1][0] in _FORMAT:
             elements = []
             for key in [k for k in wanted if _under(k, here)]:
-                if len(key) != len(here) + 1 or not isinstance(key[-1], int) or \
-                        key[-1] >= spec[1]:
+                if len(key) != len(here) + 1 or not isinstance(key[-1], int) or key[-1] >= spec[1]:
                     raise _Unsupported("array element")
                 elements.append((key[-1], wanted.pop(key)))
             code.primitive(*_FORMAT[spec[0][1][0]], elements, count=spec[1])

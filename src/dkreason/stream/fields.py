@@ -22,7 +22,7 @@ def path(field: str) -> list[str | int]:
         if m is None:
             raise DkError(f"field {field!r}: cannot read {rest!r}")
         parts.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
-        rest = rest[m.end():]
+        rest = rest[m.end() :]
     return parts
 
 
@@ -32,7 +32,7 @@ def accessor(field: str, dicts: bool) -> Callable[[Any], Any]:
     for p in path(field):
         code += f"[{p}]" if isinstance(p, int) else (f"[{p!r}]" if dicts else f".{p}")
     scope: dict[str, Any] = {}
-    exec(f"def get(m):\n    return {code}\n", scope)  # noqa: S102 - built from a checked path
+    exec(f"def get(m):\n    return {code}\n", scope)
     get: Callable[[Any], Any] = scope["get"]
     return get
 
@@ -54,8 +54,9 @@ def kind(fielddefs: dict[str, Any], msgtype: str, field: str) -> tuple[str, str]
     if category == "array":
         return "array", "an array"
     name = str(what[0] if isinstance(what, tuple) else what)
-    return ("bool" if name == "bool" else "string" if name in ("string", "wstring")
-            else "number"), name
+    return (
+        "bool" if name == "bool" else "string" if name in ("string", "wstring") else "number"
+    ), name
 
 
 def _resolve(fielddefs: dict[str, Any], msgtype: str, field: str) -> tuple[str, Any] | str:

@@ -32,11 +32,13 @@ class RecordingInfo:
     clock: str  # header, record (stamps on another clock), or none (nothing stamped)
 
     def to_json(self) -> dict[str, Any]:
-        return {"recording": self.name, "clock": self.clock,
-                "start": None if self.start is None else round(self.start / NS, 9),
-                "end": None if self.end is None else round(self.end / NS, 9),
-                "topics": [{"topic": t.name, "type": t.msgtype, "count": t.count}
-                           for t in self.topics]}
+        return {
+            "recording": self.name,
+            "clock": self.clock,
+            "start": None if self.start is None else round(self.start / NS, 9),
+            "end": None if self.end is None else round(self.end / NS, 9),
+            "topics": [{"topic": t.name, "type": t.msgtype, "count": t.count} for t in self.topics],
+        }
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,8 +50,13 @@ class Binding:
     recorded_type: str | None
 
     def to_json(self) -> dict[str, Any]:
-        return {"platform": self.platform, "topic": self.topic, "msgtype": self.msgtype,
-                "recording_topic": self.bound, "recorded_type": self.recorded_type}
+        return {
+            "platform": self.platform,
+            "topic": self.topic,
+            "msgtype": self.msgtype,
+            "recording_topic": self.bound,
+            "recorded_type": self.recorded_type,
+        }
 
 
 def describe(recording: Recording) -> RecordingInfo:
@@ -71,15 +78,18 @@ def describe(recording: Recording) -> RecordingInfo:
             end = available if end is None else max(end, available)
         types = types or found
     clock = Recordings([recording], clock="auto")
-    return RecordingInfo(source.name, tuple(TopicInfo(t, types[t], counts.get(t))
-                                            for t in sorted(types)), start, end,
-                         clock.clock if clock.stamped else "none")
+    return RecordingInfo(
+        source.name,
+        tuple(TopicInfo(t, types[t], counts.get(t)) for t in sorted(types)),
+        start,
+        end,
+        clock.clock if clock.stamped else "none",
+    )
 
 
 def _every(source: Any) -> Any:
     records = getattr(source, "records", None)
-    return records() if records is not None else source.messages(
-        {t: [] for t in source.types()})
+    return records() if records is not None else source.messages({t: [] for t in source.types()})
 
 
 def bindings(kb: Any, recordings: Recordings) -> list[Binding]:
@@ -90,10 +100,14 @@ def bindings(kb: Any, recordings: Recordings) -> list[Binding]:
     for name, platform in kb.platforms.items():
         for spec in platform.specs.values():
             m = TopicMatch(name, spec.name, spec.msgtype, "", (), "", ())
-            found = next((n for n in recording_names(m, kb.local, namespaces.get(name))
-                          if n in types), None)
-            out.append(Binding(name, spec.name, spec.msgtype, found,
-                               None if found is None else types[found]))
+            found = next(
+                (n for n in recording_names(m, kb.local, namespaces.get(name)) if n in types), None
+            )
+            out.append(
+                Binding(
+                    name, spec.name, spec.msgtype, found, None if found is None else types[found]
+                )
+            )
     return out
 
 
@@ -104,15 +118,24 @@ def _seconds(ns: int) -> str:
 def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> str:
     lines = []
     for info in infos:
-        span = "" if info.start is None or info.end is None else \
-            f", {_seconds(info.end - info.start)} s from {_seconds(info.start)}"
-        lines.append(f"{info.name}: {len(info.topics)} topic(s){span}; header stamps: "
-                     + {"header": "on the record clock", "record": "on another clock "
-                        "(simulated time?): the record time is used",
-                        "none": "none"}[info.clock])
+        span = (
+            ""
+            if info.start is None or info.end is None
+            else f", {_seconds(info.end - info.start)} s from {_seconds(info.start)}"
+        )
+        lines.append(
+            f"{info.name}: {len(info.topics)} topic(s){span}; header stamps: "
+            + {
+                "header": "on the record clock",
+                "record": "on another clock (simulated time?): the record time is used",
+                "none": "none",
+            }[info.clock]
+        )
         width = max((len(t.name) for t in info.topics), default=0)
-        lines += [f"  {t.name:<{width}}  {t.msgtype}  {t.count if t.count is not None else '?'}"
-                  for t in info.topics]
+        lines += [
+            f"  {t.name:<{width}}  {t.msgtype}  {t.count if t.count is not None else '?'}"
+            for t in info.topics
+        ]
     for b in binds or ():
         where = f"{b.platform}/{b.topic} ({b.msgtype})"
         if b.bound is None:

@@ -43,7 +43,8 @@ def _decompressor(compression: str) -> Callable[[bytes, int], bytes] | None:
         import zstandard
 
         return lambda data, size: zstandard.ZstdDecompressor().decompress(
-            data, max_output_size=size)
+            data, max_output_size=size
+        )
     if compression == "lz4":
         import lz4.frame
 
@@ -62,8 +63,9 @@ class _Chunk:
 class IndexedMcap:
     """The chunks and channels of an MCAP file with a summary (see `open_indexed`)."""
 
-    def __init__(self, handle: BinaryIO, chunks: list[_Chunk],
-                 channels: dict[int, tuple[str, str]]) -> None:
+    def __init__(
+        self, handle: BinaryIO, chunks: list[_Chunk], channels: dict[int, tuple[str, str]]
+    ) -> None:
         self._file, self._chunks = handle, chunks
         self.size = os.fstat(handle.fileno()).st_size
         self.channels = channels  # id → (topic, message encoding)
@@ -89,8 +91,10 @@ class IndexedMcap:
     def _chunk(self, chunk: _Chunk, wanted: frozenset[int]) -> Iterable[Message]:
         handle = self._file
         if chunk.offset < 0 or chunk.offset + chunk.length > self.size:
-            raise McapDamage(f"the index points past the end of the file ({self.size:,} "
-                             f"bytes) for a chunk at byte {chunk.offset:,}")
+            raise McapDamage(
+                f"the index points past the end of the file ({self.size:,} "
+                f"bytes) for a chunk at byte {chunk.offset:,}"
+            )
         handle.seek(chunk.offset)
         record = handle.read(chunk.length)
         if len(record) != chunk.length:
@@ -100,16 +104,17 @@ class IndexedMcap:
             raise McapDamage(f"no chunk at byte {chunk.offset:,}, where the index says")
         _, _, size, crc = _CHUNK_HEAD.unpack_from(record, 9)
         n = int.from_bytes(record[37:41], "little")
-        compression = record[41:41 + n].decode("utf-8", "replace")
-        compressed = int.from_bytes(record[41 + n:49 + n], "little")
+        compression = record[41 : 41 + n].decode("utf-8", "replace")
+        compressed = int.from_bytes(record[41 + n : 49 + n], "little")
         inflate = _decompressor(compression)
         if inflate is None:
             raise McapDamage(f"unknown chunk compression {compression!r}")
         try:
-            data = inflate(record[49 + n:49 + n + compressed], size)
-        except Exception as exc:  # noqa: BLE001 - each codec raises its own kind
-            raise McapDamage(f"the chunk at byte {chunk.offset:,} does not decompress "
-                             f"({exc})") from None
+            data = inflate(record[49 + n : 49 + n + compressed], size)
+        except Exception as exc:
+            raise McapDamage(
+                f"the chunk at byte {chunk.offset:,} does not decompress ({exc})"
+            ) from None
         if len(data) != size or (crc and zlib.crc32(data) != crc):
             raise McapDamage(f"the chunk at byte {chunk.offset:,} fails its checksum")
         return _messages(data, wanted)
@@ -140,7 +145,7 @@ def _messages(data: bytes, wanted: frozenset[int]) -> Iterable[Message]:
                 last = t
                 add_channel(channel)
                 add_time(t)
-                add_raw(data[pos + 31:pos + 9 + length])
+                add_raw(data[pos + 31 : pos + 9 + length])
         pos += 9 + length
     if pos != end:
         raise McapDamage("a record runs past the end of its chunk")
@@ -173,13 +178,18 @@ def open_indexed(path: Path) -> IndexedMcap | None:
     handle = open(path, "rb")  # noqa: SIM115 - kept open by the IndexedMcap
     try:
         summary: Any = make_reader(handle).get_summary()
-    except Exception:  # noqa: BLE001 - no summary, a damaged footer: not ours to judge
+    except Exception:
         summary = None
-    if summary is None or not summary.chunk_indexes or \
-            any(_decompressor(c.compression) is None for c in summary.chunk_indexes):
+    if (
+        summary is None
+        or not summary.chunk_indexes
+        or any(_decompressor(c.compression) is None for c in summary.chunk_indexes)
+    ):
         handle.close()
         return None
-    chunks = [_Chunk(c.message_start_time, c.message_end_time, c.chunk_start_offset,
-                     c.chunk_length) for c in summary.chunk_indexes]
+    chunks = [
+        _Chunk(c.message_start_time, c.message_end_time, c.chunk_start_offset, c.chunk_length)
+        for c in summary.chunk_indexes
+    ]
     channels = {c.id: (c.topic, c.message_encoding) for c in summary.channels.values()}
     return IndexedMcap(handle, chunks, channels)

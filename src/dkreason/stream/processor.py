@@ -78,8 +78,13 @@ class Violation:
     detail: str
 
     def to_json(self) -> dict[str, Any]:
-        return {"violation": self.constraint, "time": seconds(self.time),
-                "feature": str(self.feature), "topic": self.topic, "detail": self.detail}
+        return {
+            "violation": self.constraint,
+            "time": seconds(self.time),
+            "feature": str(self.feature),
+            "topic": self.topic,
+            "detail": self.detail,
+        }
 
 
 def _ns(value: Fraction | None) -> int | None:
@@ -99,8 +104,9 @@ class _Route:
 
     __slots__ = ("q", "get", "rank", "stream", "last", "text")
 
-    def __init__(self, q: int, get: Callable[[Any], Any], prio: int, stream: str,
-                 text: bool) -> None:
+    def __init__(
+        self, q: int, get: Callable[[Any], Any], prio: int, stream: str, text: bool
+    ) -> None:
         self.q, self.get, self.stream, self.text = q, get, stream, text
         self.rank = -prio  # a feature's history is ordered by (valid, rank)
         self.last: int | None = None
@@ -112,8 +118,7 @@ class _Group:
     def __init__(self, id_fields: tuple[str, ...], positions: tuple[int, ...]) -> None:
         self.id_fields = id_fields
         # a message's ids in one C call: the value itself for one id field, else a tuple
-        self.key: Callable[[Any], Any] = itemgetter(*positions) if positions else \
-            (lambda _: ())
+        self.key: Callable[[Any], Any] = itemgetter(*positions) if positions else (lambda _: ())
         self.index: dict[Any, list[_Route]] = {}
 
     def add(self, ids: tuple[Any, ...], route: _Route) -> None:
@@ -133,11 +138,15 @@ class _Group:
 
 
 class StreamProcessor:
-    def __init__(self, request: StreamRequest, policy: StreamPolicy, source: Source,
-                 on_state: Callable[[int, dict[FeatureKey, Any],
-                                     tuple[FeatureKey, ...] | None], None],
-                 on_violation: Callable[[Violation], None],
-                 texts: frozenset[FeatureKey] = frozenset()) -> None:
+    def __init__(
+        self,
+        request: StreamRequest,
+        policy: StreamPolicy,
+        source: Source,
+        on_state: Callable[[int, dict[FeatureKey, Any], tuple[FeatureKey, ...] | None], None],
+        on_violation: Callable[[Violation], None],
+        texts: frozenset[FeatureKey] = frozenset(),
+    ) -> None:
         """`on_state(time, values, fresh)` gets each state: `values` is read during the call
         only (on every change it is the processor's own dict, changed in place for the next
         state: a state costs what changed).  `texts`: the features the formulas compare with
@@ -178,8 +187,9 @@ class StreamProcessor:
         self.earliest: float = _INF  # the earliest valid time seen (ns; `first`)
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
-        self.guarded = self.start is not None or self.end is not None or \
-            self.max_delay is not None  # any check every sample must pass
+        self.guarded = (
+            self.start is not None or self.end is not None or self.max_delay is not None
+        )  # any check every sample must pass
         self.strict = self.guarded or self.checks or self.period is not None
         self.recent = policy.approximation == "recent"
         # on every change with the recent approximation, a state reads only what changed
@@ -223,27 +233,36 @@ class StreamProcessor:
                 names = recording_names(m, request.local, namespaces.get(m.platform))
                 present = [n for n in names if n in types] if types else names
                 if types and not present:
-                    self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(
-                        str(f.feature.key))
+                    self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(str(f.feature.key))
                 if types and present:
                     msgtype = types[present[0]]
                     if not message_type_fits(msgtype, m.msgtype):
-                        raise DkError(f"{source.name}: topic {present[0]} carries {msgtype}, but "
-                                      f"its specification says {m.msgtype}")
+                        raise DkError(
+                            f"{source.name}: topic {present[0]} carries {msgtype}, but "
+                            f"its specification says {m.msgtype}"
+                        )
                     for field in (m.field, *(k for k, _ in m.filter)):
                         why = source.check_field(present[0], field)
                         if why is not None:
-                            raise DkError(f"{source.name}: topic {present[0]} ({msgtype}) has no "
-                                          f"field {field}: {why}")
+                            raise DkError(
+                                f"{source.name}: topic {present[0]} ({msgtype}) has no "
+                                f"field {field}: {why}"
+                            )
                     kind = source.field_kind(present[0], m.field)
                     if kind is not None:
                         self.kinds.setdefault(f.feature.key, []).append(
-                            (present[0], m.field, *kind))
+                            (present[0], m.field, *kind)
+                        )
                 stream = f"{m.platform}/{m.topic}"
                 ids = tuple(k for k, _ in m.filter)
                 for name in present[:1] if types else present:
-                    route = _Route(q, itemgetter(self._position(name, m.field)), prio, stream,
-                                   f.feature.key in self.texts)
+                    route = _Route(
+                        q,
+                        itemgetter(self._position(name, m.field)),
+                        prio,
+                        stream,
+                        f.feature.key in self.texts,
+                    )
                     groups = self.groups.setdefault(name, [])
                     group = next((g for g in groups if g.id_fields == ids), None)
                     if group is None:
@@ -276,10 +295,20 @@ class StreamProcessor:
         locals between states (`watch` None: make no state).  Each value a message gives a
         feature is a sample; with no constraint set, in valid-time order, a sample costs its
         history entry, its state time and its expiry."""
-        groups, hists, times, at, due, queued = (self.groups, self.hist, self.times, self.at,
-                                                 self.due, self.queued)
-        stale_after, delay, expiring, strict = (self.stale_after, self.delay, self.expiring,
-                                                self.strict)
+        groups, hists, times, at, due, queued = (
+            self.groups,
+            self.hist,
+            self.times,
+            self.at,
+            self.due,
+            self.queued,
+        )
+        stale_after, delay, expiring, strict = (
+            self.stale_after,
+            self.delay,
+            self.expiring,
+            self.strict,
+        )
         periodic = self.period is not None
         earliest, max_valid, quiet = self.earliest, self.max_valid, self.quiet_until
         made = self.made
@@ -315,13 +344,18 @@ class StreamProcessor:
                         late = valid <= made
                         if late:
                             self.redo.add(q)  # the next state may read it: look again then
-                            self._violation("late", available, route,
-                                            f"sample valid at {seconds(valid)} s arrived at "
-                                            f"{seconds(available)} s, after the state at "
-                                            f"{seconds(int(made))} s")
+                            self._violation(
+                                "late",
+                                available,
+                                route,
+                                f"sample valid at {seconds(valid)} s arrived at "
+                                f"{seconds(available)} s, after the state at "
+                                f"{seconds(int(made))} s",
+                            )
                         hist, rank = hists[q], route.rank
-                        if hist and (valid < hist[-1][0] or
-                                     valid == hist[-1][0] and rank < hist[-1][1]):
+                        if hist and (
+                            valid < hist[-1][0] or valid == hist[-1][0] and rank < hist[-1][1]
+                        ):
                             bisect.insort(hist, (valid, rank, value), key=_VALID_RANK)
                             newest = hist[-1][0] == valid
                         else:
@@ -361,8 +395,9 @@ class StreamProcessor:
             if seen is not None:
                 self.last_seen = seen
 
-    def _odd(self, route: _Route, valid: int, value: Any,
-             wanted: str = "a number or boolean") -> Any:
+    def _odd(
+        self, route: _Route, valid: int, value: Any, wanted: str = "a number or boolean"
+    ) -> Any:
         """A value that is not a plain number or boolean: a numeric subclass as it is, else an
         error naming the feature, the stream and the value's type."""
         if wanted != "a string":
@@ -371,8 +406,10 @@ class StreamProcessor:
             if isinstance(value, numbers.Real):
                 return value
         shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:40] + "…"
-        raise DkError(f"{self.keys[route.q]} from {route.stream} at {seconds(valid)} s: "
-                      f"{type(value).__name__} {shown} is not {wanted}")
+        raise DkError(
+            f"{self.keys[route.q]} from {route.stream} at {seconds(valid)} s: "
+            f"{type(value).__name__} {shown} is not {wanted}"
+        )
 
     def advance(self, available: int) -> None:
         """Every source has passed `available`: make the states due by then."""
@@ -425,29 +462,52 @@ class StreamProcessor:
             if self.period is not None:
                 self.next_state = self.start
                 self.quiet_until = self._next_due()
-        if (self.start is not None and valid < self.start) or \
-                (self.end is not None and valid > self.end):
-            self._violation("start_end_time", available, route,
-                            f"valid time {seconds(valid)} s is outside the requested span")
+        if (self.start is not None and valid < self.start) or (
+            self.end is not None and valid > self.end
+        ):
+            self._violation(
+                "start_end_time",
+                available,
+                route,
+                f"valid time {seconds(valid)} s is outside the requested span",
+            )
             return False
         if self.max_delay is not None and available - valid > self.max_delay:
-            self._violation("max_delay", available, route,
-                            f"delay {seconds(available - valid)} s exceeds "
-                            f"{seconds(self.max_delay)} s")
+            self._violation(
+                "max_delay",
+                available,
+                route,
+                f"delay {seconds(available - valid)} s exceeds {seconds(self.max_delay)} s",
+            )
         return True
 
     def _check(self, route: _Route, available: int, valid: int, last: int) -> None:
         if valid < last and self.policy.ordered_on_valid_time:
-            self._violation("ordered_on_valid_time", available, route,
-                            f"valid time {seconds(valid)} s after {seconds(last)} s")
+            self._violation(
+                "ordered_on_valid_time",
+                available,
+                route,
+                f"valid time {seconds(valid)} s after {seconds(last)} s",
+            )
         if valid == last and self.policy.unique_valid_time:
-            self._violation("unique_valid_time", available, route,
-                            f"second sample at valid time {seconds(valid)} s")
-        if self.period is not None and valid > last and \
-                abs(valid - last - self.period) > self.deviation:
-            self._violation("sample_period", available, route,
-                            f"{seconds(valid - last)} s since the previous sample, expected "
-                            f"{seconds(self.period)} ± {seconds(self.deviation)} s")
+            self._violation(
+                "unique_valid_time",
+                available,
+                route,
+                f"second sample at valid time {seconds(valid)} s",
+            )
+        if (
+            self.period is not None
+            and valid > last
+            and abs(valid - last - self.period) > self.deviation
+        ):
+            self._violation(
+                "sample_period",
+                available,
+                route,
+                f"{seconds(valid - last)} s since the previous sample, expected "
+                f"{seconds(self.period)} ± {seconds(self.deviation)} s",
+            )
 
     def _emit(self, now: int, final: bool) -> None:
         self.last_seen = now
@@ -484,8 +544,13 @@ class StreamProcessor:
             return self._next_due()
         limit = None if final else now - self.delay  # make states strictly before this
         times, late, expiries = self.times, self.out_of_order, self.expiries
-        current, hists, keys, max_age, redo = (self.current, self.hist, self.keys, self.max_age,
-                                               self.redo)
+        current, hists, keys, max_age, redo = (
+            self.current,
+            self.hist,
+            self.keys,
+            self.max_age,
+            self.redo,
+        )
         while True:
             s = times[0] if times else None
             if late and (s is None or late[0][0] < s):
@@ -501,8 +566,9 @@ class StreamProcessor:
                 sampled = self.at.popleft()
             while late and late[0][0] == s:
                 sampled = [*sampled, heapq.heappop(late)[1]]
-            stale, expired = self._expired(s, final) if expiries and expiries[0][0] == s \
-                else _NO_EXPIRY
+            stale, expired = (
+                self._expired(s, final) if expiries and expiries[0][0] == s else _NO_EXPIRY
+            )
             if not (sampled or stale) or s <= self.made:
                 continue
             if not self.incremental:
@@ -515,8 +581,7 @@ class StreamProcessor:
                 fresh = (*stale, *map(keys.__getitem__, sampled))  # a feature fed by two
                 for q in (*sampled, *expired, *redo) if expired or redo else sampled:  # topics
                     hist = hists[q]  # at s appears twice
-                    i = len(hist) - 1 if hist[-1][0] <= s else \
-                        bisect.bisect_right(hist, (s, 1)) - 1
+                    i = len(hist) - 1 if hist[-1][0] <= s else bisect.bisect_right(hist, (s, 1)) - 1
                     value = None
                     if i >= 0:
                         valid, _, v = hist[i]
@@ -558,8 +623,9 @@ class StreamProcessor:
         i = bisect.bisect_right(hist, (s, 1)) - 1
         return i >= 0 and self.max_age is not None and s - hist[i][0] > self.max_age
 
-    def _every_value(self, s: int, stale: list[FeatureKey] | None
-                     ) -> tuple[dict[FeatureKey, Any], tuple[FeatureKey, ...] | None]:
+    def _every_value(
+        self, s: int, stale: list[FeatureKey] | None
+    ) -> tuple[dict[FeatureKey, Any], tuple[FeatureKey, ...] | None]:
         """Each feature's value at s, read from its history."""
         values: dict[FeatureKey, Any] = {}
         fresh: list[FeatureKey] | None = (stale or []) if self.period is None else None

@@ -14,8 +14,9 @@ Format = Literal["ros1", "sqlite3", "mcap", "bare-mcap"]
 Row = tuple[str, str, int, Mapping[str, Any]]  # topic, msgtype, record time (ns), fields
 
 
-def write_recording(path: Path, fmt: Format, types: Mapping[str, str],
-                    messages: Iterable[Row]) -> None:
+def write_recording(
+    path: Path, fmt: Format, types: Mapping[str, str], messages: Iterable[Row]
+) -> None:
     """Write `messages` (record-time order) to `path`; types: msgtype → .msg definition."""
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -46,8 +47,9 @@ def write_recording(path: Path, fmt: Format, types: Mapping[str, str],
         for topic, msgtype, t_ns, fields in rows:
             if topic not in connections:
                 connections[topic] = writer.add_connection(topic, msgtype, typestore=store)
-            writer.write(connections[topic], t_ns, serialize(_build(store, msgtype, fields),
-                                                            msgtype))
+            writer.write(
+                connections[topic], t_ns, serialize(_build(store, msgtype, fields), msgtype)
+            )
 
 
 def _build(store: Any, msgtype: str, fields: Mapping[str, Any]) -> Any:
@@ -62,9 +64,11 @@ def _build(store: Any, msgtype: str, fields: Mapping[str, Any]) -> Any:
                 given = value or {}
                 stamp = float(given.get("stamp", 0))
                 sec = int(stamp)
-                value = {"stamp": {"sec": sec, "nanosec": round((stamp - sec) * 1e9)},
-                         "frame_id": given.get("frame_id", ""), **({"seq": 0} if "seq" in dict(
-                             store.fielddefs[spec][1]) else {})}
+                value = {
+                    "stamp": {"sec": sec, "nanosec": round((stamp - sec) * 1e9)},
+                    "frame_id": given.get("frame_id", ""),
+                    **({"seq": 0} if "seq" in dict(store.fielddefs[spec][1]) else {}),
+                }
             value = _build(store, spec, value or {})
         elif value is None:
             value = _zero(spec)

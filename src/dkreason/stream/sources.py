@@ -72,8 +72,9 @@ class RosbagSource:
     `.bag`, else ros2_humble).  `msg_files` (`pkg/msg/Name.msg`) add to those and replace a
     recording's own definition of the same type (a bag recorded with a wrong one)."""
 
-    def __init__(self, path: Path, msg_files: Sequence[Path] = (),
-                 typestore: str | None = None) -> None:
+    def __init__(
+        self, path: Path, msg_files: Sequence[Path] = (), typestore: str | None = None
+    ) -> None:
         self.name = str(path)
         self.path = path
         self._indexed: IndexedMcap | None = None
@@ -91,20 +92,34 @@ class RosbagSource:
         except Exception as exc:  # rosbags raises several kinds for unreadable files
             raise DkError(f"{path}: not a readable ROS recording ({_why(exc)})") from None
         self.connections = [c for c in self.reader.connections if _ros(c)]
-        foreign = sorted({f"{c.topic} ({getattr(c.ext, 'serialization_format', '?')})"
-                          for c in self.reader.connections if not _ros(c)})
-        notes = [f"{path}: channels not in a ROS encoding skipped: {', '.join(foreign)}"] \
-            if foreign else []
-        if not msg_files and typestore is None and \
-                any(not c.msgdef.data for c in self.connections):
-            notes.append(f"{path} stores no message definitions: using rosbags' "
-                         f"{_store_name(ros1, None)} ones (--typestore, --msg)")
-        replaced = sorted(name for name, definition in given.items()
-                          if self.reader.typestore.fielddefs.get(name, definition) != definition)
+        foreign = sorted(
+            {
+                f"{c.topic} ({getattr(c.ext, 'serialization_format', '?')})"
+                for c in self.reader.connections
+                if not _ros(c)
+            }
+        )
+        notes = (
+            [f"{path}: channels not in a ROS encoding skipped: {', '.join(foreign)}"]
+            if foreign
+            else []
+        )
+        if not msg_files and typestore is None and any(not c.msgdef.data for c in self.connections):
+            notes.append(
+                f"{path} stores no message definitions: using rosbags' "
+                f"{_store_name(ros1, None)} ones (--typestore, --msg)"
+            )
+        replaced = sorted(
+            name
+            for name, definition in given.items()
+            if self.reader.typestore.fielddefs.get(name, definition) != definition
+        )
         if replaced:
             self.reader.typestore = _replaced(self.reader.typestore, given)
-            notes = [f"{name}: the definition of --msg replaces the one {path} stores"
-                     for name in replaced]
+            notes = [
+                f"{name}: the definition of --msg replaces the one {path} stores"
+                for name in replaced
+            ]
         self.note = "; ".join(notes)
 
     def types(self) -> dict[str, str]:
@@ -118,25 +133,37 @@ class RosbagSource:
 
     def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
         msgtype = self.types().get(topic)
-        return None if msgtype is None else fields.kind(self.reader.typestore.fielddefs,
-                                                         msgtype, field)
+        return (
+            None
+            if msgtype is None
+            else fields.kind(self.reader.typestore.fielddefs, msgtype, field)
+        )
 
     def last_record(self) -> int | None:
         return int(self.reader.end_time) - 1 if self.connections else None
 
     def count(self, topics: set[str] | None) -> int | None:
-        return sum(c.msgcount for c in self.connections
-                   if topics is None or c.topic in topics)
+        return sum(c.msgcount for c in self.connections if topics is None or c.topic in topics)
 
     def messages(self, wanted: Wanted) -> Iterator[Message]:
         connections = [c for c in self.connections if c.topic in wanted]
         if not connections:
             return
         fielddefs = self.reader.typestore.fielddefs
-        readers = {id(c): (c, c.topic, *_ros_reader(fielddefs, c.msgtype, wanted[c.topic],
-                                                     not self.reader.is2,
-                                                     self.reader.deserialize))
-                   for c in connections}
+        readers = {
+            id(c): (
+                c,
+                c.topic,
+                *_ros_reader(
+                    fielddefs,
+                    c.msgtype,
+                    wanted[c.topic],
+                    not self.reader.is2,
+                    self.reader.deserialize,
+                ),
+            )
+            for c in connections
+        }
         n = 0
         unchecked = set(readers)
         keyed: dict[Any, Any] = {}
@@ -158,12 +185,14 @@ class RosbagSource:
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
             from .damaged import DamagedRecording
 
-            raise DamagedRecording(f"{self.name}: damaged recording ({_why(exc)}); {n} "
-                                   f"messages before it were monitored, the rest is lost") \
-                from None
+            raise DamagedRecording(
+                f"{self.name}: damaged recording ({_why(exc)}); {n} "
+                f"messages before it were monitored, the rest is lost"
+            ) from None
 
-    def _batches(self, connections: list[Any]
-                 ) -> Iterator[tuple[Iterable[tuple[Any, int, bytes]], dict[Any, int]]]:
+    def _batches(
+        self, connections: list[Any]
+    ) -> Iterator[tuple[Iterable[tuple[Any, int, bytes]], dict[Any, int]]]:
         """Messages in recording order, in batches: (key, record time, serialised message),
         and what each key is (the id of its connection).  An indexed MCAP file is read through
         mcapread, a chunk a batch (~5× rosbags' rate); anything else through rosbags."""
@@ -171,11 +200,23 @@ class RosbagSource:
         from .damaged import kind_of
 
         found = kind_of(self.path)  # a bare file, or a bag folder's only storage file
-        indexed = open_indexed(found[1]) if self.reader.is2 and found is not None and \
-            found[0] == "mcap" and len(by_topic) == len(connections) else None
-        channels = {} if indexed is None else {
-            ch: id(by_topic[topic]) for ch, (topic, encoding) in indexed.channels.items()
-            if topic in by_topic and encoding == "cdr"}
+        indexed = (
+            open_indexed(found[1])
+            if self.reader.is2
+            and found is not None
+            and found[0] == "mcap"
+            and len(by_topic) == len(connections)
+            else None
+        )
+        channels = (
+            {}
+            if indexed is None
+            else {
+                ch: id(by_topic[topic])
+                for ch, (topic, encoding) in indexed.channels.items()
+                if topic in by_topic and encoding == "cdr"
+            }
+        )
         if indexed is None or len(set(channels.values())) != len(connections):
             if indexed is not None:  # a topic in another encoding (ros1 in MCAP): rosbags'
                 indexed.close()
@@ -195,8 +236,11 @@ class RosbagSource:
             for connection, t_ns, raw in self.reader.messages(connections=self.connections):
                 msg = plain(self.reader.deserialize(raw, connection.msgtype))
                 stamp = msg.get("header", {}).get("stamp") if isinstance(msg, dict) else None
-                valid = stamp["sec"] * NS + stamp.get("nanosec", stamp.get("nsec", 0)) \
-                    if isinstance(stamp, dict) and "sec" in stamp else t_ns
+                valid = (
+                    stamp["sec"] * NS + stamp.get("nanosec", stamp.get("nsec", 0))
+                    if isinstance(stamp, dict) and "sec" in stamp
+                    else t_ns
+                )
                 yield connection.topic, t_ns, valid, msg
         except Exception as exc:
             raise DkError(f"{self.name}: damaged recording ({_why(exc)})") from None
@@ -238,17 +282,21 @@ def _decodes(deserialize: Any, raw: Any, connection: Any) -> None:
     size): a wrong definition would otherwise read garbage at the offsets it implies."""
     try:
         deserialize(raw, connection.msgtype)
-    except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds
-        raise DkError(f"{connection.topic}: its messages do not match the definition of "
-                      f"{connection.msgtype} ({_why(exc)}); give the right one with --msg") \
-            from None
+    except Exception as exc:
+        raise DkError(
+            f"{connection.topic}: its messages do not match the definition of "
+            f"{connection.msgtype} ({_why(exc)}); give the right one with --msg"
+        ) from None
 
 
 def plain(value: Any) -> Any:
     """A deserialised ROS message as JSON-ready dicts, lists and numbers."""
     if hasattr(value, "__dataclass_fields__"):
-        return {k: plain(getattr(value, k)) for k in value.__dataclass_fields__
-                if not k.startswith("__")}
+        return {
+            k: plain(getattr(value, k))
+            for k in value.__dataclass_fields__
+            if not k.startswith("__")
+        }
     if hasattr(value, "tolist"):
         return value.tolist()
     if isinstance(value, (list, tuple)):
@@ -256,8 +304,9 @@ def plain(value: Any) -> Any:
     return value
 
 
-def _ros_reader(fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool,
-                deserialize: Any) -> tuple[Any, bool]:
+def _ros_reader(
+    fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool, deserialize: Any
+) -> tuple[Any, bool]:
     """(raw message → values of `wanted`, then the header stamp if it has one; stamped?)."""
     from .fastread import compile_extractor
 
@@ -274,8 +323,9 @@ def _ros_reader(fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool,
 
 def dict_reader(name: str, wanted: Wanted) -> Any:
     """(topic, time, message dict) → values of the fields wanted on that topic."""
-    getters = {topic: [(f, fields.accessor(f, dicts=True)) for f in fs]
-               for topic, fs in wanted.items()}
+    getters = {
+        topic: [(f, fields.accessor(f, dicts=True)) for f in fs] for topic, fs in wanted.items()
+    }
 
     def read(topic: str, t_ns: int, msg: Any) -> tuple[Any, ...]:
         out = []
@@ -283,9 +333,11 @@ def dict_reader(name: str, wanted: Wanted) -> Any:
             try:
                 out.append(get(msg))
             except (KeyError, IndexError, TypeError):
-                raise DkError(f"{name}: the message on {topic} at {t_ns / NS:g} s has no "
-                              f"field {field}") from None
+                raise DkError(
+                    f"{name}: the message on {topic} at {t_ns / NS:g} s has no field {field}"
+                ) from None
         return tuple(out)
+
     return read
 
 
@@ -306,8 +358,9 @@ def _replaced(store: Any, given: dict[str, Any]) -> Any:
     register refuses a second definition of a type, so that case is a new store)."""
     from rosbags.typesys import Stores, get_typestore
 
-    if all(store.fielddefs.get(name, definition) == definition
-           for name, definition in given.items()):
+    if all(
+        store.fielddefs.get(name, definition) == definition for name, definition in given.items()
+    ):
         store.register(given)
         return store
     replaced = get_typestore(Stores.EMPTY)
@@ -339,7 +392,6 @@ def _why(exc: BaseException) -> str:
 class JsonlSource:
     """JSON lines `{"topic": "topic3", "time": 12.0, "msg": {"id": 1, "spd": 61.5}}`, with an
     optional `"available"` time (seconds); a `"header": {"stamp": …}` sets the valid time."""
-
 
     def __init__(self, path: Path) -> None:
         """`-` reads standard input (a live feed)."""
@@ -376,10 +428,16 @@ class JsonlSource:
                 continue
             where = Span(self.name, n)
             row = files.json_value(line, where)
-            if not isinstance(row, dict) or not isinstance(row.get("topic"), str) or \
-                    not isinstance(row.get("msg"), dict) or "time" not in row:
-                raise ParseError('not a message line (expected {"topic": "…", "time": '
-                                 'seconds, "msg": {…}})', where)
+            if (
+                not isinstance(row, dict)
+                or not isinstance(row.get("topic"), str)
+                or not isinstance(row.get("msg"), dict)
+                or "time" not in row
+            ):
+                raise ParseError(
+                    'not a message line (expected {"topic": "…", "time": seconds, "msg": {…}})',
+                    where,
+                )
             try:
                 valid = to_ns(row["time"])
                 available = to_ns(row.get("available", row["time"]), "available time")
@@ -455,8 +513,7 @@ class PushSource:
                 yield topic, available, valid, read(topic, valid, msg)
 
 
-def open_source(path: Path, msg_files: Sequence[Path] = (),
-                typestore: str | None = None) -> Source:
+def open_source(path: Path, msg_files: Sequence[Path] = (), typestore: str | None = None) -> Source:
     """The source for `path`; a recording whose index or metadata rosbags cannot read is read
     sequentially up to its damage (stream/damaged.py)."""
     from .damaged import SequentialSource, declared_size, kind_of
@@ -464,10 +521,18 @@ def open_source(path: Path, msg_files: Sequence[Path] = (),
     if path.suffix == ".jsonl" or path.suffix == ".json" or str(path) == "-":
         return JsonlSource(path)
     found = kind_of(path) if path.exists() else None
-    if found is not None and found[0] == "db3" and declared_size(found[1]) > \
-            found[1].stat().st_size:  # SQLite would read a cut file without a word
-        return SequentialSource(found[1], "db3", msg_files, "the file is shorter than its "
-                                "header says (cut off)", typestore)
+    if (
+        found is not None
+        and found[0] == "db3"
+        and declared_size(found[1]) > found[1].stat().st_size
+    ):  # SQLite would read a cut file without a word
+        return SequentialSource(
+            found[1],
+            "db3",
+            msg_files,
+            "the file is shorter than its header says (cut off)",
+            typestore,
+        )
     try:
         return RosbagSource(path, msg_files, typestore)
     except DkError as exc:
