@@ -110,7 +110,7 @@ def end_to_end(*paths: Path, formulas: list[str] = FORMULAS) -> tuple[float, lis
     verdicts: list[Verdict] = []
 
     def run() -> int:
-        monitor = Monitor(km, formulas, StreamPolicy())
+        monitor = Monitor(km.plan(formulas), km.request, StreamPolicy())
         source = Recordings([Recording(RosbagSource(p), None) for p in paths])
         n = source.count(None) or 0
         verdicts[:] = [e for e in monitor.run(source) if isinstance(e, Verdict)]
@@ -126,7 +126,7 @@ def heap_by_quarter(path: Path) -> list[int]:
     total = source.count(None) or 1
     points: list[tuple[int, int]] = []
     tracemalloc.start()
-    for _ in Monitor(km, FORMULAS, StreamPolicy()).run(
+    for _ in Monitor(km.plan(FORMULAS), km.request, StreamPolicy()).run(
         source, lambda n: points.append((n, tracemalloc.get_traced_memory()[0]))
     ):
         pass

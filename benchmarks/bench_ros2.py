@@ -107,7 +107,7 @@ def run_ros2(folder: Path, seconds: float, hz: float, delay: Fraction) -> dict[s
     from dkreason.live.wire import open_session
     from dkreason.progress import Verdict
     from dkreason.stream.processor import StreamPolicy, Violation
-    from dkreason.stream.sources import _typestore
+    from dkreason.stream.typestore import load_typestore
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -118,7 +118,7 @@ def run_ros2(folder: Path, seconds: float, hz: float, delay: Fraction) -> dict[s
         list(bench_live.FORMULAS),
         StreamPolicy(max_age=Fraction(1), delay_before_approximation=delay),
         session,
-        store=_typestore({}, False, "ros2_jazzy"),
+        store=load_typestore({}, False, "ros2_jazzy"),
     )
     meter = bench_live.Meter()
     meter.attach(monitor.processor)

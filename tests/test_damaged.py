@@ -89,7 +89,7 @@ def monitor(km: KnowledgeManager, path: Path) -> tuple[list[Event], DkError | No
     error = None
     try:
         policy = StreamPolicy(delay_before_approximation=Fraction(1, 10))
-        events.extend(Monitor(km, [TRAFFIC], policy).run(open_source(path)))
+        events.extend(Monitor(km.plan([TRAFFIC]), km.request, policy).run(open_source(path)))
     except DkError as exc:  # DamagedRecording, or a torn JSON line (file:line: not JSON)
         error = exc
     return events, error

@@ -18,9 +18,9 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from dkreason.errors import DkError, Span
+from dkreason.inputs.files import json_value
 from dkreason.live import wire
 from dkreason.parse.config import read_config
-from dkreason.parse.files import json_value
 from dkreason.parse.formula import parse_formula
 from dkreason.parse.sslt import parse_text, parse_xml
 from dkreason.progress import Progressor

@@ -157,7 +157,7 @@ def events(
     policy: StreamPolicy,
     formula: str = "always (Speed[car1] > 0)",
 ) -> tuple[list[Event], Monitor]:
-    monitor = Monitor(single, [formula], policy, keep_states=True)
+    monitor = Monitor(single.plan([formula]), single.request, policy, keep_states=True)
     return list(monitor.run(JsonlSource(source))), monitor
 
 
@@ -292,8 +292,8 @@ def test_merge_prefers_the_most_recent_valid_time_then_the_local_platform(tmp_pa
         ("topic3", 2.5, {"id": 1, "spd": 55}, None),
     ]
     monitor = Monitor(
-        km,
-        ["always (Speed[car1] > 0)"],
+        km.plan(["always (Speed[car1] > 0)"]),
+        km.request,
         StreamPolicy(delay_before_approximation=Fraction(1, 10)),
         keep_states=True,
     )
@@ -307,7 +307,9 @@ def test_the_push_api_feeds_any_live_source(single: KnowledgeManager) -> None:
         source.push("topic3", t, {"id": 1, "spd": 70 if t < 4 else 50})
     source.end()
     monitor = Monitor(
-        single, ["always (Speed[car1] > 60 -> eventually[0, 2] Speed[car1] <= 60)"], StreamPolicy()
+        single.plan(["always (Speed[car1] > 60 -> eventually[0, 2] Speed[car1] <= 60)"]),
+        single.request,
+        StreamPolicy(),
     )
     (v,) = [e for e in monitor.run(source) if isinstance(e, Verdict)]
     assert (v.verdict, v.time) == (False, 2)
@@ -331,7 +333,7 @@ def test_a_field_missing_from_the_message_type_is_found_before_replay(
         match=r"topic /platform1/topic3 \(dkreason_msgs/msg/CarMsg\) "
         r"has no field msg.spd: .*has no field 'spd'",
     ):
-        list(Monitor(single, [SPEEDING], StreamPolicy()).run(_open(bag)))
+        list(Monitor(single.plan([SPEEDING]), single.request, StreamPolicy()).run(_open(bag)))
 
 
 def _open(path: Path) -> Source:
@@ -389,12 +391,12 @@ def test_custom_message_definitions_are_read_from_msg_files(tmp_path: Path) -> N
         REPO / "examples" / "traffic" / "msg" / "dkreason_msgs" / "msg" / "CarMsg.msg",
         msg / "CarMsg.msg",
     )
-    from dkreason.stream.sources import _msg_types, _typestore
+    from dkreason.stream.typestore import load_typestore, msg_types
 
-    store = _typestore(_msg_types([msg / "CarMsg.msg"]), ros1=False)
+    store = load_typestore(msg_types([msg / "CarMsg.msg"]), ros1=False)
     assert "dkreason_msgs/msg/CarMsg" in store.fielddefs
     with pytest.raises(DkError, match="expected a message definition pkg/msg/Name.msg"):
-        _msg_types([tmp_path / "CarMsg.txt"])
+        msg_types([tmp_path / "CarMsg.txt"])
 
 
 def test_a_msg_file_replaces_a_standard_definition_of_the_same_type(tmp_path: Path) -> None:
@@ -403,9 +405,9 @@ def test_a_msg_file_replaces_a_standard_definition_of_the_same_type(tmp_path: Pa
     msg = tmp_path / "std_msgs" / "msg"
     msg.mkdir(parents=True)
     (msg / "String.msg").write_text("int32 data\n")
-    from dkreason.stream.sources import _msg_types, _typestore
+    from dkreason.stream.typestore import load_typestore, msg_types
 
-    store = _typestore(_msg_types([msg / "String.msg"]), ros1=False)
+    store = load_typestore(msg_types([msg / "String.msg"]), ros1=False)
     assert store.fielddefs["std_msgs/msg/String"][1][0][1][1][0] == "int32"
 
 
@@ -518,7 +520,9 @@ def test_a_formulas_verdict_alone_equals_its_verdict_beside_others(
         policy = StreamPolicy(max_age=Fraction(2))
 
         def verdict(formulas: list[str]) -> Any:
-            events = list(Monitor(single, formulas, policy).run(JsonlSource(source)))
+            events = list(
+                Monitor(single.plan(formulas), single.request, policy).run(JsonlSource(source))
+            )
             return next(
                 (e.verdict, e.time, e.witness)
                 for e in events
@@ -576,7 +580,7 @@ def test_states_made_from_what_changed_equal_states_read_in_full(
 
     def states(incremental: bool) -> list[Any]:
         out: list[Any] = []
-        monitor = Monitor(single, [MERGED], policy)
+        monitor = Monitor(single.plan([MERGED]), single.request, policy)
         processor = monitor.start(PushSource())
         processor.incremental = incremental
         processor.on_state = lambda s, values, fresh: out.append(
@@ -603,7 +607,7 @@ def test_periodic_states_from_a_start_time_are_made_as_the_data_passes_them(
     policy = StreamPolicy(
         sample_period=Fraction(1), start_time=Fraction(0), span_from_first=from_first
     )
-    monitor = Monitor(single, ["always (Speed[car1] > 20)"], policy)
+    monitor = Monitor(single.plan(["always (Speed[car1] > 20)"]), single.request, policy)
     processor = monitor.start(PushSource())
     origin = 100 * S if from_first else 0
     messages = [

@@ -298,7 +298,7 @@ def test_a_push_source_that_fails_ends_the_monitor_with_the_error() -> None:
             source.push("/robot1/pose", "soon", pose(2.0))  # not a time
 
     threading.Thread(target=feed).start()
-    events = Monitor(km, ["always (X[me] < 15)"], StreamPolicy()).run(source)
+    events = Monitor(km.plan(["always (X[me] < 15)"]), km.request, StreamPolicy()).run(source)
     with pytest.raises(DkError, match="must be a number"):
         list(events)
 

@@ -34,7 +34,8 @@ from dkreason.live.wire import WireError, open_session
 from dkreason.monitor import Monitor
 from dkreason.progress import Verdict
 from dkreason.stream.processor import StreamPolicy
-from dkreason.stream.sources import RosbagSource, _msg_types, _ros_reader, _typestore
+from dkreason.stream.sources import RosbagSource
+from dkreason.stream.typestore import load_typestore, msg_types, ros_reader
 
 from .conftest import REPO
 from .test_live import POSITION, SPEEDING, free_port
@@ -235,7 +236,7 @@ def test_any_payload_decodes_to_the_wanted_values_or_is_a_wire_error(
 ) -> None:
     """What a peer puts on a subscribed key: read field by field, or decoded in full (a
     topic's first message), either gives values or a WireError, in either byte order."""
-    read, stamped = _ros_reader(
+    read, stamped = ros_reader(
         STORE.fielddefs, POSE, ["msg.pose.position.x"], False, STORE.deserialize_cdr
     )
     payload = header + body
@@ -287,7 +288,7 @@ class Live:
             list(formulas),
             policy or StreamPolicy(max_age=Fraction(1)),
             self.watching,
-            store=store or _typestore({}, False, "ros2_jazzy"),
+            store=store or load_typestore({}, False, "ros2_jazzy"),
             **options,
         )
         self.events: list[Any] = []
@@ -364,7 +365,7 @@ def pose(store: Any, t: int, x: float) -> bytes:
     return bytes(store.serialize_cdr(msg, POSE))
 
 
-STORE = _typestore({}, False, "ros2_jazzy")
+STORE = load_typestore({}, False, "ros2_jazzy")
 
 
 def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
@@ -374,11 +375,13 @@ def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
     the monitor binds them by name, decodes CDR with --msg types, and decides what the
     recording decides offline; its --record file, replayed offline, decides the same."""
     config = REPO / "examples" / "federation.toml"
-    store = _typestore(_msg_types(TRAFFIC_MSGS), False, "ros2_jazzy")
+    store = load_typestore(msg_types(TRAFFIC_MSGS), False, "ros2_jazzy")
     policy = StreamPolicy(delay_before_approximation=Fraction(1, 2))
     km = KnowledgeManager.from_config(config)
     formulas = [SPEEDING, POSITION]
-    offline = list(Monitor(km, formulas, policy).run(RosbagSource(traffic, TRAFFIC_MSGS)))
+    offline = list(
+        Monitor(km.plan(formulas), km.request, policy).run(RosbagSource(traffic, TRAFFIC_MSGS))
+    )
     record = tmp_path / "run.mcap"
     run = live(
         km,
@@ -401,7 +404,7 @@ def test_the_ros2_replay_gives_the_offline_verdicts_and_its_record_replays_them(
     }
     assert run.verdicts() == [v for v in offline if isinstance(v, Verdict)]
     assert run.verdicts()[0].verdict is False and run.verdicts()[0].time == 300.02
-    replayed = list(Monitor(km, formulas, policy).run(RosbagSource(record)))
+    replayed = list(Monitor(km.plan(formulas), km.request, policy).run(RosbagSource(record)))
     assert [v for v in replayed if isinstance(v, Verdict)] == run.verdicts()
     again = open_session([], [f"tcp/127.0.0.1:{free_port()}"])
     try:  # the record's JSON channel is no ROS 2 topic: replayed are its ROS messages only

@@ -6,8 +6,8 @@ import tracemalloc
 
 import pytest
 
-from dkreason import xmlsafe
 from dkreason.errors import ParseError
+from dkreason.inputs import xmlsafe
 
 from .conftest import entity_bomb
 

@@ -28,23 +28,6 @@ from typing import TypeVar
 T = TypeVar("T")
 
 _ENTRY = re.compile(r"[a-z]+-[0-9a-f]{64}")  # what `key` names; lark's tables are its own
-# The modules whose code shapes a cached value: a change to any of them is a new key.
-_SHAPERS = (
-    "model.py",
-    "names.py",
-    "facts.py",
-    "kb.py",
-    "datalog.py",
-    "errors.py",
-    "parse/owl.py",
-    "parse/sslt.py",
-    "parse/sslt.lark",
-    "parse/files.py",
-    "parse/entail.py",
-    "parse/owlrl_rules.py",
-    "parse/config.py",
-    "xmlsafe.py",
-)
 
 
 def folder() -> Path | None:
@@ -60,11 +43,15 @@ def folder() -> Path | None:
 
 @cache
 def _code_stamp() -> bytes:
+    """A digest of the whole package's code and grammars: any change to how a value is built
+    is a new key, with no list of modules to keep (or forget) when code moves."""
     here = Path(__file__).parent
     digest = hashlib.sha256()
-    for name in _SHAPERS:
-        with contextlib.suppress(OSError):
-            digest.update(name.encode() + b"\0" + (here / name).read_bytes())
+    for path in sorted(p for p in here.rglob("*") if p.suffix in (".py", ".lark")):
+        data = path.read_bytes()
+        name = path.relative_to(here).as_posix().encode()
+        digest.update(len(name).to_bytes(8, "little") + name + len(data).to_bytes(8, "little"))
+        digest.update(data)
     return digest.digest()
 
 

@@ -454,7 +454,7 @@ def _progress(args: argparse.Namespace) -> int:
 
 def _seconds(text: str) -> Fraction:
     """A duration as formulas write it: seconds, or a number with ms, s, min or h."""
-    from .numbers import exact
+    from .inputs.numbers import exact
     from .parse.formula import UNITS
 
     number, unit = re.fullmatch(r"\s*(.*?)\s*(ms|s|min|h)?\s*", text).groups()  # type: ignore[union-attr]
@@ -554,7 +554,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _monitor(args: argparse.Namespace) -> int:
-    from .monitor import Monitor, plot
+    from .monitor import Monitor
+    from .plot import plot
     from .progress import Verdict
     from .stream.processor import StreamPolicy
 
@@ -599,8 +600,11 @@ def _monitor(args: argparse.Namespace) -> int:
         return _monitor_live(args, policy)
     if not args.source:
         raise DkError("monitor needs --source RECORDING, or --live")
-    monitor = Monitor(_km(args), _formulas(args), policy, keep_states=args.plot is not None)
-    source = _recordings(args, set(monitor.km.platforms))
+    km = _km(args)
+    monitor = Monitor(
+        km.plan(_formulas(args)), km.request, policy, keep_states=args.plot is not None
+    )
+    source = _recordings(args, set(km.platforms))
     try:
         processor = monitor.start(source)
     except BaseException:
@@ -668,7 +672,7 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
 
     from .live.record import Recorder
     from .live.ros2 import Ros2Monitor
-    from .stream.sources import _msg_types, _typestore
+    from .stream.typestore import load_typestore, msg_types
 
     if args.source or args.plot is not None or args.live:
         raise DkError("--ros2 takes no --source, --plot or --live")
@@ -694,7 +698,7 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
             f"--bind {unknown[0]}: not a platform of the config (platforms: "
             f"{', '.join(sorted(km.platforms))})"
         )
-    store = _typestore(_msg_types(args.msg), False, args.typestore or "ros2_jazzy")
+    store = load_typestore(msg_types(args.msg), False, args.typestore or "ros2_jazzy")
     formulas = _formulas(args)
     recorder = Recorder(args.record, store) if args.record is not None else None
     session = _session(args)
@@ -791,7 +795,7 @@ def _domain(text: str) -> int:
 
 def _formulas(args: argparse.Namespace) -> list[str]:
     """The formulas given, then those of each -f file (one a line, # comments)."""
-    from .parse.files import read_text
+    from .inputs.files import read_text
 
     out = list(args.formulas)
     for path in args.formulas_file:

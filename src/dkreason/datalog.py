@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import RuleError, Span
-from .parse.files import read_text
+from .inputs.files import read_text
 
 Value = str | int
 Row = tuple[Value, ...]

@@ -27,10 +27,10 @@ from .facts import (
     rows_of,
     spec_facts,
 )
+from .inputs.files import read_bytes
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
 from .parse.config import SCHEMA, Config, PlatformFiles, read_config, shipped_policy
-from .parse.files import read_bytes
 from .parse.sslt import without_spans
 
 
@@ -85,7 +85,7 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
         parsed = parse_specs(spec_data, str(specs), xml=xml).specs if specs else ()
         ontology = ontology_of(sources.graph, str(files.ontology[0]), files.name)
         if files.reasoning == "owl-rl":
-            from .parse.entail import entail
+            from .reason.entail import entail
 
             ontology = entail(sources.graph, ontology)
         platform = make_platform(ontology, parsed, specs)

@@ -69,9 +69,7 @@ class KnowledgeManager:
         from .stream.sources import open_source
 
         opened = source if not isinstance(source, str | Path) else open_source(Path(source))
-        return Monitor(
-            self, [formulas] if isinstance(formulas, str) else formulas, policy or StreamPolicy()
-        ).run(opened)
+        return Monitor(self.plan(formulas), self.request, policy or StreamPolicy()).run(opened)
 
     # ---- topic specifications ----------------------------------------------------------
 

@@ -12,19 +12,18 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from fractions import Fraction
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .errors import DkError
 from .model import FeatureKey, StreamRequest
 from .progress import Progressor, Verdict
 from .progress.state import USE, feature_uses
-from .stream.processor import StreamPolicy, StreamProcessor, Violation, seconds
-from .stream.sources import NS, Source
+from .stream.processor import StreamPolicy, StreamProcessor, Violation
+from .stream.sources import Source
+from .stream.units import NS, seconds
 
 if TYPE_CHECKING:
-    from .manager import KnowledgeManager
-    from .plan import FormulaPlan, Parsed
+    from .plan import FormulaPlan, Plan
 
 Event = Verdict | Violation
 
@@ -38,19 +37,19 @@ class _Group:
 
 
 class Monitor:
-    """Formulas planned once (parsed, checked, expanded), then states in, verdicts out."""
+    """A plan (formulas parsed, checked and expanded once) and the match that binds it to
+    streams (asked again by `rematch` when the knowledge changes); states in, verdicts out."""
 
     def __init__(
         self,
-        km: KnowledgeManager,
-        formulas: Sequence[str | Parsed],
+        plan: Plan,
+        match: Callable[[Plan], StreamRequest],
         policy: StreamPolicy,
         *,
         keep_states: bool = False,
     ) -> None:
-        self.km, self.policy, self.keep_states = km, policy, keep_states
-        self.plan = km.plan(formulas)
-        self.request = km.request(self.plan)
+        self.plan, self.match, self.policy, self.keep_states = plan, match, policy, keep_states
+        self.request = match(plan)
         # A formula is judged on its own state stream: from the first state in which every
         # feature it reads has a value (a recording's warm-up is not "unknown"; with a start
         # time, from the first state on), at the instants its own features are sampled or
@@ -151,7 +150,7 @@ class Monitor:
     def rematch(self, source: Source) -> StreamRequest:
         """The plan's features matched again (the knowledge changed); the streams follow."""
         assert self.processor is not None
-        self.request = self.km.request(self.plan)
+        self.request = self.match(self.plan)
         self.processor.reroute(self.request, source)
         return self.request
 
@@ -219,76 +218,3 @@ def in_seconds(v: Verdict) -> Verdict:
         dataclasses.replace(u, start=seconds(u.start), end=seconds(u.end)) for u in v.unknown
     )
     return dataclasses.replace(v, time=None if v.time is None else seconds(v.time), unknown=unknown)
-
-
-def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
-    """Each feature over time (unobserved spans shaded), verdicts as vertical lines, stream
-    constraint violations as orange ticks; written atomically, as PNG, SVG or PDF by the
-    file's suffix."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    keys = [f.feature.key for f in monitor.request.features]
-    fig, axes = plt.subplots(
-        max(len(keys), 1),
-        1,
-        sharex=True,
-        squeeze=False,
-        figsize=(10, 1.5 * max(len(keys), 1) + 1.6),
-    )
-    times = [float(seconds(t)) for t, _ in monitor.states]
-    for ax, key in zip(axes[:, 0], keys, strict=False):
-        values = [state.get(key) for _, state in monitor.states]
-        ys = [float(v) if v is not None else float("nan") for v in values]
-        ax.step(times, ys, where="post", lw=1.4, color="tab:blue")
-        ax.margins(y=0.25)
-        start = None
-        for t, v in zip([*times, None], [*values, 0], strict=True):
-            if v is None and start is None:
-                start = t
-            elif v is not None and start is not None:
-                ax.axvspan(
-                    start,
-                    t if t is not None else times[-1],
-                    color="grey",
-                    alpha=0.25,
-                    lw=0,
-                    label="unobserved",
-                )
-                start = None
-        ticks = [
-            float(seconds(e.time)) for e in events if isinstance(e, Violation) and e.feature == key
-        ]
-        if ticks:
-            ax.plot(
-                ticks,
-                [ax.get_ylim()[0]] * len(ticks),
-                "|",
-                color="tab:orange",
-                ms=10,
-                label="constraint violated",
-            )
-        ax.set_ylabel(str(key), rotation=0, ha="right", va="center", fontsize=9)
-        handles, labels = ax.get_legend_handles_labels()
-        if handles:
-            unique = dict(zip(labels, handles, strict=True))
-            ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=7)
-    lines = []
-    for e in events:
-        if isinstance(e, Verdict) and e.verdict is not None:
-            color = "tab:green" if e.verdict else "tab:red"
-            for ax in axes[:, 0]:
-                ax.axvline(float(e.time), color=color, ls="--", lw=1.2)
-            word = "held" if e.verdict else "violated"
-            lines.append(f"{word} at {e.time} s: {e.formula}")
-    unknown = [e for e in events if isinstance(e, Verdict) and e.verdict is None]
-    lines += [f"unknown at end: {e.formula}" for e in unknown]
-    axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)
-    fig.tight_layout(rect=(0, 0, 1, 0.97 - 0.02 * len(lines)))
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")  # the format follows the suffix
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(path)

@@ -45,8 +45,9 @@ from ..monitor import Monitor
 from ..parse.config import read_config
 from ..plan import parse
 from ..progress import Verdict
-from ..stream.processor import StreamPolicy, Violation, seconds
-from ..stream.sources import NS, Message, Wanted, dict_reader
+from ..stream.processor import StreamPolicy, Violation
+from ..stream.sources import Message, Wanted, dict_reader
+from ..stream.units import NS, seconds
 from . import wire
 from .inbox import Inbox
 
@@ -282,7 +283,7 @@ class LiveMonitor:
         yield from self._gather()
         assert self.kb is not None
         self.km = KnowledgeManager(self.kb)
-        monitor = self.monitor = Monitor(self.km, self.formulas, self.policy)
+        monitor = self.monitor = Monitor(self.km.plan(self.formulas), self.km.request, self.policy)
         self.source = _Live()
         self.processor = monitor.start(self.source)
         self.read = dict_reader(self.source.name, self.processor.wanted)

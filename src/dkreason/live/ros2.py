@@ -40,7 +40,8 @@ from ..progress import Verdict
 from ..stream import fields
 from ..stream.binding import message_type_fits, recording_names
 from ..stream.processor import StreamPolicy
-from ..stream.sources import NS, _ros_reader
+from ..stream.typestore import ros_reader
+from ..stream.units import NS
 from . import rmw
 from .inbox import Inbox
 from .monitor import Change, Event, _Live, _logged
@@ -124,7 +125,7 @@ class Ros2Monitor:
         self.bind = {p: ns.rstrip("/") or "/" for p, ns in (bind or {}).items()}
         self.remap = dict(remap or {})
         self.recorder = recorder
-        self.monitor = Monitor(km, formulas, policy, keep_states=keep_states)
+        self.monitor = Monitor(km.plan(formulas), km.request, policy, keep_states=keep_states)
         self.processor = self.monitor.start(_Live())
         request = self.monitor.request
         namespaces = dict(request.namespaces)
@@ -382,7 +383,7 @@ class Ros2Monitor:
         wanted = (
             ["msg.clock.sec", "msg.clock.nanosec"] if name == CLOCK else self.processor.wanted[name]
         )
-        read, stamped = _ros_reader(
+        read, stamped = ros_reader(
             self.store.fielddefs, pub.msgtype, wanted, False, self.store.deserialize_cdr
         )
         self.store.get_msgdef(pub.msgtype)  # rosbags' decoder built now, not at a sample

@@ -22,7 +22,7 @@ from typing import Any
 from ..model import FeatureKey
 from ..progress import Verdict
 from ..stream.processor import Violation
-from ..stream.sources import NS
+from ..stream.units import NS
 from . import rmw
 
 CLOCK = "/clock"

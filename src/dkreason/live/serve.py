@@ -21,7 +21,8 @@ from ..errors import DkError
 from ..manager import KnowledgeManager
 from ..model import IdValue, TopicSpec
 from ..parse.owl import served
-from ..stream.sources import NS, Record
+from ..stream.sources import Record
+from ..stream.units import NS
 from . import wire
 
 log = logging.getLogger("dkreason.live")

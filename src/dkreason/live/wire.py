@@ -32,7 +32,7 @@ from typing import Any
 import orjson
 
 from ..errors import DkError, ParseError, Span
-from ..parse.files import json_value, read_text
+from ..inputs.files import json_value, read_text
 
 MAX_SAMPLE = 64 * 1024  # bytes of one sample or clock payload
 MAX_KNOWLEDGE = 16 * 1024 * 1024  # bytes of one ontology, specs or objects reply

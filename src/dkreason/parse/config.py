@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DkError, ParseError, Span
-from .files import read_text
+from ..inputs.files import read_text
 
 _NAMESPACE = re.compile(r"/|(/[A-Za-z_][A-Za-z0-9_]*)+/?")
 SHIPPED_RULES = Path(str(importlib.resources.files("dkreason.rules")))

@@ -10,8 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import ParseError, Span
+from ..inputs.files import read_bytes
 from ..model import BRIDGE_TYPES, BridgeRule
-from .files import read_bytes
 
 
 def _local(tag: str) -> str:
@@ -19,7 +19,7 @@ def _local(tag: str) -> str:
 
 
 def read_bridge_rules(path: Path) -> tuple[BridgeRule, ...]:
-    from .. import xmlsafe
+    from ..inputs import xmlsafe
 
     file = str(path)
     root, where = xmlsafe.parse(read_bytes(path), file)

@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DkError, ParseError, Span
+from ..inputs.files import decode, json_value, read_bytes
 from ..model import IdValue, Ontology, Signature
 from ..names import local_name
-from .files import decode, json_value, read_bytes
 
 ARITY = {"UnaryRelation": 1, "BinaryRelation": 2, "TernaryRelation": 3}
 ARG = re.compile(r"arg([1-9])$")
@@ -107,7 +107,7 @@ def _catalog(
         path = folder / "catalog-v001.xml"
         catalogs[folder] = {}
         if path.is_file():
-            from .. import xmlsafe
+            from ..inputs import xmlsafe
 
             data = read_bytes(path)
             read.append((path, data))
@@ -203,7 +203,7 @@ def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
             Span(file),
         )
     if fmt in XML_SYNTAXES:
-        from .. import xmlsafe
+        from ..inputs import xmlsafe
 
         xmlsafe.check(data, file)
     elif fmt == "json-ld":

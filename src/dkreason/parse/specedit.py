@@ -13,8 +13,9 @@ import re
 from pathlib import Path
 
 from ..errors import DkError, NameError_, ParseError, Span
+from ..inputs import files
 from ..model import TopicSpec
-from . import files, sslt
+from . import sslt
 
 
 def edit(path: Path, *, add: TopicSpec | None = None, remove: str | None = None) -> None:

@@ -20,8 +20,8 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..cache import lark_file
 from ..errors import DkError, ParseError, Span
+from ..inputs.files import decode, read_bytes
 from ..model import ArgKind, TopicArg, TopicFeature, TopicSpec
-from .files import decode, read_bytes
 
 
 @cache
@@ -285,7 +285,7 @@ def format_spec(spec: TopicSpec) -> str:
 
 
 def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
-    from .. import xmlsafe
+    from ..inputs import xmlsafe
 
     root, where = xmlsafe.parse(data, file)
 

@@ -20,8 +20,8 @@ from fractions import Fraction
 from typing import Any
 
 from ..errors import DkError
+from ..inputs.numbers import exact
 from ..model import FeatureKey
-from ..numbers import exact
 from ..parse.formula import Formula, feature_key, parse_formula, quantifiers
 from .compile import Graph, scaled
 from .fused import FusedSet, Held, Member, shapes

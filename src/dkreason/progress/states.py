@@ -10,9 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DkError, ParseError, Span
+from ..inputs import files
+from ..inputs.numbers import datum
 from ..model import FeatureKey
-from ..numbers import datum
-from ..parse import files
 from ..parse.formula import feature_key
 from .progressor import exact_time
 from .state import USE

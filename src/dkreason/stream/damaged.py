@@ -24,6 +24,8 @@ from typing import Any, BinaryIO, Literal
 
 from ..errors import DkError
 from . import fields
+from .typestore import load_typestore, msg_types, ros_reader
+from .units import NS
 
 Kind = Literal["mcap", "ros1", "db3"]
 # what a format yields: ("type", name, definition) | ("channel", id, topic, msgtype)
@@ -67,12 +69,10 @@ class SequentialSource:
         why: str,
         typestore: str | None = None,
     ) -> None:
-        from .sources import _msg_types, _typestore
-
         self.name, self.path, self.kind = str(path), path, kind
         self.note = f"{path}: {why}; reading it sequentially up to the damage"
-        given = _msg_types(msg_files)
-        self.store = _typestore(given, kind == "ros1", typestore)
+        given = msg_types(msg_files)
+        self.store = load_typestore(given, kind == "ros1", typestore)
         self.channels: dict[Any, tuple[str, str]] = {}  # id → topic, msgtype
         self._known: set[str] = set(given)  # --msg replaces the recording's definition
         try:
@@ -124,8 +124,6 @@ class SequentialSource:
         pass
 
     def messages(self, wanted: dict[str, list[str]]) -> Iterator[tuple[str, int, int, Any]]:
-        from .sources import NS, _ros_reader
-
         deserialize = (
             self.store.deserialize_ros1 if self.kind == "ros1" else self.store.deserialize_cdr
         )
@@ -141,7 +139,7 @@ class SequentialSource:
                 if topic not in wanted:
                     continue
                 if channel not in readers:
-                    readers[channel] = _ros_reader(
+                    readers[channel] = ros_reader(
                         self.store.fielddefs,
                         msgtype,
                         wanted[topic],
@@ -239,7 +237,7 @@ def _mcap_chunk(content: memoryview, torn: bool = False) -> Iterator[tuple[int, 
 
 
 def _mcap(path: Path) -> Iterator[Item]:
-    from ..parse.files import read_bytes
+    from ..inputs.files import read_bytes
 
     data = memoryview(read_bytes(path))
     if bytes(data[:8]) != _MAGIC:

@@ -13,7 +13,7 @@ from typing import Any
 
 from ..model import TopicMatch
 from .binding import Recording, Recordings, message_type_fits, recording_names
-from .sources import NS
+from .units import NS
 
 
 @dataclass(frozen=True, slots=True)

@@ -36,18 +36,15 @@ from operator import itemgetter
 from typing import Any, Literal
 
 from ..errors import DkError
+from ..inputs.numbers import datum
 from ..model import FeatureKey, StreamRequest
-from ..numbers import datum
-from .sources import NS, Message, Source
+from .sources import Message, Source
+from .units import NS, seconds
 
 _INF = float("inf")
 _NO_EXPIRY: tuple[list[FeatureKey], list[int]] = ([], [])  # read, never changed
 _NO_QS: list[int] = []
 _VALID_RANK = itemgetter(0, 1)  # a history entry's order: (valid, rank), never its value
-
-
-def seconds(ns: int) -> float | int:
-    return ns // NS if ns % NS == 0 else ns / NS
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -16,21 +16,24 @@ from pathlib import Path
 from typing import Any, Protocol
 
 from ..errors import DkError, ParseError, Span
-from ..numbers import exact
-from ..parse import files
+from ..inputs import files
 from . import fields
+from .damaged import DamagedRecording, SequentialSource, declared_size, kind_of
 from .mcapread import IndexedMcap, open_indexed
+from .typestore import (
+    load_typestore,
+    msg_types,
+    plain,
+    ros_reader,
+    store_name,
+    why,
+    with_definitions,
+)
+from .units import NS, to_ns
 
 Message = tuple[str, int, int, tuple[Any, ...]]
 Record = tuple[str, int, int, Any]  # a whole message: topic, available, valid, plain data
 Wanted = dict[str, list[str]]  # topic → fields, in the order the values are yielded
-NS = 10**9
-
-
-def to_ns(seconds: Any, what: str = "time") -> int:
-    """Exact seconds (JSON decimals, ints, Fractions) → integer nanoseconds, rounded to the
-    nearest (`0.30000000000000004`, a float's `3 * 0.1`, is 0.3 s)."""
-    return round(exact(seconds, what) * NS)
 
 
 class Source(Protocol):
@@ -83,14 +86,14 @@ class RosbagSource:
         from rosbags.highlevel import AnyReader
 
         ros1 = path.suffix == ".bag"
-        given = _msg_types(msg_files)
-        default = _typestore(given, ros1, typestore)
+        given = msg_types(msg_files)
+        default = load_typestore(given, ros1, typestore)
         _foreign_channels_allowed()
         try:
             self.reader = AnyReader([path], default_typestore=default)
             self.reader.open()
         except Exception as exc:  # rosbags raises several kinds for unreadable files
-            raise DkError(f"{path}: not a readable ROS recording ({_why(exc)})") from None
+            raise DkError(f"{path}: not a readable ROS recording ({why(exc)})") from None
         self.connections = [c for c in self.reader.connections if _ros(c)]
         foreign = sorted(
             {
@@ -107,7 +110,7 @@ class RosbagSource:
         if not msg_files and typestore is None and any(not c.msgdef.data for c in self.connections):
             notes.append(
                 f"{path} stores no message definitions: using rosbags' "
-                f"{_store_name(ros1, None)} ones (--typestore, --msg)"
+                f"{store_name(ros1, None)} ones (--typestore, --msg)"
             )
         replaced = sorted(
             name
@@ -115,7 +118,7 @@ class RosbagSource:
             if self.reader.typestore.fielddefs.get(name, definition) != definition
         )
         if replaced:
-            self.reader.typestore = _replaced(self.reader.typestore, given)
+            self.reader.typestore = with_definitions(self.reader.typestore, given)
             notes = [
                 f"{name}: the definition of --msg replaces the one {path} stores"
                 for name in replaced
@@ -154,7 +157,7 @@ class RosbagSource:
             id(c): (
                 c,
                 c.topic,
-                *_ros_reader(
+                *ros_reader(
                     fielddefs,
                     c.msgtype,
                     wanted[c.topic],
@@ -183,10 +186,8 @@ class RosbagSource:
         except DkError:
             raise
         except Exception as exc:  # a damaged file can fail anywhere in rosbags
-            from .damaged import DamagedRecording
-
             raise DamagedRecording(
-                f"{self.name}: damaged recording ({_why(exc)}); {n} "
+                f"{self.name}: damaged recording ({why(exc)}); {n} "
                 f"messages before it were monitored, the rest is lost"
             ) from None
 
@@ -197,8 +198,6 @@ class RosbagSource:
         and what each key is (the id of its connection).  An indexed MCAP file is read through
         mcapread, a chunk a batch (~5× rosbags' rate); anything else through rosbags."""
         by_topic = {c.topic: c for c in connections}
-        from .damaged import kind_of
-
         found = kind_of(self.path)  # a bare file, or a bag folder's only storage file
         indexed = (
             open_indexed(found[1])
@@ -243,7 +242,7 @@ class RosbagSource:
                 )
                 yield connection.topic, t_ns, valid, msg
         except Exception as exc:
-            raise DkError(f"{self.name}: damaged recording ({_why(exc)})") from None
+            raise DkError(f"{self.name}: damaged recording ({why(exc)})") from None
 
     def close(self) -> None:
         if self._indexed is not None:
@@ -285,40 +284,8 @@ def _decodes(deserialize: Any, raw: Any, connection: Any) -> None:
     except Exception as exc:
         raise DkError(
             f"{connection.topic}: its messages do not match the definition of "
-            f"{connection.msgtype} ({_why(exc)}); give the right one with --msg"
+            f"{connection.msgtype} ({why(exc)}); give the right one with --msg"
         ) from None
-
-
-def plain(value: Any) -> Any:
-    """A deserialised ROS message as JSON-ready dicts, lists and numbers."""
-    if hasattr(value, "__dataclass_fields__"):
-        return {
-            k: plain(getattr(value, k))
-            for k in value.__dataclass_fields__
-            if not k.startswith("__")
-        }
-    if hasattr(value, "tolist"):
-        return value.tolist()
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    return value
-
-
-def _ros_reader(
-    fielddefs: Any, msgtype: str, wanted: list[str], ros1: bool, deserialize: Any
-) -> tuple[Any, bool]:
-    """(raw message → values of `wanted`, then the header stamp if it has one; stamped?)."""
-    from .fastread import compile_extractor
-
-    stamped = fields.check(fielddefs, msgtype, "msg.header.stamp.sec") is None
-    names = [*wanted, *(["msg.header.stamp.sec", "msg.header.stamp.nanosec"] if stamped else [])]
-    getters = [fields.accessor(f, dicts=False) for f in names]
-
-    def slow(raw: Any) -> tuple[Any, ...]:
-        msg = deserialize(raw, msgtype)
-        return tuple(plain(get(msg)) for get in getters)
-
-    return compile_extractor(fielddefs, msgtype, names, ros1, slow) or slow, stamped
 
 
 def dict_reader(name: str, wanted: Wanted) -> Any:
@@ -339,54 +306,6 @@ def dict_reader(name: str, wanted: Wanted) -> Any:
         return tuple(out)
 
     return read
-
-
-def _store_name(ros1: bool, name: str | None) -> str:
-    return name or ("ros1_noetic" if ros1 else "ros2_humble")
-
-
-def _typestore(given: dict[str, Any], ros1: bool, name: str | None = None) -> Any:
-    """rosbags' standard definitions of `name` (default by the recording's kind), with the
-    `given` types added or in place of their namesakes."""
-    from rosbags.typesys import Stores, get_typestore
-
-    return _replaced(get_typestore(Stores(_store_name(ros1, name))), given)
-
-
-def _replaced(store: Any, given: dict[str, Any]) -> Any:
-    """`store` with the `given` definitions added, each in place of a namesake (rosbags' own
-    register refuses a second definition of a type, so that case is a new store)."""
-    from rosbags.typesys import Stores, get_typestore
-
-    if all(
-        store.fielddefs.get(name, definition) == definition for name, definition in given.items()
-    ):
-        store.register(given)
-        return store
-    replaced = get_typestore(Stores.EMPTY)
-    replaced.register(store.fielddefs | given)
-    return replaced
-
-
-def _msg_types(msg_files: Sequence[Path]) -> dict[str, Any]:
-    """The types `pkg/msg/Name.msg` files define, in rosbags' form."""
-    from rosbags.typesys import get_types_from_msg
-
-    types: dict[str, Any] = {}
-    for path in msg_files:
-        if path.suffix != ".msg" or path.parent.name != "msg":
-            raise DkError(f"{path}: expected a message definition pkg/msg/Name.msg")
-        name = f"{path.parent.parent.name}/msg/{path.stem}"
-        try:
-            types.update(get_types_from_msg(path.read_text(encoding="utf-8"), name))
-        except Exception as exc:
-            raise DkError(f"{path}: not a message definition ({_why(exc)})") from None
-    return types
-
-
-def _why(exc: BaseException) -> str:
-    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-    return text[:200]
 
 
 class JsonlSource:
@@ -516,8 +435,6 @@ class PushSource:
 def open_source(path: Path, msg_files: Sequence[Path] = (), typestore: str | None = None) -> Source:
     """The source for `path`; a recording whose index or metadata rosbags cannot read is read
     sequentially up to its damage (stream/damaged.py)."""
-    from .damaged import SequentialSource, declared_size, kind_of
-
     if path.suffix == ".jsonl" or path.suffix == ".json" or str(path) == "-":
         return JsonlSource(path)
     found = kind_of(path) if path.exists() else None

@@ -13,7 +13,7 @@ from decimal import Decimal, InvalidOperation
 from fractions import Fraction
 from typing import Any
 
-from .errors import DkError
+from ..errors import DkError
 
 MAX_ADJUSTED = 18  # a time's largest decimal exponent
 MIN_EXPONENT = -60  # a time's finest decimal place

@@ -11,7 +11,7 @@ import pyexpat
 import xml.etree.ElementTree as ET
 from typing import NamedTuple
 
-from .errors import ParseError, Span
+from ..errors import ParseError, Span
 
 
 def check(data: bytes, file: str) -> None:

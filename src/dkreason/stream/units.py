@@ -1,0 +1,21 @@
+"""The stream clock's unit: integer nanoseconds inside, seconds at every edge a person or a
+caller sees (events, policies, pushed samples)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ..inputs.numbers import exact
+
+NS = 10**9
+
+
+def to_ns(seconds: Any, what: str = "time") -> int:
+    """Exact seconds (JSON decimals, ints, Fractions) → integer nanoseconds, rounded to the
+    nearest (`0.30000000000000004`, a float's `3 * 0.1`, is 0.3 s)."""
+    return round(exact(seconds, what) * NS)
+
+
+def seconds(ns: int) -> float | int:
+    """Nanoseconds as the seconds people read (an int when whole)."""
+    return ns // NS if ns % NS == 0 else ns / NS
