@@ -32,7 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .chapter7.workload import Workload, nine, write
+from dkreason.workloads import Workload, nine, write
 
 NS = "http://example.org/fleet/p{}#"
 FEATURES = ("Battery", "Speed", "Temperature")

@@ -26,38 +26,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-NS = "http://example.org/join#"
-
-
-def _turtle(sensors: list[int]) -> str:
-    objects = "\n".join(f":s{k} a owl:NamedIndividual, :Sensor ; :id {k} ." for k in sensors)
-    return f"""@prefix : <{NS}> .
-@prefix owl: <http://www.w3.org/2002/07/owl#> .
-@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
-:UnaryRelation a owl:Class .
-:arg1 a owl:ObjectProperty .
-:Sensor a owl:Class .
-:Reading rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( :UnaryRelation
-    [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Sensor ] ) ] .
-{objects}
-"""
-
-
-def write(folder: Path, nodes: int) -> None:
-    """The monitor's platform knows every sensor; node n knows its own and carries its topic."""
-    (folder / "m.ttl").write_text(_turtle(list(range(1, nodes + 1))))
-    (folder / "monitor.toml").write_text(
-        'local = "m"\n[platforms.m]\nontology = "m.ttl"\n'
-        + "".join(f"[platforms.p{n}]\n" for n in range(1, nodes + 1))
-    )
-    for n in range(1, nodes + 1):
-        (folder / f"p{n}.ttl").write_text(_turtle([n]))
-        (folder / f"p{n}.sslt").write_text(
-            f"topic t{n}:Reading contains Reading(s{n}) = msg.value for s{n} = msg.id\n"
-        )
-        (folder / f"p{n}.toml").write_text(
-            f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n'
-        )
+from dkreason.workloads import fleet as write
 
 
 def node(folder: str, n: int, endpoint: str, until: float, arrived: Any) -> None:
@@ -81,7 +50,7 @@ def node(folder: str, n: int, endpoint: str, until: float, arrived: Any) -> None
 def run(nodes: int, every: float) -> dict[str, Any]:
     from dkreason.live.monitor import Change, LiveMonitor
     from dkreason.live.wire import open_session
-    from dkreason.stream.processor import StreamPolicy
+    from dkreason.stream.policy import StreamPolicy
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

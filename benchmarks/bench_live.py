@@ -209,7 +209,7 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
     from dkreason.live.monitor import LiveMonitor
     from dkreason.live.wire import open_session
     from dkreason.progress import Verdict
-    from dkreason.stream.processor import StreamPolicy
+    from dkreason.stream.policy import StreamPolicy
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

@@ -31,7 +31,7 @@ from dkreason import KnowledgeManager
 from dkreason.monitor import Monitor
 from dkreason.progress import Verdict
 from dkreason.stream.binding import Recording, Recordings
-from dkreason.stream.processor import StreamPolicy
+from dkreason.stream.policy import StreamPolicy
 from dkreason.stream.recording import write_recording
 from dkreason.stream.sources import RosbagSource
 

@@ -22,8 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .chapter7.__main__ import CASES
-from .chapter7.workload import write
+from dkreason.workloads import COLUMNS, SETUPS, write
 
 ROUNDS = 3
 REPO = Path(__file__).resolve().parents[1]
@@ -37,8 +36,7 @@ def _configs(folder: Path) -> dict[str, tuple[Path, list[Path]]]:
         f'[platforms.w]\nontology = "{sosa / "weather.ttl"}"\nreasoning = "owl-rl"\n',
         encoding="utf-8",
     )
-    case = next(c for c in CASES if c.name == "1.3")
-    workload, _ = case.point(len(case.xs) - 1, 1)
+    workload, _ = SETUPS["1.3"](COLUMNS["1.3"] - 1, 1)
     ch7 = write(workload, folder / "ch7")
     ch7.write_text(ch7.read_text() + 'reasoning = "owl-rl"\n', encoding="utf-8")
     return {

@@ -106,7 +106,8 @@ def run_ros2(folder: Path, seconds: float, hz: float, delay: Fraction) -> dict[s
     from dkreason.live.ros2 import Ros2Monitor
     from dkreason.live.wire import open_session
     from dkreason.progress import Verdict
-    from dkreason.stream.processor import StreamPolicy, Violation
+    from dkreason.stream.policy import StreamPolicy
+    from dkreason.stream.processor import Violation
     from dkreason.stream.typestore import load_typestore
 
     with socket.socket() as s:

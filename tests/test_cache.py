@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from benchmarks.chapter7.workload import Workload, nine, write
 from dkreason import KnowledgeManager, cache
 from dkreason.datalog import Datalog
 from dkreason.errors import SortError
 from dkreason.kb import KnowledgeBase
+from dkreason.workloads import Workload, nine, write
 
 from .conftest import REPO
 
@@ -221,3 +221,24 @@ def test_the_cache_stays_under_its_limit_dropping_what_was_used_longest_ago(
         sum((private_cache / n).stat().st_size for n in left if not n.endswith(".lark-cache"))
         <= size * 2 // 3
     )
+
+
+def test_the_key_covers_the_whole_packages_code_with_no_list_to_forget(tmp_path: Path) -> None:
+    from dkreason.cache import code_digest
+
+    package = tmp_path / "pkg"
+    (package / "parse").mkdir(parents=True)
+    (package / "parse" / "owl.py").write_text("X = 1\n")
+    (package / "parse" / "mtl.lark").write_text("start: 'a'\n")
+    (package / "notes.txt").write_text("not code\n")
+    seen = {code_digest(package)}
+    (package / "notes.txt").write_text("still not code\n")
+    assert code_digest(package) in seen
+    (package / "parse" / "owl.py").rename(package / "owl.py")  # a module moved
+    seen.add(code_digest(package))
+    (package / "reason").mkdir()
+    (package / "reason" / "entail.py").write_text("Y = 2\n")  # a module added
+    seen.add(code_digest(package))
+    (package / "parse" / "mtl.lark").write_text("start: 'b'\n")  # a grammar changed
+    seen.add(code_digest(package))
+    assert len(seen) == 4

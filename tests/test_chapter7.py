@@ -7,13 +7,11 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from benchmarks.chapter7.__main__ import CASES, main
-from benchmarks.chapter7.workload import QUANTIFIED, Workload, expanded, formula, nine, write
 from dkreason import KnowledgeManager
+from dkreason.workloads import COLUMNS, QUANTIFIED, SETUPS, Workload, expanded, formula, nine, write
 
 SMALL = Workload(
     concepts=30, relevant=5, irrelevant=20, relevant_specs=0, irrelevant_specs=15, features=nine()
@@ -48,33 +46,10 @@ def test_a_quantified_formula_expands_to_its_written_out_twin(tmp_path: Path, n:
 
 
 def test_every_test_case_point_builds_a_workload() -> None:
-    for case in CASES:
-        for i in range(len(case.xs)):
-            w, text = case.point(i, 1)
+    for name, setup in SETUPS.items():
+        for i in range(COLUMNS[name]):
+            w, text = setup(i, 1)
             assert text and w.concepts >= 5
-        assert all(len(v) == len(case.xs) for v in case.thesis.values())
-
-
-def test_the_runner_rejects_an_unknown_test_case(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["--cases", "9.9"]) == 2
-    assert "unknown test case '9.9'" in capsys.readouterr().err
-
-
-@pytest.mark.parametrize(
-    ("argv", "says"),
-    [
-        (["--processes", "0"], "expected a whole number of at least 1, got '0'"),
-        (["--growth", "--scales", "10,10"], "needs two different scales"),
-    ],
-)
-def test_the_runner_rejects_bad_options_with_exit_2(
-    capsys: pytest.CaptureFixture[str], argv: list[Any], says: str
-) -> None:
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse's own errors
-        code = int(exc.code or 0)
-    assert code == 2 and says in capsys.readouterr().err
 
 
 ANSWERS = Path(__file__).parent / "data" / "chapter7" / "answers.json"
@@ -82,9 +57,9 @@ ANSWERS = Path(__file__).parent / "data" / "chapter7" / "answers.json"
 
 def _points() -> list[tuple[str, int, float]]:
     return [
-        (case.name, i, share)
-        for case in CASES
-        for i in (0, len(case.xs) - 1)
+        (case, i, share)
+        for case, columns in COLUMNS.items()
+        for i in (0, columns - 1)
         for share in (0.0, 0.8)
     ]
 
@@ -97,8 +72,7 @@ def test_symbolic_sorts_give_the_answers_of_materialized_ones(
     with 80% of the further relevant specs over `some B`, matches exactly the topics and
     filters the matcher gave when sort arguments were materialized per object
     (tests/data/chapter7/answers.json, recorded with that matcher)."""
-    setup = next(c for c in CASES if c.name == case).point
-    w, text = setup(point, 1)
+    w, text = SETUPS[case](point, 1)
     w = replace(w, sort_share=share, relevant_specs=max(w.relevant_specs, 20))
     request = KnowledgeManager.from_config(write(w, tmp_path)).check_formula(text)
     got = {

@@ -19,7 +19,7 @@ from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.monitor import Event, Monitor
-from dkreason.stream.processor import StreamPolicy
+from dkreason.stream.policy import StreamPolicy
 from dkreason.stream.recording import write_recording
 from dkreason.stream.sources import JsonlSource, open_source
 

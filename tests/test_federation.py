@@ -271,9 +271,9 @@ def test_a_fleet_sharing_one_vocabulary_stores_links_of_the_local_platform_only(
     """Twenty platforms sharing IRIs: only the local platform's links are kept (a context is
     the local platform and one other), so what a joining platform costs grows with the fleet,
     not with its square (issue 16: each join derived links between every pair)."""
-    from benchmarks import bench_join
+    from dkreason.workloads import fleet
 
-    bench_join.write(tmp_path, 20)
+    fleet(tmp_path, 20)
     names = "".join(
         f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n' for n in range(1, 21)
     )

@@ -659,7 +659,7 @@ class InProcess:
     def __init__(self, scenario: Path) -> None:
         from dkreason.live.monitor import LiveMonitor
         from dkreason.live.wire import open_session
-        from dkreason.stream.processor import StreamPolicy
+        from dkreason.stream.policy import StreamPolicy
 
         self.scenario = scenario
         map_car3_to_a_truck(scenario)

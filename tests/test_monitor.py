@@ -19,7 +19,8 @@ from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.monitor import Event, Monitor
 from dkreason.progress import Verdict
-from dkreason.stream.processor import StreamPolicy, Violation
+from dkreason.stream.policy import StreamPolicy
+from dkreason.stream.processor import Violation
 from dkreason.stream.recording import write_recording
 from dkreason.stream.sources import JsonlSource, PushSource, Source
 

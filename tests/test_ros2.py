@@ -33,7 +33,7 @@ from dkreason.live.ros2node import Announcer, Ros2Node, cdr_clock, replay
 from dkreason.live.wire import WireError, open_session
 from dkreason.monitor import Monitor
 from dkreason.progress import Verdict
-from dkreason.stream.processor import StreamPolicy
+from dkreason.stream.policy import StreamPolicy
 from dkreason.stream.sources import RosbagSource
 from dkreason.stream.typestore import load_typestore, msg_types, ros_reader
 

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rosbags.typesys.store import Typestore
 
+from dkreason.errors import DkError
 from dkreason.stream.fastread import compile_extractor
 from dkreason.stream.fields import accessor, check
 
@@ -171,3 +172,65 @@ def test_big_endian_cdr_is_left_to_the_deserialiser() -> None:
 )
 def test_field_checks_say_why(field: str, says: str) -> None:
     assert says in (check(STORES[False].fielddefs, "x/msg/T", field) or "")
+
+
+# ---- the stream policy: checked when made, with the CLI's defaults ---------------------------
+
+
+def test_a_stream_policy_takes_durations_as_numbers_or_unit_text() -> None:
+    from fractions import Fraction
+
+    from dkreason import StreamPolicy
+
+    policy = StreamPolicy(max_age="500ms", sample_period=0.1, delay_before_approximation="2 min")
+    assert (policy.max_age, policy.sample_period) == (Fraction(1, 2), Fraction(1, 10))
+    assert policy.delay_before_approximation == 120
+    assert StreamPolicy(start_time="-1.5", end_time=3).start_time == Fraction(-3, 2)
+
+
+def test_the_api_and_the_cli_share_the_stream_policys_defaults() -> None:
+    from fractions import Fraction
+
+    from dkreason import StreamPolicy
+    from dkreason.cli.options import policy
+    from dkreason.cli.parser import build
+
+    args = build(None).parse_args(["monitor", "--config", "c.toml", "--source", "r", "F"])
+    assert policy(args) == StreamPolicy()
+    assert StreamPolicy().delay_before_approximation == Fraction(1, 10)  # the CLI's 100 ms
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("max_age", "500 parsecs", "max_age: '500 parsecs' is not a duration"),
+        ("delay_before_approximation", -1, "delay_before_approximation must not be negative"),
+        ("sample_period", 0, "sample_period must be positive"),
+        ("approximation", "latest", "approximation: 'latest' is not one of recent, none"),
+        ("max_delay", float("nan"), "max_delay must be finite"),
+        ("ordered_on_valid_time", "yes", "ordered_on_valid_time must be True or False"),
+    ],
+)
+def test_a_bad_stream_policy_field_is_one_error_naming_it(
+    field: str, value: object, message: str
+) -> None:
+    from dkreason import StreamPolicy
+
+    with pytest.raises(DkError, match=message):
+        StreamPolicy(**{field: value})  # type: ignore[arg-type]
+
+
+def test_an_end_before_the_start_is_refused_when_the_policy_is_made() -> None:
+    from dkreason import StreamPolicy
+
+    with pytest.raises(DkError, match="end_time 50 is before start_time 100"):
+        StreamPolicy(start_time=100, end_time=50)
+
+
+def test_pushed_times_are_seconds_and_nanoseconds_are_caught() -> None:
+    from dkreason import PushSource
+
+    source = PushSource()
+    source.push("topic3", 1.5, {"id": 1, "spd": 70})
+    with pytest.raises(DkError, match="times are seconds .nanoseconds given"):
+        source.push("topic3", 1_700_000_000_000_000_000, {"id": 1, "spd": 70})

@@ -1,7 +1,7 @@
 """Thesis chapter 7 reproduced: the Knowledge Manager timed phase by phase beside the thesis.
 
 For test cases 1.1, 1.2, 1.3, 2.1, 2.2, 3 and 4 at every x-axis point of tables 7.1–7.7 this
-writes the seeded workload (benchmarks/chapter7/workload.py) as ordinary OWL/SSL_T files, then
+writes the seeded workload (src/dkreason/workloads.py) as ordinary OWL/SSL_T files, then
 times, through the public API a user calls:
 
 - preprocessing: `KnowledgeManager.from_config` (ontology and specs loaded, closures included);
@@ -46,8 +46,7 @@ from dkreason.expand import expand
 from dkreason.match import match
 from dkreason.parse.formula import parse_formula
 from dkreason.request import build_request
-
-from .workload import QUANTIFIED, Workload, expanded, formula, many, nine, write
+from dkreason.workloads import COLUMNS, SETUPS, Workload, write
 
 PHASES = (
     "Preprocessing",
@@ -73,43 +72,6 @@ class Case:
     point: Callable[[int, int], tuple[Workload, str]]  # (column index, scale) -> setup
 
 
-def _nine_setup(
-    concepts: int, relevant: int, irrelevant: int, rel_specs: int, irr_specs: int
-) -> tuple[Workload, str]:
-    return Workload(concepts, relevant, irrelevant, rel_specs, irr_specs, nine()), formula(nine())
-
-
-def _case_1_1(i: int, s: int) -> tuple[Workload, str]:
-    return _nine_setup(25 * (i + 1) * s, 0, 200 * s - 9, 0, 11 * s)
-
-
-def _case_1_2(i: int, s: int) -> tuple[Workload, str]:
-    return _nine_setup(200 * s, 0, 25 * i * s, 0, 11 * s)
-
-
-def _case_1_3(i: int, s: int) -> tuple[Workload, str]:
-    return _nine_setup(200 * s, 25 * i * s, 0, 0, 11 * s)
-
-
-def _case_2_1(i: int, s: int) -> tuple[Workload, str]:
-    return _nine_setup(50 * s, 50 * s, 0, 0, 100 * i * s)
-
-
-def _case_2_2(i: int, s: int) -> tuple[Workload, str]:
-    return _nine_setup(50 * s, 50 * s, 0, 100 * i * s, 9 * s)
-
-
-def _case_3(i: int, s: int) -> tuple[Workload, str]:
-    features = many(10 * (i + 1))
-    return Workload(50 * s, 51 * s - 3, 0, 50 * s - len(features), 0, features), formula(features)
-
-
-def _case_4(i: int, s: int) -> tuple[Workload, str]:
-    n = (3, 9, 27)[i // 2]
-    text = QUANTIFIED[n] if i % 2 == 0 else formula(expanded(n))
-    return Workload(50 * s, 0, 50 * s - 9, 0, 0, expanded(27)), text
-
-
 _PRE = "Preprocessing"
 _KEYS = {
     "preprocessing": _PRE,
@@ -117,20 +79,12 @@ _KEYS = {
     "checking": "Checking features",
     "matching": "Matching topic specs",
 }
-_SETUPS = {
-    "1.1": _case_1_1,
-    "1.2": _case_1_2,
-    "1.3": _case_1_3,
-    "2.1": _case_2_1,
-    "2.2": _case_2_2,
-    "3": _case_3,
-    "4": _case_4,
-}
 
 
 def _cases() -> list[Case]:
     """The thesis' tables (thesis.toml) joined to the workload each point needs."""
     tables = tomllib.loads((Path(__file__).parent / "thesis.toml").read_text(encoding="utf-8"))
+    assert {n: len(t["x"]) for n, t in tables.items()} == COLUMNS, "thesis.toml vs chapter7"
     return [
         Case(
             name,
@@ -138,7 +92,7 @@ def _cases() -> list[Case]:
             t["axis"],
             tuple(t["x"]),
             {_KEYS[k]: tuple(t[k]) for k in _KEYS},
-            _SETUPS[name],
+            SETUPS[name],
         )
         for name, t in tables.items()
     ]
@@ -366,7 +320,9 @@ def plot(case: Case, results: list[dict[str, float]], path: Path) -> None:
 
 def growth(scales: list[int], runs: int, processes: int, root: Path) -> list[list[str]]:
     """The 9-feature workload (table 7.1's last point) grown by each scale; fitted exponents."""
-    figures = {s: measure(*_case_1_1(7, s), runs, processes, root / f"growth-{s}") for s in scales}
+    figures = {
+        s: measure(*SETUPS["1.1"](7, s), runs, processes, root / f"growth-{s}") for s in scales
+    }
     header = ["Phase (ms)", *(f"scale {s}" for s in scales), "exponent"]
     rows = [header]
     first, last = scales[0], scales[-1]

@@ -4,8 +4,8 @@
     km = KnowledgeManager.from_config("examples/federation.toml")
     request = km.check_formula("forall x in UAV: always (Altitude[x] > 10)")
     for event in km.monitor("forall c in Car: always (Speed[c] < 90)", "traffic.mcap",
-                            StreamPolicy(delay_before_approximation=Fraction(1, 10))):
-        print(event)            # a Verdict or a Violation, as it happens
+                            StreamPolicy(max_age="2s")):  # the CLI's defaults otherwise
+        print(event)            # a Verdict or a Violation, as it happens; times in seconds
 
 Every name but the errors loads on first use, so importing dkreason (and so starting the
 CLI, whose module lives in this package) stays cheap.
@@ -27,10 +27,12 @@ if TYPE_CHECKING:
         TopicMatch,
         TopicSpec,
     )
-    from .monitor import Monitor
+    from .monitor import Monitor, MonitorRun
     from .plan import FormulaPlan, Plan
     from .progress import Verdict
-    from .stream.processor import StreamPolicy, Violation
+    from .stream.policy import StreamPolicy
+    from .stream.processor import Violation
+    from .stream.sources import PushSource
 
 _LAZY = {
     "KnowledgeManager": "manager",
@@ -51,7 +53,9 @@ _LAZY = {
     "Plan": "plan",
     "FormulaPlan": "plan",
     "Verdict": "progress",
-    "StreamPolicy": "stream.processor",
+    "StreamPolicy": "stream.policy",
+    "PushSource": "stream.sources",
+    "MonitorRun": "monitor",
     "Violation": "stream.processor",
 }
 
@@ -72,8 +76,10 @@ __all__ = [
     "GroundFeature",
     "KnowledgeManager",
     "Monitor",
+    "MonitorRun",
     "ParseError",
     "Plan",
+    "PushSource",
     "SourceError",
     "Span",
     "StreamPolicy",

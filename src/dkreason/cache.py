@@ -41,18 +41,21 @@ def folder() -> Path | None:
     return Path(base) / "dkreason"
 
 
-@cache
-def _code_stamp() -> bytes:
-    """A digest of the whole package's code and grammars: any change to how a value is built
-    is a new key, with no list of modules to keep (or forget) when code moves."""
-    here = Path(__file__).parent
+def code_digest(package: Path) -> bytes:
+    """A digest of a package's code and grammars, names included: any change to how a value
+    is built is a new key, with no list of modules to keep (or forget) when code moves."""
     digest = hashlib.sha256()
-    for path in sorted(p for p in here.rglob("*") if p.suffix in (".py", ".lark")):
+    for path in sorted(p for p in package.rglob("*") if p.suffix in (".py", ".lark")):
         data = path.read_bytes()
-        name = path.relative_to(here).as_posix().encode()
+        name = path.relative_to(package).as_posix().encode()
         digest.update(len(name).to_bytes(8, "little") + name + len(data).to_bytes(8, "little"))
         digest.update(data)
     return digest.digest()
+
+
+@cache
+def _code_stamp() -> bytes:
+    return code_digest(Path(__file__).parent)
 
 
 def lark_file(grammar: str) -> str | bool:

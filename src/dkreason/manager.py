@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -14,8 +14,8 @@ from .request import request
 
 if TYPE_CHECKING:
     from .explain import Explanation
-    from .monitor import Event
-    from .stream.processor import StreamPolicy
+    from .monitor import MonitorRun
+    from .stream.policy import StreamPolicy
     from .stream.sources import Source
 
 
@@ -59,17 +59,47 @@ class KnowledgeManager:
     def monitor(
         self,
         formulas: str | Sequence[str | Parsed],
-        source: Source | str | Path,
+        source: Source | str | Path | Sequence[str | Path],
         policy: StreamPolicy | None = None,
-    ) -> Iterator[Event]:
-        """Verdicts and stream-constraint violations as they happen, over a recording (MCAP,
-        ROS 1 bag, rosbag2 folder, JSON lines) or any other `Source`."""
-        from .monitor import Monitor
-        from .stream.processor import StreamPolicy
-        from .stream.sources import open_source
+        *,
+        remap: Mapping[str, str] | Sequence[str] | None = None,
+        clock: str = "auto",
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+        keep_states: bool = False,
+    ) -> MonitorRun:
+        """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
+        recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
+        lines; `remap`, `clock`, `msg` files and `typestore` as the CLI's options) or any
+        other `Source` (e.g. a `PushSource`).  Iterate it for verdicts and stream-constraint
+        violations as they happen; all times are seconds."""
+        # loaded when first monitoring: `match` and `explain` need no stream readers
+        from .monitor import Monitor, MonitorRun
+        from .stream.binding import open_recordings
+        from .stream.policy import StreamPolicy
 
-        opened = source if not isinstance(source, str | Path) else open_source(Path(source))
-        return Monitor(self.plan(formulas), self.request, policy or StreamPolicy()).run(opened)
+        if isinstance(source, str | Path):
+            source = [source]
+        opened = (
+            open_recordings(
+                source,
+                self.platforms,
+                remap=remap,
+                clock=clock,
+                msg=[Path(m) for m in msg],
+                typestore=typestore,
+            )
+            if isinstance(source, Sequence)
+            else source
+        )
+        engine = Monitor(
+            self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
+        )
+        return MonitorRun(engine, opened)
+
+    def stored(self) -> dict[str, tuple[str, int]]:
+        """Every stored relation: (told or view, rows) — what `match --stats` prints."""
+        return self.kb.engine.sizes()
 
     # ---- topic specifications ----------------------------------------------------------
 

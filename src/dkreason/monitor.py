@@ -18,7 +18,8 @@ from .errors import DkError
 from .model import FeatureKey, StreamRequest
 from .progress import Progressor, Verdict
 from .progress.state import USE, feature_uses
-from .stream.processor import StreamPolicy, StreamProcessor, Violation
+from .stream.policy import StreamPolicy
+from .stream.processor import StreamProcessor, Violation
 from .stream.sources import Source
 from .stream.units import NS, seconds
 
@@ -26,6 +27,8 @@ if TYPE_CHECKING:
     from .plan import FormulaPlan, Plan
 
 Event = Verdict | Violation
+WORDS: dict[bool | None, str] = {True: "held", False: "violated", None: "unknown"}
+"""How a verdict is said, by the CLI, the plot and whatever shows a person one."""
 
 
 class _Group:
@@ -204,6 +207,75 @@ class Monitor:
             end = source.last_record()
             source.close()
         yield from self.finish(end)
+
+
+class MonitorRun:
+    """One monitoring run over an opened source, as `dkreason monitor` shows it: made, it has
+    matched the plan and checked each feature's fields against the recordings (so the stream
+    request, the topics no recording holds and the sources' notes can be shown first);
+    iterated (once), it yields the events as they happen.  Left unread, close it (or use it
+    in a `with` block)."""
+
+    def __init__(self, monitor: Monitor, source: Source) -> None:
+        self.monitor, self.source = monitor, source
+        try:
+            self.processor = monitor.start(source)
+        except BaseException:
+            source.close()
+            raise
+
+    @property
+    def request(self) -> StreamRequest:
+        return self.monitor.request
+
+    @property
+    def absent(self) -> dict[str, tuple[str, ...]]:
+        """Spec topics (`platform/topic`) in no recording → the features they would feed."""
+        return {t: tuple(dict.fromkeys(fs)) for t, fs in self.processor.absent.items()}
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What the sources said of themselves: damage read around, the clock chosen."""
+        note = getattr(self.source, "note", None)
+        return (note,) if note else ()
+
+    @property
+    def clock(self) -> str | None:
+        """Where valid times come from (`header` stamps or the `record` time), if a choice."""
+        clock = getattr(self.source, "clock", None)
+        return clock if isinstance(clock, str) else None
+
+    @property
+    def start(self) -> Fraction | None:
+        """The earliest valid time seen so far, exact seconds (`t+` counts from it)."""
+        first = self.processor.first
+        return None if first is None else Fraction(first, NS)
+
+    @property
+    def states(self) -> list[tuple[int, dict[FeatureKey, Any]]]:
+        """The states made (time in ns), when the monitor keeps them (`keep_states`)."""
+        return self.monitor.states
+
+    def count(self) -> int | None:
+        """How many messages the sources hold, if they know without reading."""
+        return self.source.count(None)
+
+    def events(self, progress: Callable[[int], None] | None = None) -> Iterator[Event]:
+        """Events as they happen; `progress` is told how many messages were read."""
+        return self.monitor.run(self.source, progress)
+
+    def __iter__(self) -> Iterator[Event]:
+        return self.events()
+
+    def close(self) -> None:
+        """The sources closed without reading on (iterating to the end closes them too)."""
+        self.source.close()
+
+    def __enter__(self) -> MonitorRun:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def _article(kind: str, ros_type: str) -> str:

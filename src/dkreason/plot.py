@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .monitor import Event, Monitor
+from .monitor import WORDS, Event, MonitorRun
 from .progress import Verdict
 from .stream.processor import Violation
 from .stream.units import seconds
 
 
-def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
+def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
     """Each feature over time (unobserved spans shaded), verdicts as vertical lines, stream
     constraint violations as orange ticks; written atomically, as PNG, SVG or PDF by the
     file's suffix."""
@@ -20,7 +20,7 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    keys = [f.feature.key for f in monitor.request.features]
+    keys = [f.feature.key for f in run.request.features]
     fig, axes = plt.subplots(
         max(len(keys), 1),
         1,
@@ -28,9 +28,9 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
         squeeze=False,
         figsize=(10, 1.5 * max(len(keys), 1) + 1.6),
     )
-    times = [float(seconds(t)) for t, _ in monitor.states]
+    times = [float(seconds(t)) for t, _ in run.states]
     for ax, key in zip(axes[:, 0], keys, strict=False):
-        values = [state.get(key) for _, state in monitor.states]
+        values = [state.get(key) for _, state in run.states]
         ys = [float(v) if v is not None else float("nan") for v in values]
         ax.step(times, ys, where="post", lw=1.4, color="tab:blue")
         ax.margins(y=0.25)
@@ -48,9 +48,7 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
                     label="unobserved",
                 )
                 start = None
-        ticks = [
-            float(seconds(e.time)) for e in events if isinstance(e, Violation) and e.feature == key
-        ]
+        ticks = [float(e.time) for e in events if isinstance(e, Violation) and e.feature == key]
         if ticks:
             ax.plot(
                 ticks,
@@ -71,7 +69,7 @@ def plot(monitor: Monitor, events: list[Event], path: Path) -> None:
             color = "tab:green" if e.verdict else "tab:red"
             for ax in axes[:, 0]:
                 ax.axvline(float(e.time), color=color, ls="--", lw=1.2)
-            word = "held" if e.verdict else "violated"
+            word = WORDS[e.verdict]
             lines.append(f"{word} at {e.time} s: {e.formula}")
     unknown = [e for e in events if isinstance(e, Verdict) and e.verdict is None]
     lines += [f"unknown at end: {e.formula}" for e in unknown]

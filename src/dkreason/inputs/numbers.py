@@ -9,12 +9,15 @@ not times.  A data value that is NaN or infinite is unknown (`datum`), never com
 from __future__ import annotations
 
 import math
+import re
 from decimal import Decimal, InvalidOperation
 from fractions import Fraction
 from typing import Any
 
 from ..errors import DkError
 
+UNITS = {"ms": Fraction(1, 1000), "s": Fraction(1), "min": Fraction(60), "h": Fraction(3600)}
+_DURATION = re.compile(r"\s*(.*?)\s*(ms|s|min|h)?\s*")
 MAX_ADJUSTED = 18  # a time's largest decimal exponent
 MIN_EXPONENT = -60  # a time's finest decimal place
 
@@ -46,6 +49,24 @@ def exact(value: Any, what: str = "time") -> Fraction:
     ):
         raise DkError(f"{what} {_short(value)} is out of range or finer than 1e{MIN_EXPONENT}")
     return Fraction(value)
+
+
+def duration(value: Any, what: str = "duration") -> Fraction:
+    """A duration as formulas write it: seconds as a number, or text with ms, s, min or h
+    (`0.1`, `"500ms"`, `"2 min"`); exact and never negative."""
+    if isinstance(value, str):
+        number, unit = _DURATION.fullmatch(value).groups()  # type: ignore[union-attr]
+        try:
+            seconds = exact(number, what) * UNITS[unit or "s"]
+        except DkError:
+            raise DkError(
+                f"{what}: {_short(value)!r} is not a duration (like 5, 0.1, 500ms, 2min)"
+            ) from None
+    else:
+        seconds = exact(value, what)
+    if seconds < 0:
+        raise DkError(f"{what} must not be negative: {_short(value)}")
+    return seconds
 
 
 def datum(value: Any) -> Any:

@@ -45,7 +45,8 @@ from ..monitor import Monitor
 from ..parse.config import read_config
 from ..plan import parse
 from ..progress import Verdict
-from ..stream.processor import StreamPolicy, Violation
+from ..stream.policy import StreamPolicy
+from ..stream.processor import Violation
 from ..stream.sources import Message, Wanted, dict_reader
 from ..stream.units import NS, seconds
 from . import wire

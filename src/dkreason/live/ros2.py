@@ -36,10 +36,9 @@ from ..manager import KnowledgeManager
 from ..model import FeatureKey, TopicMatch
 from ..monitor import Monitor
 from ..plan import Parsed
-from ..progress import Verdict
 from ..stream import fields
 from ..stream.binding import message_type_fits, recording_names
-from ..stream.processor import StreamPolicy
+from ..stream.policy import StreamPolicy
 from ..stream.typestore import ros_reader
 from ..stream.units import NS
 from . import rmw
@@ -278,8 +277,11 @@ class Ros2Monitor:
         """Events as they go out, each recorded (at its own time, else now) when asked."""
         for event in events:
             if self.recorder is not None:
-                t = event.time
-                at = round(t * NS) if isinstance(event, Verdict) and t is not None else t
+                at = (
+                    event.time  # a change's time is ns
+                    if isinstance(event, Change) or event.time is None
+                    else round(event.time * NS)
+                )
                 self.recorder.event(at if at is not None else self.now() or 0, event.to_json())
             yield event
 

@@ -11,6 +11,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from fractions import Fraction
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
 
 from lark import Lark, Token, Transformer
@@ -18,11 +19,12 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..cache import lark_file
 from ..errors import ParseError, Span
+from ..inputs.files import read_text
+from ..inputs.numbers import UNITS
 from ..model import Arg, FeatureKey, FeatureRef
 
 FILE = "<formula>"
 MAX_NUMBER = 100  # characters of a number literal
-UNITS = {"ms": Fraction(1, 1000), "s": Fraction(1), "min": Fraction(60), "h": Fraction(3600)}
 
 
 @dataclass(frozen=True, slots=True)
@@ -286,6 +288,12 @@ def _where(node: Any) -> Span:
     for f in _feature_refs(node):
         return f.span
     return Span(FILE, 1, 1)
+
+
+def read_formulas(path: Path) -> list[str]:
+    """A formulas file: one formula a line; blank lines and `#` comments skipped."""
+    lines = (line.strip() for line in read_text(path).splitlines())
+    return [line for line in lines if line and not line.startswith("#")]
 
 
 def parse_formula(text: str) -> Formula:

@@ -11,12 +11,15 @@ only to that platform's specs, by the names that robot records (its topics are p
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 from ..errors import DkError
 from ..model import TopicMatch
-from .sources import Message, Source, Wanted
+from .sources import Message, Source, Wanted, open_source
+
+CLOCKS = ("auto", "header", "record")
 
 
 def recording_names(m: TopicMatch, local: str, namespace: str | None) -> list[str]:
@@ -180,6 +183,55 @@ class Recordings:
     def close(self) -> None:
         for r in self.parts:
             r.source.close()
+
+
+def open_recordings(
+    given: Sequence[str | Path],
+    platforms: Collection[str] = (),
+    *,
+    remap: Mapping[str, str] | Sequence[str] | None = None,
+    clock: str = "auto",
+    msg: Sequence[Path] = (),
+    typestore: str | None = None,
+) -> Recordings:
+    """The recordings of one run as one source, as `dkreason monitor --source` takes them:
+    each `[PLATFORM=]PATH` (a path that exists is a path, even with an `=` in it), `remap` as
+    `{FROM: TO}` or `FROM:=TO` rules, the clock (auto, header, record), `--msg` definitions and
+    a standard typestore.  On an error every recording opened so far is closed."""
+    if clock not in CLOCKS:
+        raise DkError(f"clock {clock!r}: expected one of {', '.join(CLOCKS)}")
+    rules = remap if isinstance(remap, Mapping) else remaps(remap or ())
+    parts: list[Recording] = []
+    try:
+        for item in given:
+            platform, sep, path = str(item).partition("=")
+            if sep and platform not in platforms and not Path(item).exists():
+                raise DkError(
+                    f"--source {item}: {platform!r} is not a platform of the config "
+                    f"(platforms: {', '.join(sorted(platforms)) or 'none'})"
+                )
+            if not sep or platform not in platforms:
+                platform, path = "", str(item)
+            parts.append(Recording(open_source(Path(path), msg, typestore), platform or None))
+        return Recordings(parts, rules, clock)
+    except BaseException:
+        for r in parts:
+            r.source.close()
+        raise
+
+
+def remaps(rules: Sequence[str]) -> dict[str, str]:
+    """`FROM:=TO` rules (ROS's remapping syntax) as a mapping; a topic remapped twice is an
+    error, not the last rule silently."""
+    out: dict[str, str] = {}
+    for rule in rules:
+        old, sep, new = rule.partition(":=")
+        if not sep or not old or not new:
+            raise DkError(f"--remap {rule!r}: expected FROM:=TO")
+        if out.get(old, new) != new:
+            raise DkError(f"--remap {rule!r}: {old} is already remapped to {out[old]}")
+        out[old] = new
+    return out
 
 
 def _merged(streams: Sequence[Iterator[Message]]) -> Iterator[Message]:

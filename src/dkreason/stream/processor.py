@@ -33,11 +33,12 @@ from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
 from operator import itemgetter
-from typing import Any, Literal
+from typing import Any
 
 from ..errors import DkError
 from ..inputs.numbers import datum
 from ..model import FeatureKey, StreamRequest
+from .policy import StreamPolicy
 from .sources import Message, Source
 from .units import NS, seconds
 
@@ -47,29 +48,10 @@ _NO_QS: list[int] = []
 _VALID_RANK = itemgetter(0, 1)  # a history entry's order: (valid, rank), never its value
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class StreamPolicy:
-    """Thesis listing 5.2's stream constraints plus the approximation; times in seconds.
-    Keyword-only and immutable: `StreamPolicy(max_age=Fraction(2), delay_before_approximation=
-    Fraction(1, 10))`; `dataclasses.replace` makes a variant."""
-
-    sample_period: Fraction | None = None  # None: a state on every change
-    sample_period_deviation: Fraction = Fraction(0)
-    approximation: Literal["recent", "none"] = "recent"
-    max_age: Fraction | None = Fraction(5)  # None: a sample never gets too old
-    delay_before_approximation: Fraction = Fraction(0)
-    start_time: Fraction | None = None
-    end_time: Fraction | None = None
-    max_delay: Fraction | None = None
-    ordered_on_valid_time: bool = False
-    unique_valid_time: bool = False
-    span_from_first: bool = False  # start_time and end_time count from the first sample
-
-
 @dataclass(frozen=True, slots=True)
 class Violation:
     constraint: str
-    time: int  # ns, when it was seen (available time)
+    time: float | int  # s, when it was seen (available time), like a Verdict's
     feature: FeatureKey
     topic: str
     detail: str
@@ -77,7 +59,7 @@ class Violation:
     def to_json(self) -> dict[str, Any]:
         return {
             "violation": self.constraint,
-            "time": seconds(self.time),
+            "time": self.time,
             "feature": str(self.feature),
             "topic": self.topic,
             "detail": self.detail,
@@ -425,7 +407,9 @@ class StreamProcessor:
             self._emit(self.last_seen, final=True)
 
     def _violation(self, kind: str, available: int, route: _Route, detail: str) -> None:
-        self.on_violation(Violation(kind, available, self.keys[route.q], route.stream, detail))
+        self.on_violation(
+            Violation(kind, seconds(available), self.keys[route.q], route.stream, detail)
+        )
 
     def _expires(self, q: int, valid: int) -> None:
         """Feature q's newest sample is valid at `valid`: it grows stale after max_age."""

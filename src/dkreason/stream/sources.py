@@ -382,7 +382,16 @@ def _floats(value: Any) -> Any:
 
 
 class PushSource:
-    """Samples pushed from any live source (a ROS callback, a socket reader, a test)."""
+    """Samples pushed from any live source (a ROS callback, a socket reader, a test), for
+    `KnowledgeManager.monitor`:
+
+        source = PushSource()
+        run = km.monitor("always (Speed[car1] < 90)", source)  # iterate it in another thread
+        source.push("topic3", 12.5, {"id": 1, "spd": 61.5})     # time in seconds
+        source.end()
+
+    Times are seconds (int, float, Decimal, Fraction or decimal text), exact as written; the
+    valid time is `time`, the available time `available` (default: the same)."""
 
     name = "<push>"
     _END = object()

@@ -5,15 +5,23 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..errors import DkError
 from ..inputs.numbers import exact
 
 NS = 10**9
+LATEST = 10**11  # s, about the year 5100: a time past it is nanoseconds given as seconds
 
 
 def to_ns(seconds: Any, what: str = "time") -> int:
     """Exact seconds (JSON decimals, ints, Fractions) → integer nanoseconds, rounded to the
     nearest (`0.30000000000000004`, a float's `3 * 0.1`, is 0.3 s)."""
-    return round(exact(seconds, what) * NS)
+    value = exact(seconds, what)
+    if abs(value) >= LATEST:
+        raise DkError(
+            f"{what} {seconds} is past the year 5000 in seconds: times are seconds "
+            f"(nanoseconds given? divide by 1e9)"
+        )
+    return round(value * NS)
 
 
 def seconds(ns: int) -> float | int:

@@ -1,6 +1,7 @@
-"""Seeded workloads of thesis chapter 7 (section 7.2), written as ordinary OWL and SSL_T files.
+"""Seeded workloads written as ordinary OWL and SSL_T files, for the benchmarks, the tests and
+anyone sizing a deployment: thesis chapter 7's evaluation worlds (section 7.2), and a fleet.
 
-Every ontology has concepts A–E (B–E under A), the relations X (unary), Y (binary) and
+Chapter 7: every ontology has concepts A–E (B–E under A), the relations X (unary), Y (binary) and
 Z (ternary) over A, and the individuals the formulas name: b1–b3 of B, d1–d3 of D, e1–e3 of E.
 Further concepts are each a top concept or a subconcept of a randomly chosen earlier one;
 further individuals are relevant (of B, like the formula's objects) or irrelevant (of another
@@ -13,6 +14,7 @@ benchmarks/bench_match.py on the case-study scenarios).  `scale` multiplies ever
 from __future__ import annotations
 
 import random
+from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import product
 from pathlib import Path
@@ -190,3 +192,95 @@ def _owl(parent: dict[str, str | None], individuals: dict[str, str]) -> str:
         )
     out.append("</rdf:RDF>")
     return "\n".join(out) + "\n"
+
+
+# ---- the points of the thesis' test cases (tables 7.1-7.7) ----------------------------------
+
+
+def _nine_setup(
+    concepts: int, relevant: int, irrelevant: int, rel_specs: int, irr_specs: int
+) -> tuple[Workload, str]:
+    return Workload(concepts, relevant, irrelevant, rel_specs, irr_specs, nine()), formula(nine())
+
+
+def _case_1_1(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(25 * (i + 1) * s, 0, 200 * s - 9, 0, 11 * s)
+
+
+def _case_1_2(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(200 * s, 0, 25 * i * s, 0, 11 * s)
+
+
+def _case_1_3(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(200 * s, 25 * i * s, 0, 0, 11 * s)
+
+
+def _case_2_1(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(50 * s, 50 * s, 0, 0, 100 * i * s)
+
+
+def _case_2_2(i: int, s: int) -> tuple[Workload, str]:
+    return _nine_setup(50 * s, 50 * s, 0, 100 * i * s, 9 * s)
+
+
+def _case_3(i: int, s: int) -> tuple[Workload, str]:
+    features = many(10 * (i + 1))
+    return Workload(50 * s, 51 * s - 3, 0, 50 * s - len(features), 0, features), formula(features)
+
+
+def _case_4(i: int, s: int) -> tuple[Workload, str]:
+    n = (3, 9, 27)[i // 2]
+    text = QUANTIFIED[n] if i % 2 == 0 else formula(expanded(n))
+    return Workload(50 * s, 0, 50 * s - 9, 0, 0, expanded(27)), text
+
+
+Setup = Callable[[int, int], tuple[Workload, str]]  # (column, scale) -> workload and formula
+SETUPS: dict[str, Setup] = {
+    "1.1": _case_1_1,
+    "1.2": _case_1_2,
+    "1.3": _case_1_3,
+    "2.1": _case_2_1,
+    "2.2": _case_2_2,
+    "3": _case_3,
+    "4": _case_4,
+}
+COLUMNS = {"1.1": 8, "1.2": 9, "1.3": 9, "2.1": 6, "2.2": 6, "3": 5, "4": 6}  # each table's x
+
+
+# ---- a fleet sharing one vocabulary (bench_join, bench_fleet) -----------------------------
+
+
+FLEET = "http://example.org/join#"
+
+
+def _turtle(sensors: list[int]) -> str:
+    objects = "\n".join(f":s{k} a owl:NamedIndividual, :Sensor ; :id {k} ." for k in sensors)
+    return f"""@prefix : <{FLEET}> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:Sensor a owl:Class .
+:Reading rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( :UnaryRelation
+    [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Sensor ] ) ] .
+{objects}
+"""
+
+
+def fleet(folder: Path, nodes: int) -> None:
+    """A fleet sharing one vocabulary (the same IRIs, no mapping files): platform m knows
+    every sensor; platform pN knows its own sensor sN and carries its topic tN (configs
+    monitor.toml and pN.toml)."""
+    (folder / "m.ttl").write_text(_turtle(list(range(1, nodes + 1))))
+    (folder / "monitor.toml").write_text(
+        'local = "m"\n[platforms.m]\nontology = "m.ttl"\n'
+        + "".join(f"[platforms.p{n}]\n" for n in range(1, nodes + 1))
+    )
+    for n in range(1, nodes + 1):
+        (folder / f"p{n}.ttl").write_text(_turtle([n]))
+        (folder / f"p{n}.sslt").write_text(
+            f"topic t{n}:Reading contains Reading(s{n}) = msg.value for s{n} = msg.id\n"
+        )
+        (folder / f"p{n}.toml").write_text(
+            f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n'
+        )

@@ -1,0 +1,130 @@
+"""Argument parsing shared by the commands: one-line errors, value types, option groups.
+
+Values are checked here (an argparse type's error is its one line, exit 2); what they mean is
+the façade's: a duration is read as `StreamPolicy` reads it, so the CLI and the API agree."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from fractions import Fraction
+from pathlib import Path
+from typing import Any, Literal, NoReturn
+
+from ..errors import DkError, one_line
+from ..inputs.numbers import duration
+from ..stream import TYPESTORES
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # one line, like every other input error
+        self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+
+Sub = Any  # argparse's subparsers action (its class is private)
+Options = Any  # a parser or an argument group (its class is private)
+
+
+def seconds(text: str) -> Fraction:
+    """A duration as formulas write it: seconds, or a number with ms, s, min or h."""
+    try:
+        return duration(text, "seconds")
+    except DkError:
+        if text.strip().startswith("-"):
+            raise argparse.ArgumentTypeError(f"must not be negative: {text}") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a duration (like 5, 0.1, 500ms, 2min)"
+        ) from None
+
+
+def seconds_or_inf(text: str) -> Fraction | Literal["inf"]:
+    return "inf" if text in ("inf", "oo") else seconds(text)
+
+
+def bound(text: str) -> tuple[Fraction, bool]:
+    """A start or end time: seconds on the recording's clock, or +SECONDS after its start."""
+    return (seconds(text[1:]), True) if text.startswith("+") else (seconds(text), False)
+
+
+def finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite: {text}")
+    return value
+
+
+def positive(text: str) -> float:
+    value = finite(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive: {text}")
+    return value
+
+
+def domain(text: str) -> int:
+    """A ROS_DOMAIN_ID: 0 to 232 (an argparse type, so a ValueError is its one-line error)."""
+    if not text.isdigit() or int(text) > 232:
+        raise argparse.ArgumentTypeError(f"ROS domain id {text!r}: expected 0 to 232")
+    return int(text)
+
+
+def ros_domain(given: int | None) -> int:
+    """--domain, else $ROS_DOMAIN_ID, else 0."""
+    if given is not None:
+        return given
+    try:
+        return domain(os.environ.get("ROS_DOMAIN_ID", "0") or "0")
+    except argparse.ArgumentTypeError as exc:
+        raise DkError(f"$ROS_DOMAIN_ID: {exc}") from None
+
+
+def config(p: argparse.ArgumentParser, required: bool = True) -> None:
+    p.add_argument(
+        "--config",
+        required=required,
+        type=Path,
+        help="TOML config file" if required else "TOML config file (optional)",
+    )
+
+
+def definitions(p: Options) -> None:
+    p.add_argument(
+        "--msg",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="a pkg/msg/Name.msg definition, for recordings that store none or to "
+        "replace a wrong one they store (repeatable)",
+    )
+    p.add_argument(
+        "--typestore",
+        choices=TYPESTORES,
+        help="rosbags' standard message definitions for recordings that store "
+        "none (default ros1_noetic for .bag, else ros2_humble)",
+    )
+
+
+def network(p: Options) -> None:
+    p.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to connect to, e.g. tcp/10.0.0.2:7447 (repeatable)",
+    )
+    p.add_argument(
+        "--listen",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)",
+    )
+    p.add_argument(
+        "--zenoh-config",
+        metavar="FILE",
+        help="Zenoh config file (TLS, access control); endpoints still apply",
+    )

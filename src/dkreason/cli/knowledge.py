@@ -1,0 +1,72 @@
+"""The knowledge commands: match, explain, specs, sort — each one façade call, rendered."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from ..manager import KnowledgeManager
+from . import render
+
+
+def match(args: argparse.Namespace) -> int:
+    start = time.perf_counter()
+    km = KnowledgeManager.from_config(args.config)
+    loaded = time.perf_counter()
+    request = km.check_formula(args.formula)
+    if args.stats:
+        print(
+            f"stats: load {(loaded - start) * 1e3:.1f} ms, match "
+            f"{(time.perf_counter() - loaded) * 1e3:.1f} ms",
+            file=sys.stderr,
+        )
+        for name, (kind, rows) in sorted(km.stored().items()):
+            print(f"stats: {kind:<5} {name:<20} {rows:>9}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(request.to_json(), ensure_ascii=False))
+    else:
+        print(render.request(request))
+    return 0
+
+
+def explain(args: argparse.Namespace) -> int:
+    from .. import explain as why
+
+    result = KnowledgeManager.from_config(args.config).explain(
+        args.formula, args.feature, args.topic
+    )
+    if args.format == "json":
+        print(json.dumps(why.to_json(result), ensure_ascii=False))
+    elif args.format == "dot":
+        print(why.to_dot(result))
+    else:
+        print(why.to_text(result))
+    return 0
+
+
+def specs(args: argparse.Namespace) -> int:
+    from ..parse.sslt import format_spec, format_xml_topic
+
+    km = KnowledgeManager.from_config(args.config)
+    if args.action == "list":
+        for platform in [args.platform] if args.platform else km.platforms:
+            for spec in km.list_topic_specifications(platform):
+                print(f"{platform}: {format_spec(spec)}")
+    elif args.action == "show":
+        spec = km.get_topic_specification(args.topic, args.platform)
+        print(format_xml_topic(spec, indent="") if args.xml else format_spec(spec))
+    elif args.action == "add":
+        spec = km.add_topic(args.spec, args.platform)
+        print(f"added {spec.name} to {args.platform or km.local}")
+    else:
+        km.remove_topic(args.topic, args.platform)
+        print(f"removed {args.topic} from {args.platform or km.local}")
+    return 0
+
+
+def sort(args: argparse.Namespace) -> int:
+    for name in KnowledgeManager.from_config(args.config).list_sort(args.sort, args.platform):
+        print(name)
+    return 0

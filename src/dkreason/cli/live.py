@@ -1,0 +1,203 @@
+"""The live commands: `monitor --live` (a federation of `serve` nodes over Zenoh), `monitor
+--ros2` (ROS 2 robots over rmw_zenoh) and `serve` (a platform node)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import signal
+import sys
+from fractions import Fraction
+from typing import Any
+
+from ..errors import DkError
+from ..live import wire
+from ..live.monitor import Change, LiveMonitor
+from ..live.record import Recorder
+from ..live.ros2 import Ros2Monitor
+from ..live.ros2node import Announcer
+from ..live.serve import PlatformNode
+from ..manager import KnowledgeManager
+from ..monitor import Monitor
+from ..progress import Verdict
+from ..stream.binding import remaps
+from ..stream.policy import StreamPolicy
+from ..stream.sources import open_source
+from ..stream.typestore import load_typestore, msg_types
+from ..stream.units import NS
+from . import args as a
+from . import render
+from .options import formulas as read_formulas
+
+
+def monitor_live(args: argparse.Namespace, policy: StreamPolicy) -> int:
+    if args.source or args.plot is not None:
+        raise DkError("--live takes no --source and no --plot")
+    _logging()
+    trust = wire.trusted_keys(args.trust) if args.trust is not None else None
+    formulas = read_formulas(args)
+    session = _session(args)
+    try:
+        monitor = LiveMonitor(args.config, formulas, policy, session, args.wait, trust=trust)
+        _on_signals(lambda *_: monitor.stop.set())
+        return _report(
+            args,
+            monitor.run(args.until, args.duration),
+            lambda: getattr(monitor, "processor", None),
+            session,
+            [f.text for f in monitor.formulas],
+            ros2=False,
+            reads=lambda key: _reading(monitor.monitor, key),
+        )
+    finally:
+        session.close()
+
+
+def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
+    if args.source or args.plot is not None or args.live:
+        raise DkError("--ros2 takes no --source, --plot or --live")
+    _logging()
+    bind = {}
+    for given in args.bind:
+        platform, sep, namespace = given.partition("=")
+        if not sep or not namespace.startswith("/"):
+            raise DkError(f"--bind {given!r}: expected PLATFORM=/NAMESPACE")
+        bind[platform] = namespace
+    domain = a.ros_domain(args.domain)
+    km = KnowledgeManager.from_config(args.config)
+    unknown = sorted(set(bind) - set(km.platforms))
+    if unknown:
+        raise DkError(
+            f"--bind {unknown[0]}: not a platform of the config (platforms: "
+            f"{', '.join(sorted(km.platforms))})"
+        )
+    store = load_typestore(msg_types(args.msg), False, args.typestore or "ros2_jazzy")
+    formulas = read_formulas(args)
+    recorder = Recorder(args.record, store) if args.record is not None else None
+    session = _session(args)
+    try:
+        monitor = Ros2Monitor(
+            km,
+            list(formulas),
+            policy,
+            session,
+            store=store,
+            domain=domain,
+            bridge=args.bridge,
+            bind=bind,
+            remap=remaps(args.remap),
+            sim_time=args.sim_time,
+            recorder=recorder,
+        )
+        recorder = None  # the monitor closes it
+        _on_signals(lambda *_: monitor.stop.set())
+        return _report(
+            args,
+            monitor.run(args.until, args.duration, args.wait),
+            lambda: monitor.processor,
+            session,
+            [f.text for f in monitor.monitor.plan.formulas],
+            ros2=True,
+            domain=domain,
+            labelled=lambda: monitor.labelled,
+            reads=lambda key: _reading(monitor.monitor, key),
+        )
+    finally:
+        if recorder is not None:
+            recorder.close()
+        session.close()
+
+
+def _reading(monitor: Monitor, key: Any) -> list[str]:
+    """The formulas (as written) of a running Monitor that read a feature."""
+    return [f.text for f in monitor.plan.formulas if key in f.keys]
+
+
+def _report(
+    args: argparse.Namespace,
+    events: Any,
+    processor: Any,
+    session: Any,
+    formulas: list[str],
+    ros2: bool,
+    domain: int = 0,
+    labelled: Any = None,
+    reads: Any = None,
+) -> int:
+    """A live run's events printed (and published with --publish-verdicts) as they come."""
+    announce = (
+        Announcer(session, formulas, ros2, domain, labelled, reads)
+        if args.publish_verdicts
+        else None
+    )
+    verdicts, violations = [], 0
+    try:
+        for event in events:
+            if announce is not None:
+                announce(event)
+            if isinstance(event, Change):
+                print(
+                    json.dumps(event.to_json(), ensure_ascii=False) if args.json else str(event),
+                    flush=True,
+                )
+                continue
+            if isinstance(event, Verdict):
+                verdicts.append(event)
+            else:
+                violations += 1
+            shown = processor()
+            first = shown.first if shown else None
+            render.event(event, args.json, None if first is None else Fraction(first, NS))
+    finally:
+        if announce is not None:
+            announce.close()
+    if not args.json:
+        render.summary(verdicts, violations)
+    return render.exit_status([v.verdict for v in verdicts])
+
+
+def serve(args: argparse.Namespace) -> int:
+    _logging()
+    km = KnowledgeManager.from_config(args.config)
+    source = open_source(args.source, args.msg, args.typestore) if args.source is not None else None
+    records = getattr(source, "records", None)
+    if source is not None and records is None:
+        raise DkError(f"{source.name}: a damaged recording cannot be replayed live")
+    sign = wire.signer(args.sign) if args.sign is not None else None
+    session = _session(args)
+    node = PlatformNode(km, session, args.heartbeat, sign)
+    print(f"serving {km.local}: {len(km.list_topics())} topic specification(s)", flush=True)
+    _on_signals(_interrupt)
+    try:
+        if records is None:
+            node.serve(None, args.origin, args.speed)
+        elif str(args.source) == "-":
+            node.feed(records())
+        else:
+            node.serve(records(), args.origin, args.speed)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        node.close()
+        session.close()
+        if source is not None:
+            source.close()
+    return 0
+
+
+def _logging() -> None:
+    logging.basicConfig(stream=sys.stderr, level=logging.INFO, format="%(name)s: %(message)s")
+
+
+def _session(args: argparse.Namespace) -> Any:
+    return wire.open_session(args.connect, args.listen, args.zenoh_config)
+
+
+def _on_signals(handler: Any) -> None:
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+
+
+def _interrupt(*_: object) -> None:
+    raise KeyboardInterrupt

@@ -1,0 +1,151 @@
+"""The monitoring commands over data at rest: monitor (recordings; --live and --ros2 go to
+cli/live.py), progress (a state file) and info (what recordings hold)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from ..errors import DkError
+from ..manager import KnowledgeManager
+from ..parse.formula import parse_formula
+from ..progress import Progressor, Verdict
+from ..progress.state import feature_uses
+from ..progress.states import read_states
+from ..stream.binding import open_recordings
+from ..stream.info import bindings, describe
+from ..stream.info import render as render_info
+from . import live, render
+from .options import formulas, policy
+
+
+def monitor(args: argparse.Namespace) -> int:
+    stream_policy = policy(args)
+    if args.plot is not None and not args.plot.parent.is_dir():
+        raise DkError(f"--plot {args.plot}: no such directory {args.plot.parent}")
+    if args.plot is not None and args.plot.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise DkError(f"--plot {args.plot}: name a .png, .svg or .pdf file")
+    ros2_only = [
+        flag
+        for flag, given in (
+            ("--bridge", args.bridge),
+            ("--bind", args.bind),
+            ("--sim-time", args.sim_time),
+            ("--record", args.record),
+            ("--domain", args.domain),
+        )
+        if given not in (False, [], None)
+    ]
+    if ros2_only and not args.ros2:
+        raise DkError(f"{ros2_only[0]} is for --ros2")
+    if args.publish_verdicts and not (args.live or args.ros2):
+        raise DkError("--publish-verdicts is for --live or --ros2")
+    if args.ros2:
+        return live.monitor_ros2(args, stream_policy)
+    if args.live:
+        return live.monitor_live(args, stream_policy)
+    if not args.source:
+        raise DkError("monitor needs --source RECORDING, or --live")
+    km = KnowledgeManager.from_config(args.config)
+    run = km.monitor(
+        formulas(args),
+        args.source,
+        stream_policy,
+        remap=args.remap,
+        clock=args.clock,
+        msg=args.msg,
+        typestore=args.typestore,
+        keep_states=args.plot is not None,
+    )
+    for topic, features in run.absent.items():
+        print(f"warning: {topic} (for {', '.join(features)}) is in no recording", file=sys.stderr)
+    for note in run.notes:
+        print(f"note: {note}", file=sys.stderr)
+    if not args.json:
+        print(render.request(run.request), flush=True)
+    events: list[Any] = []
+    error = None
+    with render.progress_bar(run.count() if not args.json else None, not args.json) as tick:
+        try:
+            for event in run.events(tick):
+                events.append(event)
+                render.event(event, args.json, run.start)
+        except DkError as exc:
+            error = exc
+    verdicts = [e for e in events if isinstance(e, Verdict)]
+    if not args.json:
+        render.summary(verdicts, len(events) - len(verdicts))
+    if args.plot is not None and run.states:
+        from ..plot import plot
+
+        plot(run, events, args.plot)
+        if not args.json:
+            print(f"plot written to {args.plot}")
+    if error is not None:
+        raise error
+    return render.exit_status([v.verdict for v in verdicts])
+
+
+def progress(args: argparse.Namespace) -> int:
+    progressor = Progressor()
+    trees = (
+        [
+            (f.text, f.tree)
+            for f in KnowledgeManager.from_config(args.config).plan(args.formulas).formulas
+        ]
+        if args.config
+        else [(f, parse_formula(f)) for f in args.formulas]
+    )
+    for text, tree in trees:
+        progressor.add(text, tree if args.config else None)
+    used = {k: use for k, (use, _) in feature_uses(trees).items()}
+    verdicts = []
+
+    def emit(batch: list[Verdict]) -> None:
+        for v in batch:
+            verdicts.append(v)
+            if args.json:
+                print(json.dumps(v.to_json(), ensure_ascii=False, default=str), flush=True)
+            else:
+                when = "at end" if v.at_end else "at"
+                print(
+                    f"{when} {v.time}: {render.shout(v.verdict)}  {v.formula}"
+                    + (f"\n    {v.witness}" if v.witness else ""),
+                    flush=True,
+                )
+
+    for time, values in read_states(args.states, used):
+        emit(progressor.step(time, values))
+    emit(progressor.finish())
+    return render.exit_status([v.verdict for v in verdicts])
+
+
+def info(args: argparse.Namespace) -> int:
+    km = KnowledgeManager.from_config(args.config) if args.config else None
+    recordings = open_recordings(
+        args.source,
+        km.platforms if km else (),
+        clock="header",  # each recording's own clock: describe() says which
+        msg=args.msg,
+        typestore=args.typestore,
+    )
+    try:
+        infos = [describe(r) for r in recordings.parts]
+        binds = bindings(km.kb, recordings) if km else None
+    finally:
+        recordings.close()
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "recordings": [i.to_json() for i in infos],
+                    "specs": [b.to_json() for b in binds or ()],
+                },
+                ensure_ascii=False,
+            )
+        )
+    else:
+        print(render_info(infos, binds))
+    return 0

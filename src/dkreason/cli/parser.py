@@ -1,0 +1,319 @@
+"""The command line, declared: every command and option, grouped by mode.  A command names
+the function that runs it (`module:function` in cli/), imported only when it runs, so
+`dkreason --help` loads no engine."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any, NoReturn
+
+from ..stream.policy import APPROXIMATIONS, DEFAULT
+from . import args as a
+from .render import EXIT_STATUS
+
+
+class _Version(argparse.Action):
+    """--version, reading the installed version only when asked (importlib.metadata costs
+    more than the rest of `dkreason --help`)."""
+
+    def __init__(self, option_strings: list[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="show the version and exit")
+
+    def __call__(self, parser: argparse.ArgumentParser, *args: Any) -> NoReturn:
+        from importlib.metadata import version
+
+        print(f"dkreason {version('dkreason')}")
+        parser.exit(0)
+
+
+def build(description: str | None) -> a.Parser:
+    parser = a.Parser(prog="dkreason", description=description)
+    parser.add_argument("--version", action=_Version)
+    sub = parser.add_subparsers(required=True, metavar="COMMAND", parser_class=a.Parser)
+    _match(sub)
+    _progress(sub)
+    _monitor(sub)
+    _serve(sub)
+    _explain(sub)
+    _specs(sub)
+    _info(sub)
+    _sort(sub)
+    return parser
+
+
+def _match(sub: a.Sub) -> None:
+    p = sub.add_parser("match", help="the topics each feature of a formula is read from")
+    a.config(p)
+    p.add_argument("--json", action="store_true", help="print the stream request as JSON")
+    p.add_argument(
+        "--stats",
+        action="store_true",
+        help="on stderr: load and match times, and the rows of every stored "
+        "relation (told facts and materialized views)",
+    )
+    p.add_argument("formula")
+    p.set_defaults(run="knowledge:match")
+
+
+def _progress(sub: a.Sub) -> None:
+    p = sub.add_parser("progress", help="verdicts of formulas over a JSON-lines state file")
+    p.add_argument(
+        "--states",
+        required=True,
+        type=Path,
+        help='JSON lines: {"time": 0.0, "values": {"P[a]": true, "X[a]": 3.5}}',
+    )
+    p.add_argument("--config", type=Path, help="TOML config: quantifiers range over its objects")
+    p.add_argument("--json", action="store_true", help="one JSON line per formula")
+    p.add_argument("formulas", nargs="+", metavar="FORMULA")
+    p.set_defaults(run="monitoring:progress")
+
+
+def _monitor(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "monitor",
+        help="verdicts of formulas over a robot recording, or live",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=f"{EXIT_STATUS}\n\n"
+        "example:\n  dkreason monitor --config examples/federation.toml --source "
+        "examples/traffic/recording --delay 100ms \\\n    'forall c in Car: always "
+        "(Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)'",
+    )
+    a.config(p)
+    p.add_argument(
+        "-f",
+        "--formulas-file",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="formulas, one per line (# comments); repeatable",
+    )
+    p.add_argument("formulas", nargs="*", metavar="FORMULA")
+    p.set_defaults(run="monitoring:monitor")
+
+    out = p.add_argument_group("output")
+    out.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
+    out.add_argument(
+        "--plot",
+        type=Path,
+        help="draw features, verdicts and violations (.png, .svg or .pdf, as the name says)",
+    )
+
+    rec = p.add_argument_group("recordings")
+    rec.add_argument(
+        "--source",
+        action="append",
+        default=[],
+        metavar="[PLATFORM=]PATH",
+        help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages; "
+        "repeat for several recordings (merged by record time); PLATFORM= "
+        "binds a recording's topics to that platform's specs only",
+    )
+    rec.add_argument(
+        "--remap",
+        action="append",
+        default=[],
+        metavar="FROM:=TO",
+        help="read recording topic FROM as TO (repeatable)",
+    )
+    rec.add_argument(
+        "--clock",
+        choices=("auto", "header", "record"),
+        default="auto",
+        help="valid time from header.stamp or the record time; auto: the stamps, "
+        "unless they run on another clock (simulated time), said in one line "
+        "(default auto)",
+    )
+    a.definitions(rec)
+
+    pol = p.add_argument_group("stream policy (the API's StreamPolicy, same defaults)")
+    pol.add_argument("--period", type=a.seconds, help="state every PERIOD s (default: on change)")
+    pol.add_argument(
+        "--deviation",
+        type=a.seconds,
+        help=f"allowed sample period deviation (default {DEFAULT.sample_period_deviation})",
+    )
+    pol.add_argument(
+        "--approximation",
+        choices=APPROXIMATIONS,
+        help="recent: the newest sample up to --max-age old; none: only a sample "
+        f"at the state's time (default {DEFAULT.approximation})",
+    )
+    pol.add_argument(
+        "--max-age",
+        type=a.seconds_or_inf,
+        help=f"oldest sample used, in s (default {DEFAULT.max_age}; inf: any)",
+    )
+    pol.add_argument(
+        "--delay",
+        type=a.seconds,
+        help="how long after a state's time its samples may still arrive (transport "
+        f"latency) before it is made (default {DEFAULT.delay_before_approximation * 1000}ms)",
+    )
+    pol.add_argument(
+        "--start",
+        type=a.bound,
+        metavar="[+]TIME",
+        help="judge from this time on (s on the recording's clock; +TIME: after its first sample)",
+    )
+    pol.add_argument(
+        "--end",
+        type=a.bound,
+        metavar="[+]TIME",
+        help="ignore samples after this time (+TIME: after the first sample)",
+    )
+    pol.add_argument("--max-delay", type=a.seconds, help="largest allowed sample delay (s)")
+    pol.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
+    pol.add_argument("--unique", action="store_true", help="valid times must be unique")
+
+    live = p.add_argument_group("live (--live: dkreason serve nodes; --ros2: ROS 2 robots)")
+    live.add_argument(
+        "--live",
+        action="store_true",
+        help="monitor the platforms of the config over Zenoh (`dkreason serve`)",
+    )
+    live.add_argument(
+        "--ros2",
+        action="store_true",
+        help="monitor live ROS 2 robots over Zenoh (rmw_zenoh; --bridge: DDS robots "
+        "through zenoh-bridge-ros2dds); no ROS install needed",
+    )
+    a.network(live)
+    live.add_argument(
+        "--publish-verdicts",
+        action="store_true",
+        help="live, ros2: put verdicts and violations on dkreason/verdicts/<formula "
+        "id> (JSON); with --ros2 also on the ROS 2 topic /dkreason/verdicts",
+    )
+    live.add_argument(
+        "--wait",
+        type=a.positive,
+        default=10.0,
+        help="live: seconds to wait for the local platform; ros2: after which the "
+        "features no publisher feeds are named (default 10)",
+    )
+    live.add_argument("--until", type=a.seconds, help="live: stop when the stream clock passes it")
+    live.add_argument("--duration", type=a.positive, help="live: stop after this many wall seconds")
+    live.add_argument(
+        "--trust",
+        type=Path,
+        metavar="KEYS",
+        help="live: TOML of platform = Ed25519 public key (PEM); their samples "
+        "must be signed (`serve --sign`)",
+    )
+    live.add_argument(
+        "--domain",
+        type=a.domain,
+        default=None,
+        metavar="N",
+        help="ros2: the ROS_DOMAIN_ID (default: $ROS_DOMAIN_ID, else 0)",
+    )
+    live.add_argument(
+        "--bridge",
+        action="store_true",
+        help="ros2: also take the publishers zenoh-bridge-ros2dds announces",
+    )
+    live.add_argument(
+        "--bind",
+        action="append",
+        default=[],
+        metavar="PLATFORM=NAMESPACE",
+        help="ros2: topics of nodes in (or named under) NAMESPACE are PLATFORM's, "
+        "by their names relative to it (repeatable)",
+    )
+    live.add_argument(
+        "--sim-time",
+        action="store_true",
+        help="ros2: the stream clock is /clock (rosgraph_msgs/msg/Clock), as with use_sim_time",
+    )
+    live.add_argument(
+        "--record",
+        type=Path,
+        metavar="OUT.mcap",
+        help="ros2: write the relevant topics' messages and the verdicts (a JSON "
+        "channel) to one MCAP file, which --source replays",
+    )
+
+
+def _serve(sub: a.Sub) -> None:
+    p = sub.add_parser("serve", help="run a platform node: its knowledge and topics over Zenoh")
+    a.config(p)
+    a.network(p)
+    p.add_argument(
+        "--source",
+        type=Path,
+        help="replay this recording's topics of the platform (- : JSON lines on "
+        "stdin, published as they come)",
+    )
+    a.definitions(p)
+    p.add_argument(
+        "--origin",
+        type=a.finite,
+        help="wall time (Unix s) the replay starts at; nodes given the same one "
+        "replay in step (default: now)",
+    )
+    p.add_argument("--speed", type=a.positive, default=1.0, help="replay speed factor (default 1)")
+    p.add_argument(
+        "--heartbeat",
+        type=a.positive,
+        default=0.02,
+        help="seconds between clock messages (default 0.02)",
+    )
+    p.add_argument(
+        "--sign",
+        type=Path,
+        metavar="KEY",
+        help="sign every sample with this Ed25519 private key (PEM)",
+    )
+    p.set_defaults(run="live:serve")
+
+
+def _explain(sub: a.Sub) -> None:
+    p = sub.add_parser("explain", help="why each topic matched, or why one did not")
+    a.config(p)
+    p.add_argument("formula")
+    p.add_argument("--feature", help='only this ground feature, e.g. "Altitude[uav2]"')
+    p.add_argument("--topic", help="only this topic; explains why it was not chosen if not")
+    p.add_argument("--format", choices=("text", "json", "dot"), default="text")
+    p.set_defaults(run="knowledge:explain")
+
+
+def _specs(sub: a.Sub) -> None:
+    p = sub.add_parser("specs", help="list, show, add or remove topic specifications")
+    actions = p.add_subparsers(required=True, metavar="ACTION", parser_class=a.Parser)
+    for action, helptext in (
+        ("list", "every topic specification"),
+        ("show", "one topic specification"),
+        ("add", "add an SSL_T topic specification (saved to the specs file)"),
+        ("remove", "remove a topic specification (saved to the specs file)"),
+    ):
+        q = actions.add_parser(action, help=helptext)
+        a.config(q)
+        q.add_argument("--platform", help="platform (default: the local one; list: all)")
+        if action == "show":
+            q.add_argument("topic")
+            q.add_argument("--xml", action="store_true", help="print the XML form")
+        elif action == "add":
+            q.add_argument("spec", help="e.g. 'topic t:Msg contains Speed(car1) = msg.spd'")
+        elif action == "remove":
+            q.add_argument("topic")
+        q.set_defaults(run="knowledge:specs", action=action)
+
+
+def _info(sub: a.Sub) -> None:
+    p = sub.add_parser("info", help="what recordings hold, and which spec topics they bind")
+    p.add_argument("--config", type=Path, help="TOML config: show which spec topics bind")
+    p.add_argument("--json", action="store_true", help="one JSON document")
+    a.definitions(p)
+    p.add_argument("source", nargs="+", metavar="[PLATFORM=]PATH")
+    p.set_defaults(run="monitoring:info")
+
+
+def _sort(sub: a.Sub) -> None:
+    p = sub.add_parser("sort", help="the objects of a sort")
+    a.config(p)
+    p.add_argument("--platform")
+    p.add_argument("sort")
+    p.set_defaults(run="knowledge:sort")

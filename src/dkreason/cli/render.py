@@ -1,0 +1,128 @@
+"""What a person reads: events, the stream request, the summary table, the exit status.
+
+One table of verdict words serves every command and the plot."""
+
+from __future__ import annotations
+
+import datetime
+import json
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from decimal import Decimal
+from fractions import Fraction
+from typing import Any
+
+from ..model import StreamRequest
+from ..monitor import WORDS, Event
+from ..progress import Verdict
+
+EXIT_STATUS = (
+    "exit status: 0 every formula held, 1 one was violated, 2 bad input (one line "
+    "on stderr), 3 one stayed undecided"
+)
+
+
+def exit_status(verdicts: list[bool | None]) -> int:
+    """0: every formula held; 1: one was violated; 3: none violated, one left unknown."""
+    if False in verdicts:
+        return 1
+    return 0 if all(verdicts) else 3
+
+
+def shout(verdict: bool | None) -> str:
+    """A verdict's word in an event line: a violation stands out."""
+    word = WORDS[verdict]
+    return word.upper() if verdict is False else word
+
+
+def event(event: Event, as_json: bool, start: Fraction | None = None) -> None:
+    """A verdict or violation; with the recording's first time (s), times also as `t+…`
+    since then (and, on an epoch clock, as ISO 8601 UTC)."""
+    out = event.to_json()
+    if as_json:
+        if start is not None and out.get("time") is not None:
+            out["t"] = _since(out["time"], start)
+        print(json.dumps(out, ensure_ascii=False, default=str), flush=True)
+        return
+    when = _when(out.get("time"), start)
+    if isinstance(event, Verdict):
+        print(
+            f"{'at end' if event.at_end else f'at {when}'}: {shout(event.verdict)}  "
+            f"{event.formula}" + (f"\n    {event.witness}" if event.witness else ""),
+            flush=True,
+        )
+    else:
+        print(
+            f"violation at {when}: {event.constraint} on {event.feature} ({event.topic}): "
+            f"{event.detail}",
+            flush=True,
+        )
+
+
+def _when(time: Any, start: Fraction | None) -> str:
+    if time is None or not start:  # a clock that starts at 0 needs no second reading
+        return f"{time} s"
+    stamp = f"{time} s"
+    if time > 10**9:  # an epoch clock: the date says more than a ten-digit number
+        stamp = (
+            datetime.datetime.fromtimestamp(time, datetime.UTC)
+            .isoformat(timespec="milliseconds")
+            .replace("+00:00", "Z")
+        )
+    return f"t+{_since(time, start)} s ({stamp})"
+
+
+def _since(time: float, start: Fraction) -> float:
+    """Seconds from `start` to `time` (s, as printed), exact to the nanosecond."""
+    return float(Decimal(repr(time)) - Decimal(start.numerator) / Decimal(start.denominator))
+
+
+def summary(verdicts: list[Verdict], violations: int) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    table = Table(title="dkreason monitor", title_justify="left")
+    for column in ("formula", "verdict", "time (s)", "at end"):
+        table.add_column(column)
+    for v in verdicts:
+        table.add_row(escape(v.formula), WORDS[v.verdict], str(v.time), "yes" if v.at_end else "no")
+    console = Console(width=120)
+    console.print(table)
+    console.print(f"{violations} stream constraint violation(s)")
+
+
+@contextmanager
+def progress_bar(total: int | None, enabled: bool) -> Iterator[Callable[[int], None] | None]:
+    """A progress bar on stderr while a long file is read (only on a terminal)."""
+    if not (enabled and sys.stderr.isatty()):
+        yield None
+        return
+    from rich.progress import Progress
+
+    with Progress(transient=True) as bar:
+        task = bar.add_task("reading", total=total)
+        yield lambda n: bar.update(task, completed=n)
+
+
+def request(request: StreamRequest) -> str:
+    """Thesis listings 6.2–6.4 and 6.8–6.10, plus where remote topics come from."""
+    lines = []
+    for f in request.features:
+        lines += [
+            f"Feature: {f.feature.key}",
+            "Topics to merge:" if f.topics else "Topics to merge: none",
+        ]
+        for t in f.topics:
+            ids = "".join(f"Id: {k} = {v}, " for k, v in t.filter)
+            where = (
+                ""
+                if t.platform == request.local
+                else f" (platform {t.platform}, as {t.as_feature}[{', '.join(t.as_args)}])"
+            )
+            lines.append(
+                f"  Topic: {t.topic}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
+            )
+    lines += [f"Warning: {w}" for w in request.warnings]
+    return "\n".join(lines)
