@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,8 +13,10 @@ from .plan import Parsed, Plan, plan
 from .request import request
 
 if TYPE_CHECKING:
+    from .batch import Batch
     from .explain import Explanation
     from .monitor import MonitorRun
+    from .results import Row
     from .stream.policy import StreamPolicy
     from .stream.sources import Source
 
@@ -96,6 +98,59 @@ class KnowledgeManager:
             self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
         )
         return MonitorRun(engine, opened)
+
+    def batch(
+        self,
+        sources: Sequence[str | Path],
+        formulas: str | Sequence[str | Parsed],
+        policy: StreamPolicy | None = None,
+        *,
+        remap: Mapping[str, str] | Sequence[str] | None = None,
+        clock: str = "auto",
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+        jobs: int | None = None,
+        scheduler: str | None = None,
+        db: str | Path | None = None,
+        resume: bool = False,
+        timeout: float | None = None,
+        on_start: Callable[[str, str | None, int, int], None] | None = None,
+        on_run: Callable[[list[Row]], None] | None = None,
+    ) -> Batch:
+        """Every run of `sources` (recordings, folders searched for them, `@LIST` files)
+        monitored as `monitor` monitors one, on `jobs` local worker processes or a running
+        Dask `scheduler`; each run's rows written to the results database `db` as it ends.
+        `on_start(batch id, dashboard, runs to do, runs skipped)` and `on_run(rows)` report
+        progress.  The same rows and batch id as `dkreason batch`."""
+        from .batch import Job, find_runs, start
+        from .results import DEFAULT_DB
+        from .stream.binding import remaps
+        from .stream.policy import StreamPolicy
+
+        runs = find_runs([str(s) for s in sources])
+        plan = self.plan(formulas)
+        job = Job(
+            plan,
+            self.request(plan),
+            policy or StreamPolicy(),
+            tuple(self.platforms),
+            tuple((remap if isinstance(remap, Mapping) else remaps(remap or ())).items()),
+            clock,
+            tuple(str(Path(m).resolve()) for m in msg),
+            typestore,
+            timeout,
+        )
+        return start(
+            job,
+            runs,
+            config=self.kb.config.path if self.kb.config else None,
+            db=Path(db) if db is not None else DEFAULT_DB,
+            resume=resume,
+            jobs=jobs,
+            scheduler=scheduler,
+            on_start=on_start,
+            on_run=on_run,
+        )
 
     def stored(self) -> dict[str, tuple[str, int]]:
         """Every stored relation: (told or view, rows) — what `match --stats` prints."""

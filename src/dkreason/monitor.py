@@ -256,6 +256,11 @@ class MonitorRun:
         """The states made (time in ns), when the monitor keeps them (`keep_states`)."""
         return self.monitor.states
 
+    @property
+    def messages(self) -> int:
+        """Messages read so far on the relevant topics."""
+        return self.processor.read
+
     def count(self) -> int | None:
         """How many messages the sources hold, if they know without reading."""
         return self.source.count(None)

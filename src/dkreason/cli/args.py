@@ -64,6 +64,13 @@ def positive(text: str) -> float:
     return value
 
 
+def whole(text: str) -> int:
+    """A count of at least 1."""
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return int(text)
+
+
 def domain(text: str) -> int:
     """A ROS_DOMAIN_ID: 0 to 232 (an argparse type, so a ValueError is its one-line error)."""
     if not text.isdigit() or int(text) > 232:

@@ -8,6 +8,7 @@ import argparse
 from pathlib import Path
 from typing import Any, NoReturn
 
+from ..results import DEFAULT_DB, VERDICTS
 from ..stream.policy import APPROXIMATIONS, DEFAULT
 from . import args as a
 from .render import EXIT_STATUS
@@ -39,6 +40,8 @@ def build(description: str | None) -> a.Parser:
     _specs(sub)
     _info(sub)
     _sort(sub)
+    _batch(sub)
+    _results(sub)
     return parser
 
 
@@ -93,16 +96,7 @@ def _monitor(sub: a.Sub) -> None:
     p.add_argument("formulas", nargs="*", metavar="FORMULA")
     p.set_defaults(run="monitoring:monitor")
 
-    out = p.add_argument_group("output")
-    out.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
-    out.add_argument(
-        "--plot",
-        type=Path,
-        help="draw features, verdicts and violations (.png, .svg or .pdf, as the name says)",
-    )
-
-    rec = p.add_argument_group("recordings")
-    rec.add_argument(
+    p.add_argument(
         "--source",
         action="append",
         default=[],
@@ -111,62 +105,16 @@ def _monitor(sub: a.Sub) -> None:
         "repeat for several recordings (merged by record time); PLATFORM= "
         "binds a recording's topics to that platform's specs only",
     )
-    rec.add_argument(
-        "--remap",
-        action="append",
-        default=[],
-        metavar="FROM:=TO",
-        help="read recording topic FROM as TO (repeatable)",
+    out = p.add_argument_group("output")
+    out.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
+    out.add_argument(
+        "--plot",
+        type=Path,
+        help="draw features, verdicts and violations (.png, .svg or .pdf, as the name says)",
     )
-    rec.add_argument(
-        "--clock",
-        choices=("auto", "header", "record"),
-        default="auto",
-        help="valid time from header.stamp or the record time; auto: the stamps, "
-        "unless they run on another clock (simulated time), said in one line "
-        "(default auto)",
-    )
-    a.definitions(rec)
 
-    pol = p.add_argument_group("stream policy (the API's StreamPolicy, same defaults)")
-    pol.add_argument("--period", type=a.seconds, help="state every PERIOD s (default: on change)")
-    pol.add_argument(
-        "--deviation",
-        type=a.seconds,
-        help=f"allowed sample period deviation (default {DEFAULT.sample_period_deviation})",
-    )
-    pol.add_argument(
-        "--approximation",
-        choices=APPROXIMATIONS,
-        help="recent: the newest sample up to --max-age old; none: only a sample "
-        f"at the state's time (default {DEFAULT.approximation})",
-    )
-    pol.add_argument(
-        "--max-age",
-        type=a.seconds_or_inf,
-        help=f"oldest sample used, in s (default {DEFAULT.max_age}; inf: any)",
-    )
-    pol.add_argument(
-        "--delay",
-        type=a.seconds,
-        help="how long after a state's time its samples may still arrive (transport "
-        f"latency) before it is made (default {DEFAULT.delay_before_approximation * 1000}ms)",
-    )
-    pol.add_argument(
-        "--start",
-        type=a.bound,
-        metavar="[+]TIME",
-        help="judge from this time on (s on the recording's clock; +TIME: after its first sample)",
-    )
-    pol.add_argument(
-        "--end",
-        type=a.bound,
-        metavar="[+]TIME",
-        help="ignore samples after this time (+TIME: after the first sample)",
-    )
-    pol.add_argument("--max-delay", type=a.seconds, help="largest allowed sample delay (s)")
-    pol.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
-    pol.add_argument("--unique", action="store_true", help="valid times must be unique")
+    _recordings(p)
+    _policy(p)
 
     live = p.add_argument_group("live (--live: dkreason serve nodes; --ros2: ROS 2 robots)")
     live.add_argument(
@@ -235,6 +183,152 @@ def _monitor(sub: a.Sub) -> None:
         help="ros2: write the relevant topics' messages and the verdicts (a JSON "
         "channel) to one MCAP file, which --source replays",
     )
+
+
+def _recordings(p: argparse.ArgumentParser) -> None:
+    """How recordings are read, for monitor and batch alike."""
+    rec = p.add_argument_group("recordings")
+    rec.add_argument(
+        "--remap",
+        action="append",
+        default=[],
+        metavar="FROM:=TO",
+        help="read recording topic FROM as TO (repeatable)",
+    )
+    rec.add_argument(
+        "--clock",
+        choices=("auto", "header", "record"),
+        default="auto",
+        help="valid time from header.stamp or the record time; auto: the stamps, "
+        "unless they run on another clock (simulated time), said in one line "
+        "(default auto)",
+    )
+    a.definitions(rec)
+
+
+def _policy(p: argparse.ArgumentParser) -> None:
+    """The stream policy, for monitor and batch alike."""
+    pol = p.add_argument_group("stream policy (the API's StreamPolicy, same defaults)")
+    pol.add_argument("--period", type=a.seconds, help="state every PERIOD s (default: on change)")
+    pol.add_argument(
+        "--deviation",
+        type=a.seconds,
+        help=f"allowed sample period deviation (default {DEFAULT.sample_period_deviation})",
+    )
+    pol.add_argument(
+        "--approximation",
+        choices=APPROXIMATIONS,
+        help="recent: the newest sample up to --max-age old; none: only a sample "
+        f"at the state's time (default {DEFAULT.approximation})",
+    )
+    pol.add_argument(
+        "--max-age",
+        type=a.seconds_or_inf,
+        help=f"oldest sample used, in s (default {DEFAULT.max_age}; inf: any)",
+    )
+    pol.add_argument(
+        "--delay",
+        type=a.seconds,
+        help="how long after a state's time its samples may still arrive (transport "
+        f"latency) before it is made (default {DEFAULT.delay_before_approximation * 1000}ms)",
+    )
+    pol.add_argument(
+        "--start",
+        type=a.bound,
+        metavar="[+]TIME",
+        help="judge from this time on (s on the recording's clock; +TIME: after its first sample)",
+    )
+    pol.add_argument(
+        "--end",
+        type=a.bound,
+        metavar="[+]TIME",
+        help="ignore samples after this time (+TIME: after the first sample)",
+    )
+    pol.add_argument("--max-delay", type=a.seconds, help="largest allowed sample delay (s)")
+    pol.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
+    pol.add_argument("--unique", action="store_true", help="valid times must be unique")
+
+
+def _batch(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "batch",
+        help="monitor many runs (recordings, folders, @LIST files) into a results database",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="exit status: 0 every formula held on every run, 1 one was violated on some "
+        "run, 3 a run was undecided or failed, 2 bad input to the batch\n\nexample:\n"
+        "  dkreason batch --config examples/federation.toml --formula "
+        "'always (Speed[car1] < 90)' runs/",
+    )
+    a.config(p)
+    p.add_argument(
+        "-f",
+        "--formulas-file",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="formulas, one per line (# comments); repeatable",
+    )
+    p.add_argument(
+        "--formula",
+        dest="formulas",
+        action="append",
+        default=[],
+        metavar="TEXT",
+        help="a formula (repeatable)",
+    )
+    p.add_argument(
+        "sources",
+        nargs="+",
+        metavar="SOURCE",
+        help="a recording, a folder searched for recordings (a ROS 2 bag folder is one run), "
+        "or @LIST: a file of runs, one a line ([PLATFORM=]PATH items)",
+    )
+    run = p.add_argument_group("where and how")
+    run.add_argument(
+        "--jobs", type=a.whole, help="local worker processes (default: the machine's cores)"
+    )
+    run.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:PORT",
+        help="a running Dask cluster's scheduler (its workers must have dkreason and see the "
+        "recordings' paths)",
+    )
+    run.add_argument(
+        "--db",
+        type=Path,
+        default=DEFAULT_DB,
+        help=f"the results database (DuckDB; default {DEFAULT_DB})",
+    )
+    run.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the latest batch with the same config, formulas and options",
+    )
+    run.add_argument(
+        "--timeout", type=a.positive, help="seconds of monitoring a run may take on its worker"
+    )
+    run.add_argument("--json", action="store_true", help="each row as a JSON line")
+    _recordings(p)
+    _policy(p)
+    p.set_defaults(run="fleet:batch")
+
+
+def _results(sub: a.Sub) -> None:
+    p = sub.add_parser("results", help="what batches found: a summary, rows, or a diff")
+    p.add_argument("--db", type=Path, default=DEFAULT_DB, help=f"default {DEFAULT_DB}")
+    p.add_argument("--batch", metavar="ID", help="default: the latest batch")
+    p.add_argument("--formula", metavar="TEXT", help="only this formula")
+    p.add_argument("--verdict", choices=VERDICTS, help="only rows with this verdict")
+    p.add_argument("--json", action="store_true", help="the rows as JSON lines")
+    p.add_argument("--parquet", type=Path, metavar="OUT", help="the batch's rows to a Parquet file")
+    p.add_argument(
+        "--diff",
+        nargs=2,
+        metavar=("BATCH_A", "BATCH_B"),
+        help="the (run, formula) pairs whose verdict changed from A to B",
+    )
+    p.set_defaults(run="fleet:results")
 
 
 def _serve(sub: a.Sub) -> None:

@@ -177,6 +177,7 @@ class StreamProcessor:
         self.made: float = -_INF  # time of the last state made (ns)
         self.next_state: int | None = self.start  # next periodic state time
         self.last_seen: int | None = None
+        self.read = 0  # messages replayed on the relevant topics
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
         for f in request.features:
             self.keys.append(f.feature.key)
@@ -371,6 +372,7 @@ class StreamProcessor:
                 if watch or not n & 4095:
                     yield n
         finally:
+            self.read += n
             if seen is not None:
                 self.last_seen = seen
 
