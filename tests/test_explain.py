@@ -113,6 +113,16 @@ def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path) -> None:
     )
 
 
+def test_why_not_looks_on_every_platform_of_the_context(federation: KnowledgeManager) -> None:
+    """No topic carries Position[uav1]: each platform the local one reaches is checked once
+    (platform 2 and 3 too, not platform 1 once per context)."""
+    e = federation.explain("always (Position[uav1] > 0)")
+    why_not = e.features[0].why_not
+    assert sorted(w.platform for w in why_not) == ["platform1", "platform2", "platform3"]
+    (on_cars,) = [w for w in why_not if w.platform == "platform2"]
+    assert "uav1 has no counterpart on platform2" in on_cars.reason
+
+
 def test_a_rule_from_an_extension_file_is_cited_with_its_file_and_line(scenario: Path) -> None:
     extension = scenario / "alias.dl"
     extension.write_text(

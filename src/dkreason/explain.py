@@ -541,7 +541,7 @@ def explain(
                 platforms = (
                     [p for p, plat in kb.platforms.items() if topic in plat.specs]
                     if topic
-                    else [str(r[1]) for r in replay.rows(("context", kb.local, None))]
+                    else [str(r[2]) for r in replay.rows(("context", kb.local, None))]
                 )
                 why_not = tuple(w for p in platforms for w in _why_not(kb, replay, q, p, topic))
             features.append(FeatureExplanation(str(ground[q].key), why, why_not))
