@@ -14,9 +14,10 @@ from typing import Any
 
 import pytest
 
-from dkreason import KnowledgeManager
+from dkreason import DkError, KnowledgeManager
 from dkreason.cli import main
 from dkreason.explain import Failure, Proof, to_dot, to_json
+from dkreason.parse.config import shipped_policy
 
 from .conftest import REPO, SCENARIOS
 from .test_expand import km as sea
@@ -325,3 +326,44 @@ def test_an_explanation_is_the_same_in_every_process() -> None:
         for seed in ("1", "2", "3")
     }
     assert len(outs) == 1 and "argument 2 is uas21" in next(iter(outs))
+
+
+# ---- a policy of one's own: explain reads only what the schema makes every policy derive -------
+
+
+def renamed_candidate(scenario: Path) -> Path:
+    """A replacing policy: the shipped rules, with `candidate` renamed `reading` (declared and
+    derived under its new name), so nothing derives the `candidate` explain walks."""
+    policy = scenario / "policy"
+    policy.mkdir()
+    for path in shipped_policy():
+        text = re.sub(r"\bcandidate\(", "reading(", path.read_text(encoding="utf-8"))
+        (policy / path.name).write_text(text, encoding="utf-8")
+    with (policy / "matching.dl").open("a", encoding="utf-8") as rules:
+        rules.write(".decl reading(Query, Platform, LocalFeature, Feature, Arg1, Arg2, Arg3)\n")
+    config = scenario / "renamed.toml"
+    files = ", ".join(f'"policy/{path.name}"' for path in shipped_policy())
+    config.write_text(
+        f"replace_rules = true\nrules = [{files}]\n"
+        + (scenario / "federation.toml").read_text(encoding="utf-8")
+    )
+    return config
+
+
+def test_a_policy_that_derives_no_candidate_is_refused_at_load(scenario: Path) -> None:
+    with pytest.raises(
+        DkError, match=r"schema\.dl:\d+: the rules derive no candidate/7, which dkreason asks for"
+    ):
+        KnowledgeManager.from_config(renamed_candidate(scenario))
+
+
+@pytest.mark.parametrize("command", ["explain", "match"])
+def test_a_policy_that_derives_no_candidate_is_one_error_line(
+    capsys: pytest.CaptureFixture[str], scenario: Path, command: str
+) -> None:
+    config = renamed_candidate(scenario)
+    code = main([command, "--config", str(config), "always (Position[uav1] > 0)"])
+    out = capsys.readouterr()
+    assert code == 2
+    (line,) = (out.out + out.err).splitlines()
+    assert re.fullmatch(r"error: \S*schema\.dl:\d+: the rules derive no candidate/7, .*", line)
