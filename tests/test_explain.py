@@ -16,7 +16,7 @@ import pytest
 
 from dkreason import DkError, KnowledgeManager
 from dkreason.cli import main
-from dkreason.explain import Failure, Proof, to_dot, to_json
+from dkreason.explain import Failure, Proof, to_dot, to_json, to_text
 from dkreason.parse.config import shipped_policy
 
 from .conftest import REPO, SCENARIOS
@@ -367,3 +367,72 @@ def test_a_policy_that_derives_no_candidate_is_one_error_line(
     assert code == 2
     (line,) = (out.out + out.err).splitlines()
     assert re.fullmatch(r"error: \S*schema\.dl:\d+: the rules derive no candidate/7, .*", line)
+
+
+ODD_POLICIES = {
+    "relevant_topic from a fact": "relevant_topic(Q, P, 'topic3', 1, O1, 'odd', '', 3, '', '') "
+    "<= wanted(Q, _F, O1, '', '') & local(P)\n",
+    "a topic answered without relevant_topic": "match_result(Q, 'topic', P, 'topic3', 1, O1, "
+    "'', '', 3, '', '') <= wanted(Q, _F, O1, '', '') & local(P)\n",
+    "a matched topic without relevant_topic": "matched_topic(Q, P, 'topic1', 9, C1, C2, C3) "
+    "<= sound_candidate(Q, P, G, C1, C2, C3) & feature(P, G, _Arity)\n",
+}
+
+
+def with_rules(scenario: Path, rules: str) -> KnowledgeManager:
+    """The single-platform scenario with the shipped policy and these rules besides."""
+    (scenario / "odd.dl").write_text(rules, encoding="utf-8")
+    config = scenario / "single.toml"
+    config.write_text('rules = ["odd.dl"]\n' + config.read_text(encoding="utf-8"))
+    return KnowledgeManager.from_config(config)
+
+
+@pytest.mark.parametrize("rules", ODD_POLICIES.values(), ids=list(ODD_POLICIES))
+def test_a_policy_that_loads_is_explained_and_rendered_whatever_it_derives(
+    scenario: Path, rules: str
+) -> None:
+    km = with_rules(scenario, rules)
+    for topic in (None, "topic1", "topic3"):
+        e = km.explain("always (Speed[uav2] > 1)", topic=topic)
+        assert to_text(e) and to_dot(e) and json.dumps(to_json(e), ensure_ascii=False)
+
+
+def test_a_derivation_deeper_than_a_replay_goes_is_shown_as_the_answer_itself(
+    scenario: Path,
+) -> None:
+    steps = range(1, 50)
+    km = with_rules(
+        scenario,
+        ".decl step0(Query, Object)\n"
+        + "".join(f".decl step{i}(Query, Object)\n" for i in steps)
+        + "step0(Q, O) <= wanted(Q, _F, O, '', '')\n"
+        + "".join(f"step{i}(Q, O) <= step{i - 1}(Q, O)\n" for i in steps)
+        + "relevant_topic(Q, P, 'topic3', 1, O, '', '', 3, '', '') <= step49(Q, O) & local(P)\n",
+    )
+    (why,) = km.explain("always (Speed[uav2] > 1)", topic="topic3").features[0].why
+    assert why.proof.rule is None and why.proof.children == ()
+    assert why.proof.text == "relevant_topic(0, platform1, topic3, 1, uav2, –, –, 3, –, –)"
+    assert why.proof.source == "the policy answers it; no proof of at most 40 steps replays it"
+
+
+def test_a_relation_of_a_policy_s_own_is_not_read_as_the_shipped_one_of_that_name(
+    scenario: Path,
+) -> None:
+    """Explanations word `excluded` as an incompat bridge: not this policy's excluded/2."""
+    strict = (REPO / "tests" / "data" / "strict.dl").read_text(encoding="utf-8")
+    sound = "sound_candidate(Q, P, G, O1, O2, O3) <= candidate(Q, P, _F, G, O1, O2, O3)"
+    assert sound in strict
+    (scenario / "own.dl").write_text(
+        strict.replace(sound, f"{sound} & ~excluded(P, G)")
+        + ".decl excluded(Platform, Feature)\n"
+        + "excluded(P, F) <= local(P) & feature(P, F, 1)\n",
+        encoding="utf-8",
+    )
+    config = scenario / "own.toml"
+    config.write_text(
+        'replace_rules = true\nrules = ["rules/ontology.dl", "rules/signature.dl", '
+        '"rules/expansion.dl", "own.dl"]\n' + (scenario / "single.toml").read_text()
+    )
+    e = KnowledgeManager.from_config(config).explain("always (Speed[uav2] > 1)")
+    (why_not,) = e.features[0].why_not
+    assert why_not.reason == "Speed[uav2] rejected: excluded(platform1, Speed) holds"

@@ -66,7 +66,10 @@ def explain(
                 platforms = (
                     [p for p, plat in kb.platforms.items() if topic in plat.specs]
                     if topic
-                    else [str(r[2]) for r in replay.rows(("context", kb.local, None))]
+                    else [
+                        str(reader.columns(r)["Remote"])
+                        for r in replay.rows(("context", kb.local, None))
+                    ]
                 )
                 why_not = tuple(
                     w for p in platforms for w in topic_why_not(kb, replay, q, p, topic)

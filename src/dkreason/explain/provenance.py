@@ -34,6 +34,19 @@ _GLOSSES = {
     "sort_rep": "{Sort} is in the class of sorts equivalent to {Class} ({Platform})",
 }
 
+# Derived relations of the shipped policy (rules/matching.dl, rules/federation.dl) that
+# explanations put in words of their own, with the columns those words read.  A policy may
+# have a relation of the same name that means something else: it is worded only where the
+# loaded policy declares it with these columns, and shown as it is otherwise.
+WORDED = {
+    "feature_candidate": ("Platform", "LocalFeature", "Feature"),
+    "object_candidate": ("Platform", "LocalClass", "Class"),
+    "excluded": ("Platform", "LocalFeature", "Feature"),
+    "arg_candidate": ("Platform", "LocalObject", "Object"),
+    "accepts": ("Platform", "Topic", "K", "Position", "Object"),
+    "carries": ("Platform", "Feature", "Position", "Object", "Topic", "K"),
+}
+
 
 class Reader:
     """Renders facts with local names and says where told facts come from."""
@@ -45,7 +58,6 @@ class Reader:
             for m in kb.mappings
             for r in m.rules
         }
-        self.derived = {r.head.predicate for r in kb.engine.rules}
         self.told: dict[str, set[tuple[str, str]]] = {}  # platform → its objects' told types
 
     def name(self, value: Value | None) -> str:
@@ -56,9 +68,14 @@ class Reader:
         return local_name(value) if isinstance(value, str) and "/" in value else str(value)
 
     def columns(self, fact: Pattern | Row) -> dict[str, Any]:
-        """The fact's values by the column names its relation is declared with."""
+        """The fact's values by the column names its relation is declared with; none if it is
+        declared otherwise than explanations read it (WORDED)."""
         relation = self.kb.engine.schema.get(str(fact[0]))
-        if relation is None or relation.arity != len(fact) - 1:
+        if (
+            relation is None
+            or relation.arity != len(fact) - 1
+            or WORDED.get(relation.name, relation.columns) != relation.columns
+        ):
             return {}
         return relation.row(fact[1:])  # type: ignore[arg-type]
 

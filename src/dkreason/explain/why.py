@@ -4,14 +4,16 @@ each (the feature, each argument, the topic)."""
 from __future__ import annotations
 
 import itertools
+from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 from ..datalog import Row, Value
 from ..kb import KnowledgeBase
 from ..match import Match, padded
 from ..request import topic_match
 from .provenance import BRIDGE, Reader
-from .replay import Proof, Replayer
+from .replay import MAX_DEPTH, Proof, Replayer
 
 
 @dataclass(frozen=True, slots=True)
@@ -26,6 +28,22 @@ class TopicWhy:
 
 
 def topic_why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
+    proof = _proof(replay, m)
+    entry = topic_match(kb, m)
+    return TopicWhy(
+        m.platform, m.topic, entry.filter if entry else (), _summary(replay.reader, proof), proof
+    )
+
+
+# A match no clause replays (a derivation deeper than a replay goes, say) is shown as the
+# policy's answer itself: a plainer explanation, not none.
+UNREPLAYED = f"the policy answers it; no proof of at most {MAX_DEPTH} steps replays it"
+
+
+def _proof(replay: Replayer, m: Match) -> Proof:
+    """The proof of the relevant_topic row behind a match, padded as the shipped rules pad;
+    else of a relevant_topic or match_result row the match agrees with, however the policy
+    pads it; else the answer itself."""
     fact: Row = (
         "relevant_topic",
         m.query,
@@ -36,47 +54,60 @@ def topic_why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
         *m.ids,
         *("",) * (3 - len(m.ids)),
     )
-    proof = replay.prove(fact)
-    assert proof is not None, f"the engine derived {fact} but no clause replays it"
-    entry = topic_match(kb, m)
-    return TopicWhy(
-        m.platform, m.topic, entry.filter if entry else (), _summary(replay.reader, proof), proof
+    free = (None,) * (3 - len(m.objects))
+    found = (m.platform, m.topic, m.feature_index, *m.objects, *free, *m.ids, *free)
+    rows = (
+        row
+        for answer in (
+            ("relevant_topic", m.query, *found),
+            ("match_result", m.query, "topic", *found),
+        )
+        for row in replay.rows(answer)
     )
+    proof = replay.prove(fact) or next(filter(None, map(replay.prove, rows)), None)
+    return proof or Proof(fact, replay.reader.text(fact), source=UNREPLAYED)
+
+
+def _worded(reader: Reader, proof: Proof, relation: str) -> Iterator[tuple[Proof, dict[str, Any]]]:
+    """The proof's steps through a relation explanations word (WORDED), with their columns:
+    none where the policy declares that relation otherwise."""
+    for node in proof.find(relation):
+        c = reader.columns(node.fact)
+        if c:
+            yield node, c
 
 
 def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
     """The proof's chains in one line each: feature, then each argument, then the topic."""
     lines = []
-    for node in itertools.islice(proof.find("feature_candidate"), 1):
-        _, _, start, end = node.fact
+    for node, c in itertools.islice(_worded(reader, proof, "feature_candidate"), 1):
         chain = _chain(
-            reader, node, str(start), str(end), ("equivalent_class", "bridge", "subclass_of")
+            reader,
+            node,
+            str(c["LocalFeature"]),
+            str(c["Feature"]),
+            ("equivalent_class", "bridge", "subclass_of"),
         )
         lines.append(f"feature: {chain}")
     seen = set()
-    for node in proof.find("arg_candidate"):
-        _, _, start, end = node.fact
+    for node, c in _worded(reader, proof, "arg_candidate"):
+        start, end = str(c["LocalObject"]), str(c["Object"])
         if start == "" or (start, end) in seen:
             continue
         seen.add((start, end))
-        lines.append(f"object: {_chain(reader, node, str(start), str(end), ('same_as', 'bridge'))}")
-    for node in (*proof.find("accepts"), *proof.find("carries")):
-        if node.fact[0] == "accepts":  # accepts(R, T, K, I, C)
-            _, _, topic, _, position, obj = node.fact
-        else:  # carries(R, G, I, C, T, K): a sort argument found through C's sorts
-            _, _, _, position, obj, topic, _ = node.fact
-        sort_args = [
-            leaf
-            for leaf in node.leaves()
-            if leaf.fact[0] == "topic_arg" and leaf.fact[5] in ("some", "every")
-        ]
+        lines.append(f"object: {_chain(reader, node, start, end, ('same_as', 'bridge'))}")
+    # a topic argument that accepts an object, or (carries) a sort argument found through the
+    # object's sorts
+    for node, c in (*_worded(reader, proof, "accepts"), *_worded(reader, proof, "carries")):
+        args = [reader.columns(leaf.fact) for leaf in node.leaves() if leaf.fact[0] == "topic_arg"]
+        sorts = [arg["Entity"] for arg in args if arg["Kind"] in ("some", "every")]
         for told in (leaf for leaf in node.leaves() if leaf.fact[0] == "class_type"):
-            if sort_args:
+            if sorts:
                 chain = _chain(
                     reader,
                     node,
-                    str(told.fact[3]),
-                    str(sort_args[0].fact[6]),
+                    str(reader.columns(told.fact)["Sort"]),
+                    str(sorts[0]),
                     ("subclass_of", "equivalent_class"),
                 )
                 entailed = (
@@ -85,7 +116,8 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
                     else ""
                 )
                 lines.append(
-                    f"argument {position} of {topic}: {reader.name(obj)} : {chain}{entailed}"
+                    f"argument {c['Position']} of {c['Topic']}: "
+                    f"{reader.name(c['Object'])} : {chain}{entailed}"
                 )
     carried = (
         f"topic: {leaf.text} [{leaf.source}]"

@@ -1,14 +1,16 @@
 """Why a topic was not chosen: each candidate of the policy (the wanted feature read as a
 feature of one platform, its arguments as that platform's objects) with the first condition
-of `sound_candidate` or `matched_topic` that fails for it, descending through the rules to the
-told facts that are missing."""
+that fails for it on the steps every policy derives (rules/schema.dl), descending through the
+rules to the told facts that are missing."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from ..datalog import Row
 from ..kb import KnowledgeBase
+from .provenance import Pattern
 from .replay import Failure, Replayer
 
 
@@ -26,10 +28,15 @@ class TopicWhyNot:
 def topic_why_not(
     kb: KnowledgeBase, replay: Replayer, q: int, platform: str, topic: str | None
 ) -> list[TopicWhyNot]:
-    key = replay.reader.ground[q].key
-    candidates = replay.rows(("candidate", q, platform, None, None, None, None, None))
+    """Per candidate of wanted feature `q` on `platform`, the first step it fails: sound, a
+    matched topic, a relevant topic, the policy's answer (past a step the policy derives
+    unlike the shipped rules, the next one)."""
+    reader = replay.reader
+    key = reader.ground[q].key
+    wanted: Pattern = ("candidate", q, platform, None, None, None, None, None)
+    candidates = replay.rows(wanted)
     if not candidates:
-        failure = replay.refute(("candidate", q, platform, None, None, None, None, None))
+        failure = replay.refute(wanted)
         return [
             TopicWhyNot(
                 platform,
@@ -40,15 +47,19 @@ def topic_why_not(
         ]
     out = []
     for _, _, _, _, g, *objects in candidates:
-        arity = len(replay.reader.ground[q].args)
-        shown = ", ".join(replay.reader.name(o) for o in objects[:arity])
-        mapped = f"{replay.reader.name(g)}[{shown}]"
+        arity = len(reader.ground[q].args)
+        mapped = f"{reader.name(g)}[{', '.join(reader.name(o) for o in objects[:arity])}]"
         sound: Row = ("sound_candidate", q, platform, g, *objects)
         if not replay.holds(sound):
             failure = replay.refute(sound)
             reason = f"{mapped} rejected: {_reason(kb, replay, failure)}"
         else:
-            failure = replay.refute(("matched_topic", q, platform, topic, None, *objects))
+            steps: tuple[Pattern, ...] = (
+                ("matched_topic", q, platform, topic, None, *objects),
+                ("relevant_topic", q, platform, topic, None, *objects, None, None, None),
+                ("match_result", q, "topic", platform, topic, None, *objects, None, None, None),
+            )
+            failure = replay.refute(next(s for s in steps if not replay.rows(s)))
             reason = f"{_reason(kb, replay, failure)}; {key} maps to {mapped}" + (
                 f" on {platform}" if platform != kb.local else ""
             )
@@ -57,34 +68,61 @@ def topic_why_not(
 
 
 def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
-    """The first failed condition, in the words of the matcher's own relations."""
+    """The first failed condition, in the words of the relations explanations know (the
+    schema's, and WORDED as the policy declares them), else as the condition reads."""
     cond = failure.condition
-    name = replay.reader.name
+    reader = replay.reader
+    name = reader.name
     if cond is None:
         return failure.condition_text + (
             f" (there is: {failure.nearby[0]})" if failure.nearby else ""
         )
-    pred, *a = cond
+    pred, c = cond[0], reader.columns(cond)
     if failure.negated:
-        if pred == "excluded":
-            return f"an incompat bridge rule excludes {name(a[2])} here"
+        if pred == "excluded" and c:
+            return f"an incompat bridge rule excludes {name(c['Feature'])} here"
         return f"{failure.condition_text} holds"
-    if pred == "fits" and a[3]:
-        platform = kb.platforms[str(a[0])]
-        return kb.misfit(platform, str(a[1]), int(a[2]), str(a[3]))  # type: ignore[arg-type]
-    if pred == "object_candidate":
-        return f"{name(a[1])} has no counterpart on {a[0]} (no sameAs or 'same' bridge reaches it)"
-    if pred == "feature_candidate":
-        return f"{name(a[1])} has no counterpart on {a[0]} (no equivalence reaches it)"
-    if pred == "topic_feature" and a[1] is not None:
-        carried = [name(r[4]) for r in replay.rows(("topic_feature", a[0], a[1], None, None, None))]
-        return f"{a[1]} carries {', '.join(carried) or 'nothing'}, not {name(a[3])}"
-    if pred == "accepts" and None not in a[:4]:
-        args = replay.rows(("topic_arg", a[0], a[1], a[2], a[3], None, None, None))
-        said = ", ".join(f"{r[5]} {name(r[6])}" if r[5] != "object" else name(r[6]) for r in args)
-        source = replay.reader.source(args[0]) if args else ""
-        return f"argument {a[3]} is {said} ({source}), not {name(a[4])}"
+    misfit = _misfit(kb, c) if pred == "fits" and c["Entity"] else None
+    if misfit:
+        return misfit
+    if pred == "object_candidate" and c:
+        return (
+            f"{name(c['LocalClass'])} has no counterpart on {c['Platform']} "
+            "(no sameAs or 'same' bridge reaches it)"
+        )
+    if pred == "feature_candidate" and c:
+        return (
+            f"{name(c['LocalFeature'])} has no counterpart on {c['Platform']} "
+            "(no equivalence reaches it)"
+        )
+    if pred == "topic_feature" and c["Topic"] is not None:
+        told = replay.rows(("topic_feature", c["Platform"], c["Topic"], None, None, None))
+        carried = ", ".join(name(reader.columns(r)["Feature"]) for r in told) or "nothing"
+        return f"{c['Topic']} carries {carried}, not {name(c['Feature'])}"
+    if pred == "accepts" and c and None not in cond[1:5]:
+        args = replay.rows(
+            ("topic_arg", c["Platform"], c["Topic"], c["K"], c["Position"], None, None, None)
+        )
+        said = ", ".join(
+            name(a["Entity"]) if a["Kind"] == "object" else f"{a['Kind']} {name(a['Entity'])}"
+            for a in map(reader.columns, args)
+        )
+        source = reader.source(args[0]) if args else ""
+        return f"argument {c['Position']} is {said} ({source}), not {name(c['Object'])}"
     if isinstance(failure.because, Failure):
         return _reason(kb, replay, failure.because)
     nearby = f" (there is: {failure.nearby[0]})" if failure.nearby else ""
     return f"no {failure.condition_text}{nearby}"
+
+
+def _misfit(kb: KnowledgeBase, fits: dict[str, Any]) -> str | None:
+    """Why Entity does not fit argument Position of Feature on Platform, where these name a
+    platform, one of its features and an argument of it."""
+    platform = kb.platforms.get(str(fits["Platform"]))
+    if platform is None:
+        return None
+    feature = platform.ontology.features.get(str(fits["Feature"]))
+    position = fits["Position"]
+    if not (feature and isinstance(position, int) and 0 < position <= len(feature.arg_sorts)):
+        return None
+    return kb.misfit(platform, str(fits["Feature"]), position, str(fits["Entity"]))
