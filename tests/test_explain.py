@@ -436,3 +436,33 @@ def test_a_relation_of_a_policy_s_own_is_not_read_as_the_shipped_one_of_that_nam
     e = KnowledgeManager.from_config(config).explain("always (Speed[uav2] > 1)")
     (why_not,) = e.features[0].why_not
     assert why_not.reason == "Speed[uav2] rejected: excluded(platform1, Speed) holds"
+
+
+UNDECLARED_ANSWERS = {
+    "a topic no spec declares": "'nowhere', 1",
+    "a feature the topic does not have": "'topic3', 2",
+    "a topic feature of another arity": "'topic6', 1",
+}
+
+
+@pytest.mark.parametrize("command", ["explain", "match"])
+@pytest.mark.parametrize("answer", UNDECLARED_ANSWERS.values(), ids=list(UNDECLARED_ANSWERS))
+def test_a_policy_answering_with_no_declared_topic_feature_is_one_error_line(
+    capsys: pytest.CaptureFixture[str], scenario: Path, answer: str, command: str
+) -> None:
+    (scenario / "odd.dl").write_text(
+        f"relevant_topic(Q, P, {answer}, O1, '', '', 1, '', '') "
+        "<= wanted(Q, _F, O1, '', '') & local(P)\n",
+        encoding="utf-8",
+    )
+    config = scenario / "single.toml"
+    config.write_text('rules = ["odd.dl"]\n' + config.read_text(encoding="utf-8"))
+    code = main([command, "--config", str(config), "always (Speed[uav2] > 1)"])
+    out = capsys.readouterr()
+    assert code == 2
+    (line,) = (out.out + out.err).splitlines()
+    topic, k = (part.strip(" '") for part in answer.split(","))
+    assert line == (
+        f"error: the policy answers Speed[uav2] with feature {k} of topic {topic} on "
+        "platform1, which no topic specification there declares with 1 argument"
+    )
