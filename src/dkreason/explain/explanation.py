@@ -28,6 +28,8 @@ class FeatureExplanation:
 
 @dataclass(frozen=True, slots=True)
 class Explanation:
+    """What `dkreason explain` prints, as data: a formula and its ground features'."""
+
     formula: str
     features: tuple[FeatureExplanation, ...]
 

@@ -37,7 +37,7 @@ def topic_why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
 
 # A match no clause replays (a derivation deeper than a replay goes, say) is shown as the
 # policy's answer itself: a plainer explanation, not none.
-UNREPLAYED = f"the policy answers it; no proof of at most {MAX_DEPTH} steps replays it"
+_UNREPLAYED = f"the policy answers it; no proof of at most {MAX_DEPTH} steps replays it"
 
 
 def _proof(replay: Replayer, m: Match) -> Proof:
@@ -65,7 +65,7 @@ def _proof(replay: Replayer, m: Match) -> Proof:
         for row in replay.rows(answer)
     )
     proof = replay.prove(fact) or next(filter(None, map(replay.prove, rows)), None)
-    return proof or Proof(fact, replay.reader.text(fact), source=UNREPLAYED)
+    return proof or Proof(fact, replay.reader.text(fact), source=_UNREPLAYED)
 
 
 def _worded(reader: Reader, proof: Proof, relation: str) -> Iterator[tuple[Proof, dict[str, Any]]]:

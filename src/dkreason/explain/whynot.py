@@ -28,9 +28,9 @@ class TopicWhyNot:
 def topic_why_not(
     kb: KnowledgeBase, replay: Replayer, q: int, platform: str, topic: str | None
 ) -> list[TopicWhyNot]:
-    """Per candidate of wanted feature `q` on `platform`, the first step it fails: sound, a
-    matched topic, a relevant topic, the policy's answer (past a step the policy derives
-    unlike the shipped rules, the next one)."""
+    """Per candidate of wanted feature `q` on `platform`, the first step that does not hold for
+    it (sound, a matched topic, a relevant topic, the policy's answer) and the condition that
+    fails there.  A policy may derive a step without the one before: each step is asked."""
     reader = replay.reader
     key = reader.ground[q].key
     wanted: Pattern = ("candidate", q, platform, None, None, None, None, None)
@@ -59,7 +59,7 @@ def topic_why_not(
                 ("relevant_topic", q, platform, topic, None, *objects, None, None, None),
                 ("match_result", q, "topic", platform, topic, None, *objects, None, None, None),
             )
-            failure = replay.refute(next(s for s in steps if not replay.rows(s)))
+            failure = replay.refute(next((s for s in steps if not replay.rows(s)), steps[-1]))
             reason = f"{_reason(kb, replay, failure)}; {key} maps to {mapped}" + (
                 f" on {platform}" if platform != kb.local else ""
             )
