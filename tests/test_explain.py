@@ -14,9 +14,10 @@ from typing import Any
 
 import pytest
 
-from dkreason import KnowledgeManager
+from dkreason import DkError, KnowledgeManager
 from dkreason.cli import main
-from dkreason.explain import Failure, Proof, to_dot, to_json
+from dkreason.explain import Failure, Proof, to_dot, to_json, to_text
+from dkreason.parse.config import shipped_policy
 
 from .conftest import REPO, SCENARIOS
 from .test_expand import km as sea
@@ -111,6 +112,16 @@ def test_why_not_a_mis_mapping_into_the_wrong_sort(scenario: Path) -> None:
     assert why_not.reason == (
         "Speed[truck1] rejected: truck1 is a GroundVehicle, Speed needs Automobile"
     )
+
+
+def test_why_not_looks_on_every_platform_of_the_context(federation: KnowledgeManager) -> None:
+    """No topic carries Position[uav1]: each platform the local one reaches is checked once
+    (platform 2 and 3 too, not platform 1 once per context)."""
+    e = federation.explain("always (Position[uav1] > 0)")
+    why_not = e.features[0].why_not
+    assert sorted(w.platform for w in why_not) == ["platform1", "platform2", "platform3"]
+    (on_cars,) = [w for w in why_not if w.platform == "platform2"]
+    assert "uav1 has no counterpart on platform2" in on_cars.reason
 
 
 def test_a_rule_from_an_extension_file_is_cited_with_its_file_and_line(scenario: Path) -> None:
@@ -315,3 +326,143 @@ def test_an_explanation_is_the_same_in_every_process() -> None:
         for seed in ("1", "2", "3")
     }
     assert len(outs) == 1 and "argument 2 is uas21" in next(iter(outs))
+
+
+# ---- a policy of one's own: explain reads only what the schema makes every policy derive -------
+
+
+def renamed_candidate(scenario: Path) -> Path:
+    """A replacing policy: the shipped rules, with `candidate` renamed `reading` (declared and
+    derived under its new name), so nothing derives the `candidate` explain walks."""
+    policy = scenario / "policy"
+    policy.mkdir()
+    for path in shipped_policy():
+        text = re.sub(r"\bcandidate\(", "reading(", path.read_text(encoding="utf-8"))
+        (policy / path.name).write_text(text, encoding="utf-8")
+    with (policy / "matching.dl").open("a", encoding="utf-8") as rules:
+        rules.write(".decl reading(Query, Platform, LocalFeature, Feature, Arg1, Arg2, Arg3)\n")
+    config = scenario / "renamed.toml"
+    files = ", ".join(f'"policy/{path.name}"' for path in shipped_policy())
+    config.write_text(
+        f"replace_rules = true\nrules = [{files}]\n"
+        + (scenario / "federation.toml").read_text(encoding="utf-8")
+    )
+    return config
+
+
+def test_a_policy_that_derives_no_candidate_is_refused_at_load(scenario: Path) -> None:
+    with pytest.raises(
+        DkError, match=r"schema\.dl:\d+: the rules derive no candidate/7, which dkreason asks for"
+    ):
+        KnowledgeManager.from_config(renamed_candidate(scenario))
+
+
+@pytest.mark.parametrize("command", ["explain", "match"])
+def test_a_policy_that_derives_no_candidate_is_one_error_line(
+    capsys: pytest.CaptureFixture[str], scenario: Path, command: str
+) -> None:
+    config = renamed_candidate(scenario)
+    code = main([command, "--config", str(config), "always (Position[uav1] > 0)"])
+    out = capsys.readouterr()
+    assert code == 2
+    (line,) = (out.out + out.err).splitlines()
+    assert re.fullmatch(r"error: \S*schema\.dl:\d+: the rules derive no candidate/7, .*", line)
+
+
+ODD_POLICIES = {
+    "relevant_topic from a fact": "relevant_topic(Q, P, 'topic3', 1, O1, 'odd', '', 3, '', '') "
+    "<= wanted(Q, _F, O1, '', '') & local(P)\n",
+    "a topic answered without relevant_topic": "match_result(Q, 'topic', P, 'topic3', 1, O1, "
+    "'', '', 3, '', '') <= wanted(Q, _F, O1, '', '') & local(P)\n",
+    "a matched topic without relevant_topic": "matched_topic(Q, P, 'topic1', 9, C1, C2, C3) "
+    "<= sound_candidate(Q, P, G, C1, C2, C3) & feature(P, G, _Arity)\n",
+}
+
+
+def with_rules(scenario: Path, rules: str) -> KnowledgeManager:
+    """The single-platform scenario with the shipped policy and these rules besides."""
+    (scenario / "odd.dl").write_text(rules, encoding="utf-8")
+    config = scenario / "single.toml"
+    config.write_text('rules = ["odd.dl"]\n' + config.read_text(encoding="utf-8"))
+    return KnowledgeManager.from_config(config)
+
+
+@pytest.mark.parametrize("rules", ODD_POLICIES.values(), ids=list(ODD_POLICIES))
+def test_a_policy_that_loads_is_explained_and_rendered_whatever_it_derives(
+    scenario: Path, rules: str
+) -> None:
+    km = with_rules(scenario, rules)
+    for topic in (None, "topic1", "topic3"):
+        e = km.explain("always (Speed[uav2] > 1)", topic=topic)
+        assert to_text(e) and to_dot(e) and json.dumps(to_json(e), ensure_ascii=False)
+
+
+def test_a_derivation_deeper_than_a_replay_goes_is_shown_as_the_answer_itself(
+    scenario: Path,
+) -> None:
+    steps = range(1, 50)
+    km = with_rules(
+        scenario,
+        ".decl step0(Query, Object)\n"
+        + "".join(f".decl step{i}(Query, Object)\n" for i in steps)
+        + "step0(Q, O) <= wanted(Q, _F, O, '', '')\n"
+        + "".join(f"step{i}(Q, O) <= step{i - 1}(Q, O)\n" for i in steps)
+        + "relevant_topic(Q, P, 'topic3', 1, O, '', '', 3, '', '') <= step49(Q, O) & local(P)\n",
+    )
+    (why,) = km.explain("always (Speed[uav2] > 1)", topic="topic3").features[0].why
+    assert why.proof.rule is None and why.proof.children == ()
+    assert why.proof.text == "relevant_topic(0, platform1, topic3, 1, uav2, –, –, 3, –, –)"
+    assert why.proof.source == "the policy answers it; no proof of at most 40 steps replays it"
+
+
+def test_a_relation_of_a_policy_s_own_is_not_read_as_the_shipped_one_of_that_name(
+    scenario: Path,
+) -> None:
+    """Explanations word `excluded` as an incompat bridge: not this policy's excluded/2."""
+    strict = (REPO / "tests" / "data" / "strict.dl").read_text(encoding="utf-8")
+    sound = "sound_candidate(Q, P, G, O1, O2, O3) <= candidate(Q, P, _F, G, O1, O2, O3)"
+    assert sound in strict
+    (scenario / "own.dl").write_text(
+        strict.replace(sound, f"{sound} & ~excluded(P, G)")
+        + ".decl excluded(Platform, Feature)\n"
+        + "excluded(P, F) <= local(P) & feature(P, F, 1)\n",
+        encoding="utf-8",
+    )
+    config = scenario / "own.toml"
+    config.write_text(
+        'replace_rules = true\nrules = ["rules/ontology.dl", "rules/signature.dl", '
+        '"rules/expansion.dl", "own.dl"]\n' + (scenario / "single.toml").read_text()
+    )
+    e = KnowledgeManager.from_config(config).explain("always (Speed[uav2] > 1)")
+    (why_not,) = e.features[0].why_not
+    assert why_not.reason == "Speed[uav2] rejected: excluded(platform1, Speed) holds"
+
+
+UNDECLARED_ANSWERS = {
+    "a topic no spec declares": "'nowhere', 1",
+    "a feature the topic does not have": "'topic3', 2",
+    "a topic feature of another arity": "'topic6', 1",
+}
+
+
+@pytest.mark.parametrize("command", ["explain", "match"])
+@pytest.mark.parametrize("answer", UNDECLARED_ANSWERS.values(), ids=list(UNDECLARED_ANSWERS))
+def test_a_policy_answering_with_no_declared_topic_feature_is_one_error_line(
+    capsys: pytest.CaptureFixture[str], scenario: Path, answer: str, command: str
+) -> None:
+    (scenario / "odd.dl").write_text(
+        f"relevant_topic(Q, P, {answer}, O1, '', '', 1, '', '') "
+        "<= wanted(Q, _F, O1, '', '') & local(P)\n",
+        encoding="utf-8",
+    )
+    config = scenario / "single.toml"
+    config.write_text('rules = ["odd.dl"]\n' + config.read_text(encoding="utf-8"))
+    code = main([command, "--config", str(config), "always (Speed[uav2] > 1)"])
+    out = capsys.readouterr()
+    assert code == 2
+    (line,) = (out.out + out.err).splitlines()
+    topic, k = (part.strip(" '") for part in answer.split(","))
+    assert line == (
+        f"error: the policy answers Speed[uav2] with feature {k} of topic {topic} on "
+        "platform1, which no topic specification there declares with 1 argument"
+    )

@@ -232,13 +232,9 @@ class KnowledgeBase:
         }
 
     def _warn(self) -> None:
-        # The platforms the policy searches besides the local one (rules/federation.dl's
-        # context); a policy of one's own that defines none is taken at its word.
-        joined = (
-            {str(r) for _, r in self.engine.query("context", self.local, None)}
-            if any(r.head.predicate == "context" for r in self.engine.rules)
-            else set(self.platforms)
-        )
+        # The platforms the policy searches besides the local one (context, which every
+        # policy derives: rules/schema.dl).
+        joined = {str(r) for _, r in self.engine.query("context", self.local, None)}
         self.warnings = [
             f"platform {name} is joined to {self.local} by no mapping file nor a "
             f"shared vocabulary: its topics are not used"

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .datalog import Value
-from .errors import MissingIdError, Span
+from .errors import DkError, MissingIdError, Span
 from .kb import KnowledgeBase
 from .model import GroundFeature
 from .names import local_name
@@ -57,6 +57,7 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
         objects = tuple(str(c[f"Arg{i}"]) for i in range(1, n + 1))
         platform, what = str(c["Platform"]), str(c["What"])
         if c["Answer"] == "topic":
+            _check_answer(kb, ground[q], platform, what, k)
             ids = tuple(c[f"Filter{i}"] for i in range(1, n + 1))
             matches.append(Match(q, platform, what, k, objects, ids))
         elif c["Answer"] == "rejected":
@@ -69,3 +70,16 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
                 Span(kb.platforms[platform].ontology.file),
             )
     return matches, rejected
+
+
+def _check_answer(kb: KnowledgeBase, g: GroundFeature, platform: str, topic: str, k: int) -> None:
+    """A topic answer names a feature a platform's topic carries, with g's arguments: a policy
+    of one's own may answer anything, and what follows (the request, explanations) reads it."""
+    owner = kb.platforms.get(platform)
+    spec = owner.resolved.get(topic) if owner else None
+    n = len(g.args)
+    if spec is None or not 0 < k <= len(spec.features) or len(spec.features[k - 1].args) != n:
+        raise DkError(
+            f"the policy answers {g.key} with feature {k} of topic {topic} on {platform}, which "
+            f"no topic specification there declares with {n} argument{'s' if n > 1 else ''}"
+        )

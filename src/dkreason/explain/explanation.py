@@ -1,0 +1,80 @@
+"""An explanation for a formula: per ground feature, why each matched topic was matched, and
+for a feature without topics (or a named topic that was not chosen) why not."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import DkError
+from ..kb import KnowledgeBase
+from ..match import Match, wanted_rows
+from ..model import GroundFeature
+from ..parse.formula import feature_key
+from .provenance import Reader
+from .replay import Replayer
+from .why import TopicWhy, topic_why
+from .whynot import TopicWhyNot, topic_why_not
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureExplanation:
+    """One ground feature: why each of its topics was matched, or why none (or the one named)
+    was."""
+
+    feature: str
+    why: tuple[TopicWhy, ...]
+    why_not: tuple[TopicWhyNot, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Explanation:
+    """What `dkreason explain` prints, as data: a formula and its ground features'."""
+
+    formula: str
+    features: tuple[FeatureExplanation, ...]
+
+
+def explain(
+    kb: KnowledgeBase,
+    formula: str,
+    ground: list[GroundFeature],
+    matches: list[Match],
+    feature: str | None = None,
+    topic: str | None = None,
+) -> Explanation:
+    """Why the `matches` of `formula`'s ground features hold (only `feature`'s, only `topic`'s
+    if given), and for a feature without them why not, computed on demand: `check_formula`
+    does not pay for it."""
+    selected = list(range(len(ground)))
+    if feature is not None:
+        wanted_key = feature_key(feature)
+        selected = [q for q, g in enumerate(ground) if g.key == wanted_key]
+        if not selected:
+            raise DkError(
+                f"{feature} is not a feature of the formula (its features: "
+                f"{', '.join(str(g.key) for g in ground)})"
+            )
+    if topic is not None and not any(topic in p.specs for p in kb.platforms.values()):
+        raise DkError(f"no topic {topic!r} on any platform")
+    reader = Reader(kb, ground)
+    replay = Replayer(kb, reader)
+    with kb.engine.given({"wanted": wanted_rows(ground)}):
+        features = []
+        for q in selected:
+            mine = [m for m in matches if m.query == q and topic in (None, m.topic)]
+            why = tuple(topic_why(kb, replay, m) for m in mine)
+            why_not: tuple[TopicWhyNot, ...] = ()
+            if not mine:
+                platforms = (
+                    [p for p, plat in kb.platforms.items() if topic in plat.specs]
+                    if topic
+                    else [
+                        str(reader.columns(r)["Remote"])
+                        for r in replay.rows(("context", kb.local, None))
+                    ]
+                )
+                why_not = tuple(
+                    w for p in platforms for w in topic_why_not(kb, replay, q, p, topic)
+                )
+            features.append(FeatureExplanation(str(ground[q].key), why, why_not))
+    return Explanation(formula, tuple(features))

@@ -1,0 +1,160 @@
+"""Why a topic was matched: the proof of its relevant_topic row, and its chains in one line
+each (the feature, each argument, the topic)."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from ..datalog import Row, Value
+from ..kb import KnowledgeBase
+from ..match import Match, padded
+from ..request import topic_match
+from .provenance import BRIDGE, Reader
+from .replay import MAX_DEPTH, Proof, Replayer
+
+
+@dataclass(frozen=True, slots=True)
+class TopicWhy:
+    """A matched topic: its id filter, its chains in one line each, and its proof."""
+
+    platform: str
+    topic: str
+    filter: tuple[tuple[str, Value], ...]
+    summary: tuple[str, ...]
+    proof: Proof
+
+
+def topic_why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
+    proof = _proof(replay, m)
+    entry = topic_match(kb, m)
+    return TopicWhy(
+        m.platform, m.topic, entry.filter if entry else (), _summary(replay.reader, proof), proof
+    )
+
+
+# A match no clause replays (a derivation deeper than a replay goes, say) is shown as the
+# policy's answer itself: a plainer explanation, not none.
+_UNREPLAYED = f"the policy answers it; no proof of at most {MAX_DEPTH} steps replays it"
+
+
+def _proof(replay: Replayer, m: Match) -> Proof:
+    """The proof of the relevant_topic row behind a match, padded as the shipped rules pad;
+    else of a relevant_topic or match_result row the match agrees with, however the policy
+    pads it; else the answer itself."""
+    fact: Row = (
+        "relevant_topic",
+        m.query,
+        m.platform,
+        m.topic,
+        m.feature_index,
+        *padded(m.objects),
+        *m.ids,
+        *("",) * (3 - len(m.ids)),
+    )
+    free = (None,) * (3 - len(m.objects))
+    found = (m.platform, m.topic, m.feature_index, *m.objects, *free, *m.ids, *free)
+    rows = (
+        row
+        for answer in (
+            ("relevant_topic", m.query, *found),
+            ("match_result", m.query, "topic", *found),
+        )
+        for row in replay.rows(answer)
+    )
+    proof = replay.prove(fact) or next(filter(None, map(replay.prove, rows)), None)
+    return proof or Proof(fact, replay.reader.text(fact), source=_UNREPLAYED)
+
+
+def _worded(reader: Reader, proof: Proof, relation: str) -> Iterator[tuple[Proof, dict[str, Any]]]:
+    """The proof's steps through a relation explanations word (WORDED), with their columns:
+    none where the policy declares that relation otherwise."""
+    for node in proof.find(relation):
+        c = reader.columns(node.fact)
+        if c:
+            yield node, c
+
+
+def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
+    """The proof's chains in one line each: feature, then each argument, then the topic."""
+    lines = []
+    for node, c in itertools.islice(_worded(reader, proof, "feature_candidate"), 1):
+        chain = _chain(
+            reader,
+            node,
+            str(c["LocalFeature"]),
+            str(c["Feature"]),
+            ("equivalent_class", "bridge", "subclass_of"),
+        )
+        lines.append(f"feature: {chain}")
+    seen = set()
+    for node, c in _worded(reader, proof, "arg_candidate"):
+        start, end = str(c["LocalObject"]), str(c["Object"])
+        if start == "" or (start, end) in seen:
+            continue
+        seen.add((start, end))
+        lines.append(f"object: {_chain(reader, node, start, end, ('same_as', 'bridge'))}")
+    # a topic argument that accepts an object, or (carries) a sort argument found through the
+    # object's sorts
+    for node, c in (*_worded(reader, proof, "accepts"), *_worded(reader, proof, "carries")):
+        args = [reader.columns(leaf.fact) for leaf in node.leaves() if leaf.fact[0] == "topic_arg"]
+        sorts = [arg["Entity"] for arg in args if arg["Kind"] in ("some", "every")]
+        for told in (leaf for leaf in node.leaves() if leaf.fact[0] == "class_type"):
+            if sorts:
+                chain = _chain(
+                    reader,
+                    node,
+                    str(reader.columns(told.fact)["Sort"]),
+                    str(sorts[0]),
+                    ("subclass_of", "equivalent_class"),
+                )
+                entailed = (
+                    f" [{told.source}]"
+                    if told.source and told.source.startswith("entailed")
+                    else ""
+                )
+                lines.append(
+                    f"argument {c['Position']} of {c['Topic']}: "
+                    f"{reader.name(c['Object'])} : {chain}{entailed}"
+                )
+    carried = (
+        f"topic: {leaf.text} [{leaf.source}]"
+        for leaf in proof.leaves()
+        if leaf.fact[0] == "topic_feature"
+    )
+    return tuple(lines) + tuple(dict.fromkeys(carried))
+
+
+def _chain(reader: Reader, node: Proof, start: str, end: str, kinds: tuple[str, ...]) -> str:
+    """`A ≡ B (where) ≡ C (where)`: the told links of a proof, in order from start to end."""
+    edges = []
+    for leaf in node.leaves():
+        pred, *a = leaf.fact
+        if (
+            pred in ("same_rep", "sort_rep")
+            and ("same_as" if pred == "same_rep" else "subclass_of") in kinds
+        ):
+            edges += reader.told_path(leaf.fact)  # a class's representative: the told links
+        if pred not in kinds:
+            continue
+        if pred == "bridge":
+            left, right, sym = str(a[1]), str(a[3]), BRIDGE.get(str(a[4]), "?")
+            where = f"bridge {a[0]}→{a[2]}, {leaf.source}"
+        else:
+            left, right = str(a[1]), str(a[2])
+            sym = {"equivalent_class": "≡", "same_as": "=", "subclass_of": "⊑"}[str(pred)]
+            where = f"{a[0]} axiom, {leaf.source.split(', ')[-1] if leaf.source else ''}"
+        edges.append((left, right, sym, where))
+    text, current = reader.name(start), start
+    while edges:
+        step = next((e for e in edges if current in (e[0], e[1])), None)
+        if step is None:
+            break
+        edges.remove(step)
+        current = step[1] if step[0] == current else step[0]
+        text += f" {step[2]} {reader.name(current)} ({step[3]})"
+    if current == start and start == end and not edges:
+        text += " (as the formula writes it)" if "bridge" in kinds else ""
+    return text
