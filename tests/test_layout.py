@@ -112,3 +112,16 @@ def test_the_cli_imports_only_the_facade_and_public_modules() -> None:
     reached = {m for name in cli for m, _, _ in _imports(name, MODULES[name])}
     assert "dkreason.manager" in reached
     assert not [m for m in reached if any(p.startswith("_") for p in m.split("."))]
+
+
+def test_the_command_line_is_declared_without_loading_an_engine() -> None:
+    """`dkreason --help` imports the parser and what it imports, nothing heavy: a command's
+    module (and with it the knowledge base, the readers, the progressor) loads when it runs."""
+    graph, seen, todo = _graph(), set(), ["dkreason.cli", "dkreason.cli.parser"]
+    while todo:
+        name = todo.pop()
+        if name not in seen:
+            seen.add(name)
+            todo += graph[name]
+    heavy = {"dkreason.manager", "dkreason.monitor", "dkreason.kb", "dkreason.parse.formula"}
+    assert not seen & heavy

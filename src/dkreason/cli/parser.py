@@ -11,7 +11,11 @@ from typing import Any, NoReturn
 from ..results import DEFAULT_DB, VERDICTS
 from ..stream.policy import APPROXIMATIONS, DEFAULT
 from . import args as a
-from .render import EXIT_STATUS
+
+EXIT_STATUS = (
+    "exit status: 0 every formula held, 1 one was violated, 2 bad input (one line "
+    "on stderr), 3 one stayed undecided"
+)
 
 
 class _Version(argparse.Action):

@@ -17,11 +17,6 @@ from ..model import StreamRequest
 from ..monitor import WORDS, Event
 from ..progress import Verdict
 
-EXIT_STATUS = (
-    "exit status: 0 every formula held, 1 one was violated, 2 bad input (one line "
-    "on stderr), 3 one stayed undecided"
-)
-
 
 def exit_status(verdicts: list[bool | None]) -> int:
     """0: every formula held; 1: one was violated; 3: none violated, one left unknown."""
