@@ -504,7 +504,7 @@ def _logging() -> None:
 
 
 def _session(args: argparse.Namespace) -> Any:
-    from .live.wire import open_session
+    from .live.session import open_session
 
     return open_session(args.connect, args.listen, args.zenoh_config)
 
@@ -521,8 +521,8 @@ def _interrupt(*_: object) -> None:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    from .live import wire
     from .live.serve import PlatformNode
+    from .live.signing import signer
     from .stream.sources import open_source
 
     _logging()
@@ -531,7 +531,7 @@ def _serve(args: argparse.Namespace) -> int:
     records = getattr(source, "records", None)
     if source is not None and records is None:
         raise DkError(f"{source.name}: a damaged recording cannot be replayed live")
-    sign = wire.signer(args.sign) if args.sign is not None else None
+    sign = signer(args.sign) if args.sign is not None else None
     session = _session(args)
     node = PlatformNode(km, session, args.heartbeat, sign)
     print(f"serving {km.local}: {len(km.list_topics())} topic specification(s)", flush=True)
@@ -643,21 +643,23 @@ def _monitor(args: argparse.Namespace) -> int:
 
 def _monitor_live(args: argparse.Namespace, policy: Any) -> int:
     from .live.monitor import LiveMonitor
-    from .live.wire import trusted_keys
+    from .live.signing import trusted_keys
+    from .manager import KnowledgeManager
 
     if args.source or args.plot is not None:
         raise DkError("--live takes no --source and no --plot")
     _logging()
     trust = trusted_keys(args.trust) if args.trust is not None else None
     formulas = _formulas(args)
+    km = KnowledgeManager.from_config(args.config, live=True)
     session = _session(args)
     try:
-        monitor = LiveMonitor(args.config, formulas, policy, session, args.wait, trust=trust)
+        monitor = LiveMonitor(km, formulas, policy, session, args.wait, trust=trust)
         _on_signals(lambda *_: monitor.stop.set())
         return _report(
             args,
             monitor.run(args.until, args.duration),
-            lambda: getattr(monitor, "processor", None),
+            lambda: monitor.processor,
             session,
             [f.text for f in monitor.formulas],
             ros2=False,
@@ -736,8 +738,9 @@ def _monitor_ros2(args: argparse.Namespace, policy: Any) -> int:
 
 
 def _reading(monitor: Any, key: Any) -> list[str]:
-    """The formulas (as written) of a running Monitor that read a feature."""
-    return [f.text for f in monitor.plan.formulas if key in f.keys]
+    """The formulas (as written) of a running Monitor that read a feature (none before it
+    runs)."""
+    return [f.text for f in monitor.plan.formulas if key in f.keys] if monitor is not None else []
 
 
 def _report(
@@ -752,8 +755,8 @@ def _report(
     reads: Any = None,
 ) -> int:
     """A live run's events printed (and published with --publish-verdicts) as they come."""
-    from .live.monitor import Change
-    from .live.ros2node import Announcer
+    from .live.change import Change
+    from .live.publish import Announcer
     from .progress import Verdict
 
     announce = (
