@@ -33,7 +33,7 @@ def node(folder: str, n: int, endpoint: str, until: float, arrived: Any) -> None
     """Platform n: serve, say when its token is out, publish at 20 Hz until `until`."""
     from dkreason import KnowledgeManager
     from dkreason.live.serve import PlatformNode
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
 
     km = KnowledgeManager.from_config(Path(folder) / f"p{n}.toml")
     session = open_session([endpoint], [])
@@ -48,8 +48,10 @@ def node(folder: str, n: int, endpoint: str, until: float, arrived: Any) -> None
 
 
 def run(nodes: int, every: float) -> dict[str, Any]:
-    from dkreason.live.monitor import Change, LiveMonitor
-    from dkreason.live.wire import open_session
+    from dkreason import KnowledgeManager
+    from dkreason.live.change import Change
+    from dkreason.live.monitor import LiveMonitor
+    from dkreason.live.session import open_session
     from dkreason.stream.policy import StreamPolicy
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -61,7 +63,7 @@ def run(nodes: int, every: float) -> dict[str, Any]:
         endpoint = f"tcp/127.0.0.1:{port}"
         session = open_session([], [endpoint])
         monitor = LiveMonitor(
-            folder / "monitor.toml",
+            KnowledgeManager.from_config(folder / "monitor.toml", live=True),
             ["forall s in Sensor: always (Reading[s] < 1000)"],
             StreamPolicy(max_age=Fraction(2)),
             session,

@@ -105,7 +105,7 @@ def publisher(
     session (and what is still queued in it) until `finished`."""
     from dkreason import KnowledgeManager
     from dkreason.live.serve import PlatformNode
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
 
     km = KnowledgeManager.from_config(Path(folder) / f"p{n}.toml")
     session = open_session([endpoint], [])
@@ -206,8 +206,9 @@ class Meter:
 
 
 def run(seconds: float, hz: float) -> dict[str, Any]:
+    from dkreason import KnowledgeManager
     from dkreason.live.monitor import LiveMonitor
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
     from dkreason.progress import Verdict
     from dkreason.stream.policy import StreamPolicy
 
@@ -220,7 +221,8 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
         endpoint = f"tcp/127.0.0.1:{port}"
         session = open_session([], [endpoint])
         policy = StreamPolicy(max_age=Fraction(1))
-        monitor = LiveMonitor(folder / "monitor.toml", FORMULAS, policy, session, wait=30)
+        km = KnowledgeManager.from_config(folder / "monitor.toml", live=True)
+        monitor = LiveMonitor(km, FORMULAS, policy, session, wait=30)
         fleet = Fleet(
             publisher,
             [(str(folder), n, endpoint) for n in range(1, PLATFORMS + 1)],
@@ -232,7 +234,7 @@ def run(seconds: float, hz: float) -> dict[str, Any]:
         verdict_at = None
         try:
             for event in monitor.run(duration=seconds + 60):
-                if meter.processor is None and hasattr(monitor, "processor"):
+                if meter.processor is None and monitor.processor is not None:
                     meter.attach(monitor.processor)
                 if isinstance(event, Verdict) and event.verdict is False:
                     verdict_at = time.time_ns()

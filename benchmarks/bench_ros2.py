@@ -64,7 +64,7 @@ def ros2_publisher(
     import struct
 
     from dkreason.live.ros2node import Ros2Node
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
 
     session = open_session([endpoint], [])
     node = Ros2Node(session, "sensors", f"/p{n}")
@@ -104,7 +104,7 @@ def ros2_publisher(
 def run_ros2(folder: Path, seconds: float, hz: float, delay: Fraction) -> dict[str, Any]:
     from dkreason import KnowledgeManager
     from dkreason.live.ros2 import Ros2Monitor
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
     from dkreason.progress import Verdict
     from dkreason.stream.policy import StreamPolicy
     from dkreason.stream.processor import Violation

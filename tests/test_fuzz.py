@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from dkreason.errors import DkError, Span
+from dkreason.errors import DkError, Span, WireError
 from dkreason.inputs.files import json_value
 from dkreason.live import wire
 from dkreason.parse.config import read_config
@@ -317,5 +317,5 @@ def test_the_strategies_reach_valid_input() -> None:
 
 def test_an_integer_past_64_bits_arrives_as_a_float_and_a_time_past_them_is_refused() -> None:
     assert wire.decode(b'{"x": 18446744073709551616}', 100, "p/t") == {"x": 2.0**64}
-    with pytest.raises(wire.WireError, match="integer nanoseconds"):
+    with pytest.raises(WireError, match="integer nanoseconds"):
         wire.topic_message(b'{"valid": 100000000000000000000, "msg": {}}', "p/t")

@@ -16,7 +16,7 @@ import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
-from dkreason.errors import ParseError
+from dkreason.errors import ParseError, WireError
 from dkreason.live import wire
 from dkreason.parse.formula import parse_formula
 from dkreason.parse.owl import parse_ontology
@@ -55,9 +55,9 @@ def rows(path: Path, lines: Sequence[str | bytes]) -> Path:
     ],
 )
 def test_a_bad_payload_is_a_wire_error(payload: bytes) -> None:
-    with pytest.raises(wire.WireError):
+    with pytest.raises(WireError):
         wire.topic_message(payload, "platform2/topic3")
-    with pytest.raises(wire.WireError):
+    with pytest.raises(WireError):
         wire.decode(payload, wire.MAX_KNOWLEDGE, "platform2's objects")
 
 

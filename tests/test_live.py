@@ -157,7 +157,7 @@ def heard(publisher: Any, timeout: float = 30.0) -> Any:
 def subscription_known(port: int, key: str) -> None:
     """Wait until a fresh session on the monitor's endpoint sees its subscription to `key`:
     the declaration has then reached the peers connected there."""
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
 
     probe = open_session([f"tcp/127.0.0.1:{port}"], [])
     try:
@@ -354,7 +354,7 @@ def test_monitor_trusts_only_its_platforms_and_survives_bad_payloads(
 ) -> None:
     import zenoh
 
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
 
     (tmp_path / "monitor.toml").write_text(
         'local = "platform1"\n[platforms.platform1]\n[platforms.platform9]\n'
@@ -658,7 +658,7 @@ class InProcess:
 
     def __init__(self, scenario: Path) -> None:
         from dkreason.live.monitor import LiveMonitor
-        from dkreason.live.wire import open_session
+        from dkreason.live.session import open_session
         from dkreason.stream.policy import StreamPolicy
 
         self.scenario = scenario
@@ -672,7 +672,7 @@ class InProcess:
         self.sessions = [open_session([], [self.endpoint])]
         self.nodes = [self.node(1), self.node(2)]
         self.monitor = LiveMonitor(
-            scenario / "monitor.toml",
+            KnowledgeManager.from_config(scenario / "monitor.toml", live=True),
             ["always (Speed[car3] > 60)"],
             StreamPolicy(),
             self.sessions[0],
@@ -681,7 +681,7 @@ class InProcess:
 
     def node(self, n: int) -> Any:
         from dkreason.live.serve import PlatformNode
-        from dkreason.live.wire import open_session
+        from dkreason.live.session import open_session
 
         config = self.scenario / f"p{n}.toml"
         config.write_text(
@@ -693,7 +693,7 @@ class InProcess:
 
     def run(self, steps: list[tuple[set[tuple[str, str, str, str]], Any]]) -> list[tuple[str, ...]]:
         """The monitor's changes, taking each step once the changes it waits for are seen."""
-        from dkreason.live.monitor import Change
+        from dkreason.live.change import Change
 
         changes: list[tuple[str, ...]] = []
         try:
@@ -780,7 +780,7 @@ def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path) -> 
     from cryptography.hazmat.primitives import serialization
     from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-    from dkreason.live.wire import open_session
+    from dkreason.live.session import open_session
 
     key = Ed25519PrivateKey.generate()
     (tmp_path / "p1.pem").write_bytes(
@@ -896,3 +896,120 @@ def test_a_full_inbox_holds_the_producer_then_refuses() -> None:
     threading.Timer(0.05, inbox.drain, [0]).start()
     assert inbox.put(4, timeout=60)  # room made by a drain wakes it
     assert inbox.drain(0) == [4]
+
+
+# ---- one run loop for both live monitors (no network) ----------------------------------------
+
+
+class ScriptedFeed:
+    """A live monitor's side of the loop, scripted: each event in its inbox is a sample of
+    Speed[car1] (stream time in s, value), and the stream clock is the newest sample's.  As
+    the federation's monitor does, it takes no sample past `end` (ns)."""
+
+    def __init__(
+        self,
+        processor: Any,
+        samples: list[tuple[int, float]],
+        over: bool = False,
+        end: int | None = None,
+    ) -> None:
+        self.inbox, self.stop, self.processor = Inbox(), threading.Event(), processor
+        self.newest: int | None = None
+        self.ended, self.end, self.closed, self.ticks = over, end, False, 0
+        for sample in samples:
+            self.inbox.put(sample)
+
+    def handle(self, event: tuple[int, float]) -> list[Any]:
+        t = event[0] * 10**9
+        if self.end is None or t <= self.end:
+            self.processor.put("platform1/topic3", t, t, (event[1], 1))
+        self.newest = t
+        return []
+
+    def now(self) -> int | None:
+        return self.newest
+
+    def watermark(self) -> int | None:
+        return self.newest
+
+    def idle(self) -> float:
+        return 0.0
+
+    def over(self) -> bool:
+        return self.ended and not self.inbox.items
+
+    def tick(self) -> None:
+        self.ticks += 1
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def _engine(formula: str) -> tuple[Any, Any]:
+    from dkreason.live.loop import LiveSource
+    from dkreason.monitor import Monitor
+    from dkreason.stream.policy import StreamPolicy
+
+    km = KnowledgeManager.from_config(REPO / "examples" / "federation.toml")
+    monitor = Monitor(km.plan([formula]), km.request, StreamPolicy())
+    return monitor, monitor.start(LiveSource())
+
+
+def test_the_loop_ends_once_the_stream_clock_passes_until() -> None:
+    from dkreason.live import loop
+    from dkreason.progress import Verdict
+
+    monitor, processor = _engine("always (Speed[car1] < 100)")
+    until = 5 * 10**9
+    feed = ScriptedFeed(processor, [(t, 50.0) for t in range(10)] + [(10, 150.0)], end=until)
+    events = list(loop.run(monitor, processor, feed, until, None))
+    # the samples up to 5 s judged, at the end; the bad one at 10 s never reached a state
+    assert [(e.verdict, e.time, e.at_end) for e in events if isinstance(e, Verdict)] == [
+        (True, 5, True)
+    ]
+    assert feed.closed and feed.ticks == 1  # one pass took every sample, the next ended
+
+
+def test_the_loop_ends_when_nothing_more_comes_or_when_stopped() -> None:
+    from dkreason.live import loop
+    from dkreason.progress import Verdict
+
+    monitor, processor = _engine("always (Speed[car1] < 100)")
+    feed = ScriptedFeed(processor, [(0, 50.0), (1, 150.0), (2, 50.0)], over=True)
+    (verdict,) = list(loop.run(monitor, processor, feed, None, None))
+    assert isinstance(verdict, Verdict) and (verdict.verdict, verdict.time) == (False, 1)
+
+    monitor, processor = _engine("always (Speed[car1] < 100)")
+    feed = ScriptedFeed(processor, [(0, 50.0)])
+    feed.stop.set()  # before any event is taken
+    (verdict,) = list(loop.run(monitor, processor, feed, None, None))
+    assert isinstance(verdict, Verdict) and verdict.verdict is None
+    assert feed.inbox.items and feed.closed
+
+
+# ---- the live monitor takes a knowledge manager; nothing is made while it runs -------------
+
+
+def test_a_live_knowledge_base_awaits_the_platforms_its_config_gives_no_files() -> None:
+    from dkreason.errors import ParseError
+
+    config = REPO / "examples" / "live" / "monitor.toml"
+    km = KnowledgeManager.from_config(config, live=True)
+    assert (km.local, km.platforms, len(km.kb.pending)) == ("platform1", [], 2)  # the
+    # mappings wait for both of their platforms
+    at_hand = KnowledgeManager.from_config(REPO / "examples" / "federation.toml", live=True)
+    assert at_hand.platforms == ["platform1", "platform2", "platform3"]
+    assert not any(at_hand.kb.is_online(p) for p in at_hand.platforms)  # until they appear
+    with pytest.raises(ParseError, match="has no ontology file"):
+        KnowledgeManager.from_config(config)
+
+
+def test_a_live_monitor_has_every_attribute_from_construction(scenario: Path) -> None:
+    """The engine and its stream processor are None until the local platform is there, and
+    a run adds no attribute (the CLI reads `monitor.processor` as it is)."""
+    fed = InProcess(scenario)
+    before = dict(vars(fed.monitor))
+    fed.run([(STARTED, fed.monitor.stop.set)])
+    assert before["monitor"] is None and before["processor"] is None
+    assert set(vars(fed.monitor)) == set(before)
+    assert fed.monitor.processor is not None

@@ -127,3 +127,26 @@ def test_the_installed_package_matches_and_monitors_from_another_directory(
     )
     assert monitored.returncode == 1, monitored.stderr  # car2's violation
     assert "300.02" in monitored.stdout
+
+
+def test_production_code_never_imports_the_simulators() -> None:
+    """dkreason.live.testing (ROS 2 robots replayed from a recording) is for tests, examples
+    and benchmarks only."""
+    import ast
+
+    src = REPO / "src" / "dkreason"
+    importers = []
+    for path in src.rglob("*.py"):
+        if path == src / "live" / "testing.py":
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = (
+                [a.name for a in node.names]
+                if isinstance(node, ast.Import)
+                else [f"{node.module}.{a.name}" for a in node.names]
+                if isinstance(node, ast.ImportFrom)
+                else []
+            )
+            if any("testing" in name.split(".") for name in names):
+                importers.append(path.relative_to(src).as_posix())
+    assert (src / "live" / "testing.py").is_file() and importers == []

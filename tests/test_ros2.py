@@ -2,9 +2,9 @@
 discovery, binding, decoding, and what a careless or hostile peer sends.
 
 Everything runs on loopback in this process (127.0.0.1, explicit endpoints); the publishers
-speak the wire formats from Python (dkreason.live.ros2node).  Tests that judge times run on sim
-time (/clock), which the test drives, so no verdict depends on the machine's speed; waits are
-bounds on failure only.
+speak the wire formats from Python (dkreason.live.ros2node, dkreason.live.testing).  Tests
+that judge times run on sim time (/clock), which the test drives, so no verdict depends on the
+machine's speed; waits are bounds on failure only.
 """
 
 from __future__ import annotations
@@ -25,12 +25,15 @@ from hypothesis import strategies as st
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
+from dkreason.errors import WireError
 from dkreason.live import rmw
-from dkreason.live.monitor import Change
+from dkreason.live.change import Change
+from dkreason.live.publish import Announcer
 from dkreason.live.record import Recorder
 from dkreason.live.ros2 import Ros2Monitor, decode, held
-from dkreason.live.ros2node import Announcer, Ros2Node, cdr_clock, replay
-from dkreason.live.wire import WireError, open_session
+from dkreason.live.ros2node import Ros2Node
+from dkreason.live.session import open_session
+from dkreason.live.testing import cdr_clock, replay
 from dkreason.monitor import Monitor
 from dkreason.progress import Verdict
 from dkreason.stream.policy import StreamPolicy
@@ -457,7 +460,7 @@ def test_a_late_publisher_is_subscribed_and_a_vanished_one_is_source_loss(
     pub.close()
     run.until(lambda: bool(run.changes("source_lost")), "source loss reported")
     lost = run.changes("source_lost")[0]
-    assert lost.feature == "X[me]" and lost.last_sample == 4 * S
+    assert lost.feature == "X[me]" and lost.last_sample == 4  # s, like every event time
     assert run.changes("unsubscribed")[0].topic == "pose"
     player.put(cdr_clock(7 * S))  # past the maximum age (1 s) of the last pose
     run.until(
@@ -895,6 +898,25 @@ def test_an_independent_rmw_zenoh_implementation_talks_with_dkreason_both_ways(
     assert json.loads(out.read_text())["verdict"] is False, log.read_text()[-2000:]
 
 
+def test_a_ros2_monitor_makes_no_attribute_while_running(robots: Path) -> None:
+    session = open_session([], [f"tcp/127.0.0.1:{free_port()}"])
+    try:
+        monitor = Ros2Monitor(
+            KnowledgeManager.from_config(robots / "robot1.toml"),
+            ["always (X[me] < 15)"],
+            StreamPolicy(),
+            session,
+            store=STORE,
+        )
+        before = set(vars(monitor))
+        monitor.stop.set()
+        (verdict,) = list(monitor.run())
+    finally:
+        session.close()
+    assert isinstance(verdict, Verdict) and verdict.verdict is None
+    assert set(vars(monitor)) == before
+
+
 def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
     robots: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -916,10 +938,10 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
         )
         pub = Ros2Node(publishing, "turtle", "/robot1").publisher("/robot1/pose", POSE)
         deadline = time.monotonic() + 30
-        while not monitor.events.items and time.monotonic() < deadline:
+        while not monitor.inbox.items and time.monotonic() < deadline:
             time.sleep(0.01)  # the publisher's token queues up: nobody takes it yet
-        for event in monitor.events.drain(0):
-            monitor._handle(event)  # what the loop does: the publisher is subscribed
+        for event in monitor.inbox.drain(0):
+            monitor.handle(event)  # what the loop does: the publisher is subscribed
         assert monitor.subs
         while not pub.publisher.matching_status.matching and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -927,7 +949,7 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
             pub.put(pose(STORE, (n + 1) * S, 1.0))
         while monitor.dropped < 15 and time.monotonic() < deadline:
             time.sleep(0.01)
-        assert len(monitor.events.items) == 5 and monitor.dropped == 15
+        assert len(monitor.inbox.items) == 5 and monitor.dropped == 15
         list(monitor.run(duration=1))  # takes the five, reports the fifteen, ends
         assert monitor.received == 5
         assert "15 samples or announcements dropped so far" in caplog.text

@@ -15,8 +15,8 @@ import threading
 from pathlib import Path
 
 from dkreason.errors import DkError
-from dkreason.live.ros2node import replay
-from dkreason.live.wire import open_session
+from dkreason.live.session import open_session
+from dkreason.live.testing import replay
 
 
 def main() -> int:

@@ -1,6 +1,7 @@
 """Errors a user's input can cause, each rendered as one line naming where it happened.
 
 DkError                    anything the CLI prints as one line and exits 2 on
+├── WireError              a peer on the network sent something malformed (dkreason.live)
 └── SourceError            carries a Span (file, line, column) of the offending text
     ├── ParseError         grammar or well-formedness failures (SSL_T, formulas, XML, RDF, TOML)
     ├── NameError_         unknown or ambiguous names (feature, sort, object, topic, platform)
@@ -41,6 +42,15 @@ def one_line(text: str) -> str:
 
 class DkError(Exception):
     """Base of every error caused by input; `str()` is the one line shown to the user."""
+
+
+class WireError(DkError):
+    """A peer sent something malformed: logged and dropped, never fatal.  `kind` (size, json,
+    token, cdr, signature, …) groups what is logged once per peer."""
+
+    def __init__(self, message: str, kind: str = "knowledge") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 class SourceError(DkError):

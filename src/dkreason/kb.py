@@ -250,26 +250,29 @@ class KnowledgeBase:
         ]
 
     @classmethod
-    def from_config(cls, path: Path) -> KnowledgeBase:
+    def from_config(cls, path: Path, live: bool = False) -> KnowledgeBase:
+        """`live`: for a live monitor, whose config may leave a platform's knowledge to the
+        network (no files): the platforms at hand, none online until it appears."""
         with gc_paused():
-            kb = cls._load(path)
+            kb = cls._load(path, live)
             # The load's heap lives as long as the knowledge base: set it aside, so no
             # collection during the first formulas walks it (parsing collected its garbage).
             gc.freeze()
         return kb
 
     @classmethod
-    def _load(cls, path: Path) -> KnowledgeBase:
+    def _load(cls, path: Path, live: bool) -> KnowledgeBase:
         config = read_config(path)
         at_hand = load_platforms(config)
         for files in config.platforms:
-            if files.name not in at_hand:
+            if files.name not in at_hand and not live:
                 raise ParseError(
                     f"[platforms.{files.name}] has no ontology file: its knowledge "
                     f"comes from the network (dkreason monitor --live)",
                     Span(str(path)),
                 )
-        return cls(config.local, at_hand, load_mappings(config), config.rules, config)
+        online = set[str]() if live else None
+        return cls(config.local, at_hand, load_mappings(config), config.rules, config, online)
 
     # ---- specs -------------------------------------------------------------------------
 

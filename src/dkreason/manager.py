@@ -26,8 +26,9 @@ class KnowledgeManager:
         self.kb = kb
 
     @classmethod
-    def from_config(cls, path: str | Path) -> KnowledgeManager:
-        return cls(KnowledgeBase.from_config(Path(path)))
+    def from_config(cls, path: str | Path, live: bool = False) -> KnowledgeManager:
+        """`live`: the knowledge at hand for a live monitor (KnowledgeBase.from_config)."""
+        return cls(KnowledgeBase.from_config(Path(path), live))
 
     @property
     def local(self) -> str:

@@ -12,12 +12,14 @@ from fractions import Fraction
 from typing import Any
 
 from ..errors import DkError
-from ..live import wire
-from ..live.monitor import Change, LiveMonitor
+from ..live.change import Change
+from ..live.monitor import LiveMonitor
+from ..live.publish import Announcer
 from ..live.record import Recorder
 from ..live.ros2 import Ros2Monitor
-from ..live.ros2node import Announcer
 from ..live.serve import PlatformNode
+from ..live.session import open_session
+from ..live.signing import signer, trusted_keys
 from ..manager import KnowledgeManager
 from ..monitor import Monitor
 from ..progress import Verdict
@@ -35,16 +37,17 @@ def monitor_live(args: argparse.Namespace, policy: StreamPolicy) -> int:
     if args.source or args.plot is not None:
         raise DkError("--live takes no --source and no --plot")
     _logging()
-    trust = wire.trusted_keys(args.trust) if args.trust is not None else None
+    trust = trusted_keys(args.trust) if args.trust is not None else None
     formulas = read_formulas(args)
+    km = KnowledgeManager.from_config(args.config, live=True)  # read before the session opens
     session = _session(args)
     try:
-        monitor = LiveMonitor(args.config, formulas, policy, session, args.wait, trust=trust)
+        monitor = LiveMonitor(km, formulas, policy, session, args.wait, trust=trust)
         _on_signals(lambda *_: monitor.stop.set())
         return _report(
             args,
             monitor.run(args.until, args.duration),
-            lambda: getattr(monitor, "processor", None),
+            lambda: monitor.processor,
             session,
             [f.text for f in monitor.formulas],
             ros2=False,
@@ -109,9 +112,10 @@ def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
         session.close()
 
 
-def _reading(monitor: Monitor, key: Any) -> list[str]:
-    """The formulas (as written) of a running Monitor that read a feature."""
-    return [f.text for f in monitor.plan.formulas if key in f.keys]
+def _reading(monitor: Monitor | None, key: Any) -> list[str]:
+    """The formulas (as written) of a running Monitor that read a feature (none before it
+    runs)."""
+    return [f.text for f in monitor.plan.formulas if key in f.keys] if monitor is not None else []
 
 
 def _report(
@@ -164,7 +168,7 @@ def serve(args: argparse.Namespace) -> int:
     records = getattr(source, "records", None)
     if source is not None and records is None:
         raise DkError(f"{source.name}: a damaged recording cannot be replayed live")
-    sign = wire.signer(args.sign) if args.sign is not None else None
+    sign = signer(args.sign) if args.sign is not None else None
     session = _session(args)
     node = PlatformNode(km, session, args.heartbeat, sign)
     print(f"serving {km.local}: {len(km.list_topics())} topic specification(s)", flush=True)
@@ -191,7 +195,7 @@ def _logging() -> None:
 
 
 def _session(args: argparse.Namespace) -> Any:
-    return wire.open_session(args.connect, args.listen, args.zenoh_config)
+    return open_session(args.connect, args.listen, args.zenoh_config)
 
 
 def _on_signals(handler: Any) -> None:

@@ -15,8 +15,8 @@ platforms running at different paces are never late for each other.  A topic jus
 holds the others back until its first tick, for at most `HOLD` seconds.
 
 Trust: knowledge and samples are taken only from the platforms in the config; anything else
-seen is logged once.  Payloads are bounded and checked (wire.py); a bad one is logged and
-dropped.
+seen is logged once.  Payloads are bounded and checked (wire.py), signatures too when the
+platform must sign (signing.py); a bad one is logged and dropped.
 """
 
 from __future__ import annotations
@@ -24,151 +24,54 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from ..errors import DkError
-from ..kb import (
-    KnowledgeBase,
-    Platform,
-    load_mappings,
-    load_platforms,
-    make_platform,
-    with_object,
-)
+from ..errors import DkError, WireError
+from ..kb import Platform, make_platform, with_object
 from ..manager import KnowledgeManager
 from ..model import FeatureKey, StreamRequest
 from ..monitor import Monitor
-from ..parse.config import read_config
-from ..plan import parse
-from ..progress import Verdict
+from ..plan import Parsed, parse
 from ..stream.policy import StreamPolicy
-from ..stream.processor import Violation
-from ..stream.sources import Message, Wanted, dict_reader
-from ..stream.units import NS, seconds
-from . import wire
+from ..stream.processor import StreamProcessor
+from ..stream.sources import dict_reader
+from ..stream.units import NS
+from . import loop, wire
+from .change import Event, change
 from .inbox import Inbox
+from .signing import verify
 
 log = logging.getLogger("dkreason.live")
 HOLD = 1.0  # wall seconds a new subscription may hold back states before its first tick
 
 
-@dataclass(frozen=True, slots=True)
-class Change:
-    """Something the federation did: joined, left, subscribed, unsubscribed, source_lost."""
-
-    event: str
-    time: int | None  # ns on the stream clock; None before any platform's clock
-    platform: str
-    detail: str = ""
-    feature: str = ""
-    topic: str = ""
-    last_sample: int | None = None  # source_lost: ns valid time of the feature's newest sample
-
-    def to_json(self) -> dict[str, Any]:
-        out = {
-            "event": self.event,
-            "time": None if self.time is None else seconds(self.time),
-            "platform": self.platform,
-        }
-        out |= {
-            k: v
-            for k, v in (("feature", self.feature), ("topic", self.topic), ("detail", self.detail))
-            if v
-        }
-        if self.last_sample is not None:
-            out["last_sample"] = seconds(self.last_sample)
-        return out
-
-    def __str__(self) -> str:
-        when = "before start" if self.time is None else f"at {_shown(self.time)}"
-        what = {
-            "joined": f"platform {self.platform} joined",
-            "left": f"platform {self.platform} left",
-            "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
-            "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
-            "source_lost": f"source lost: {self.feature} has no topic left",
-        }[self.event]
-        if self.last_sample is not None:
-            what += f"; its last sample is from {_shown(self.last_sample)}"
-        return f"{when}: {what}" + (f" ({self.detail})" if self.detail else "")
-
-
-Event = Verdict | Violation | Change
-
-
-def _shown(t: int) -> str:
-    """A stream time (ns) for people: seconds, or on an epoch clock (a live robot's wall
-    clock) the UTC time, which says more than ten digits."""
-    if t < 10**18:
-        return f"{seconds(t)} s"
-    import datetime
-
-    return (
-        datetime.datetime.fromtimestamp(t / 10**9, datetime.UTC)
-        .isoformat(timespec="milliseconds")
-        .replace("+00:00", "Z")
-    )
-
-
-class _Live:
-    """The stream processor's view of the network: nothing known before messages come."""
-
-    name = "<live>"
-
-    def types(self) -> dict[str, str]:
-        return {}
-
-    def check_field(self, topic: str, field: str) -> str | None:
-        return None
-
-    def last_record(self) -> int | None:
-        return None
-
-    def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
-        return None
-
-    def messages(self, wanted: Wanted) -> Iterator[Message]:
-        return iter(())
-
-    def count(self, topics: set[str] | None) -> int | None:
-        return None
-
-    def close(self) -> None:
-        pass
-
-
-def _logged(n: int) -> bool:
-    """1, 10, 100, 1000…: how often a repeated warning is worth a line."""
-    return n == 1 or (n % 10 == 0 and _logged(n // 10))
-
-
 class LiveMonitor:
     def __init__(
         self,
-        config: Path,
-        formulas: list[str],
+        km: KnowledgeManager,
+        formulas: Sequence[str | Parsed],
         policy: StreamPolicy,
         session: Any,
         wait: float = 10.0,
         ask_timeout: float = 3.0,
         trust: dict[str, Any] | None = None,
     ) -> None:
-        """`trust`: platform → Ed25519 public key (wire.trusted_keys); the samples of those
+        """`km`: the knowledge at hand (`KnowledgeManager.from_config(path, live=True)`: the
+        platforms whose files the config names, none online); the others' is asked of their
+        nodes as they appear.  The platforms its config names are the only ones trusted.
+        `trust`: platform → Ed25519 public key (signing.trusted_keys); the samples of those
         platforms must be signed by it."""
         self.formulas = parse(formulas)  # a typo is reported at once, not after the wait
-        self.config = read_config(config)
-        self.policy, self.session = policy, session
+        self.km, self.policy, self.session = km, policy, session
         self.wait, self.ask_timeout = wait, ask_timeout
         self.trust = trust or {}
-        self.names = {p.name for p in self.config.platforms}
-        self.known = load_platforms(self.config)  # knowledge at hand, before the KB exists
+        config = km.kb.config
+        self.names = {p.name for p in config.platforms} if config else set(km.kb.platforms)
         self.digests: dict[str, str] = {}  # of the ontology each platform served
-        self.mappings = load_mappings(self.config)
-        self.events = Inbox()
+        self.inbox = Inbox()
         self.present: set[str] = set()
         self.clocks: dict[tuple[str, str], int] = {}  # (platform, topic) → sent up to
         self.ended: dict[tuple[str, str], int] = {}  # (platform, topic) → its replay's end
@@ -176,9 +79,13 @@ class LiveMonitor:
         self.seen_strangers: set[str] = set()  # the first few, named in the log
         self.strangers = 0
         self.rejected: dict[tuple[str, str, str], int] = {}
-        self.kb: KnowledgeBase | None = None
         self.subs: dict[tuple[str, str], Any] = {}  # (platform, topic) → subscriber
         self.topics: dict[FeatureKey, set[tuple[str, str]]] = {}  # → its (platform, topic)s
+        # the engine, once the local platform's knowledge is there to plan the formulas on
+        self.monitor: Monitor | None = None
+        self.processor: StreamProcessor | None = None
+        self.source = loop.LiveSource()
+        self.read = dict_reader(self.source.name, {})  # a message's wanted fields
         self.end: int | None = None  # ns: samples after it are not taken
         self.received = 0  # samples taken
         self.stop = threading.Event()
@@ -191,7 +98,7 @@ class LiveMonitor:
             self.declared.append(
                 session.declare_subscriber(
                     wire.key(p, "changed"),
-                    lambda s, p=p: self.events.put(("changed", p, s.payload.to_bytes())),
+                    lambda s, p=p: self.inbox.put(("changed", p, s.payload.to_bytes())),
                 )
             )
 
@@ -201,7 +108,7 @@ class LiveMonitor:
         import zenoh
 
         p = wire.platform_of(str(sample.key_expr))
-        self.events.put(("alive", p, sample.kind == zenoh.SampleKind.PUT))
+        self.inbox.put(("alive", p, sample.kind == zenoh.SampleKind.PUT))
 
     # ---- knowledge ---------------------------------------------------------------------
 
@@ -209,7 +116,7 @@ class LiveMonitor:
         for reply in self.session.get(wire.key(p, what), timeout=self.ask_timeout):
             if reply.ok is not None:
                 return wire.decode(reply.ok.payload.to_bytes(), wire.MAX_KNOWLEDGE, f"{p}'s {what}")
-        raise wire.WireError(f"{p} did not answer the query for its {what}")
+        raise WireError(f"{p} did not answer the query for its {what}")
 
     def _ontology(self, p: str) -> dict[str, str]:
         ont = self._ask(p, "ontology")
@@ -218,7 +125,7 @@ class LiveMonitor:
             or not isinstance(ont.get("turtle"), str)
             or not isinstance(ont.get("file"), str)
         ):
-            raise wire.WireError(f'{p}\'s ontology: expected {{"file": …, "turtle": …}}')
+            raise WireError(f'{p}\'s ontology: expected {{"file": …, "turtle": …}}')
         return {"file": ont["file"], "text": ont["turtle"], "digest": str(ont.get("digest"))}
 
     def _fetch(self, p: str, ont: dict[str, str] | None = None) -> Platform:
@@ -241,7 +148,7 @@ class LiveMonitor:
     def _specs_text(self, p: str) -> str:
         specs = self._ask(p, "specs")
         if not isinstance(specs, dict) or not isinstance(specs.get("sslt"), str):
-            raise wire.WireError(f'{p}\'s specs: expected {{"sslt": …}}')
+            raise WireError(f'{p}\'s specs: expected {{"sslt": …}}')
         return str(specs["sslt"])
 
     def _objects(self, p: str) -> list[tuple[str, str, Any]]:
@@ -251,7 +158,7 @@ class LiveMonitor:
             sorts = info.get("sorts") if isinstance(info, dict) else None
             id_ = info.get("id") if isinstance(info, dict) else None
             if not isinstance(sorts, list) or not isinstance(id_, (int, str, type(None))):
-                raise wire.WireError(f"{p}'s objects: {iri!r} needs sorts and an id")
+                raise WireError(f"{p}'s objects: {iri!r} needs sorts and an id")
             out += [(iri, str(s), id_) for s in sorts]
         return out
 
@@ -259,14 +166,14 @@ class LiveMonitor:
         """A known platform's specs and objects, asked again and applied as changes."""
         from ..parse.sslt import parse_text
 
-        assert self.kb is not None
+        kb = self.km.kb
         specs = parse_text(self._specs_text(p), wire.key(p, "specs")).specs
         objects = self._objects(p)
-        added, removed = self.kb.replace_specs(p, list(specs))
-        types = set(self.kb.platform(p).ontology.types)
+        added, removed = kb.replace_specs(p, list(specs))
+        types = set(kb.platform(p).ontology.types)
         new = [(iri, sort, id_) for iri, sort, id_ in objects if (iri, sort) not in types]
         for iri, sort, id_ in new:
-            self.kb.add_object(p, f"<{iri}>", f"<{sort}>", id_)
+            kb.add_object(p, f"<{iri}>", f"<{sort}>", id_)
         if added or removed or new:
             log.info(
                 "%s changed: specs added %s, removed %s; %d new object types",
@@ -279,49 +186,44 @@ class LiveMonitor:
     # ---- the loop ----------------------------------------------------------------------
 
     def run(self, until: Fraction | None = None, duration: float | None = None) -> Iterator[Event]:
-        """Events as they happen, until every formula is decided, the stream clock passes
-        `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts."""
+        """Events as they happen, from the platforms joining before the local one is there,
+        until every formula is decided, the stream clock passes `until` (s), `duration` (wall
+        s, from the start) is over, every replay has ended, or `stop` is set; then the end
+        verdicts."""
         yield from self._gather()
-        assert self.kb is not None
-        self.km = KnowledgeManager(self.kb)
         monitor = self.monitor = Monitor(self.km.plan(self.formulas), self.km.request, self.policy)
-        self.source = _Live()
-        self.processor = monitor.start(self.source)
-        self.read = dict_reader(self.source.name, self.processor.wanted)
+        processor = self.processor = monitor.start(self.source)
+        self.read = dict_reader(self.source.name, processor.wanted)
         yield from self._subscribe(monitor.request, None, "")
         yield from monitor.events()
-        end = self.end = None if until is None else int(until * NS)
-        stop_at = None if duration is None else time.monotonic() + duration
-        try:
-            while not self.stop.is_set() and not monitor.done:
-                if stop_at is not None and time.monotonic() >= stop_at:
-                    break
-                if self._replays_over():
-                    break  # the stream ends, as a recording does
-                mark = self.watermark()
-                if end is not None and mark is not None and mark > end:
-                    break
-                batch = self.events.drain(0.1)
-                if not batch:
-                    continue
-                for event in batch:
-                    yield from self._handle(event)
-                mark = self.watermark()
-                if mark is not None:
-                    self.processor.advance(mark if end is None else min(mark, end))
-                yield from monitor.events()
-        finally:
-            self.close()
-        yield from monitor.finish()
+        self.end = None if until is None else int(until * NS)
+        yield from loop.run(monitor, processor, self, self.end, duration)
 
-    def _replays_over(self) -> bool:
-        """Every subscribed topic's replay has ended: nothing more will come."""
-        return bool(self.subs) and all(pt in self.ended for pt in self.subs)
+    def _gather(self) -> Iterator[Event]:
+        """Wait up to `wait` s for the local platform's knowledge (formulas are written in its
+        words); others join as they come."""
+        local, platforms = self.km.local, self.km.kb.platforms
+        deadline = time.monotonic() + self.wait
+        while local not in platforms:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise DkError(
+                    f"the local platform {local} did not appear within {self.wait:g} s "
+                    f"(is `dkreason serve` running for it, on a reachable endpoint?)"
+                )
+            for event in self.inbox.drain(min(left, 0.1), most=1):  # the rest waits for run
+                yield from self.handle(event)
+
+    # ---- what the loop asks (loop.Feed) ------------------------------------------------
+
+    def now(self) -> int | None:
+        """The stream clock: up to when every subscribed topic has been sent."""
+        return self.watermark()
 
     def watermark(self) -> int | None:
         """Up to when every subscribed topic has been sent (None: not known yet)."""
         clocks = []
-        if self._replays_over():
+        if self.over():
             return max(self.ended.values())
         for pt in self.subs:
             if pt in self.ended:  # nothing follows: it holds nobody back
@@ -332,32 +234,17 @@ class LiveMonitor:
                 return None
         return min(clocks) if clocks else None
 
-    def _gather(self) -> Iterator[Event]:
-        """Wait up to `wait` s for the local platform's knowledge (formulas are written in its
-        words), then build the knowledge base from what is at hand; others join as they come."""
-        local = self.config.local
-        deadline = time.monotonic() + self.wait
-        while local not in self.known:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                break
-            for event in self.events.drain(min(left, 0.1), most=1):  # the rest waits for run
-                yield from self._handle(event)
-        if local not in self.known:
-            raise DkError(
-                f"the local platform {local} did not appear within {self.wait:g} s "
-                f"(is `dkreason serve` running for it, on a reachable endpoint?)"
-            )
-        self.kb = KnowledgeBase(
-            local,
-            dict(self.known),
-            self.mappings,
-            self.config.rules,
-            self.config,
-            online=self.present & set(self.known),
-        )
+    def idle(self) -> float:
+        return 0.1  # states wait for the platforms' clock ticks, not for the wall clock
 
-    def _handle(self, event: tuple[Any, ...]) -> list[Event]:
+    def over(self) -> bool:
+        """Every subscribed topic's replay has ended: nothing more will come."""
+        return bool(self.subs) and all(pt in self.ended for pt in self.subs)
+
+    def tick(self) -> None:
+        pass  # time is the platforms': nothing happens between their events
+
+    def handle(self, event: tuple[Any, ...]) -> list[Event]:
         kind, p = event[0], event[1]
         if p not in self.names:
             self._stranger(p)
@@ -391,7 +278,7 @@ class LiveMonitor:
                 if len(self.seen_strangers) < 10
                 else " (further unknown platforms are counted, not named)",
             )
-        elif _logged(self.strangers) and self.strangers >= 100:
+        elif loop.logged(self.strangers) and self.strangers >= 100:
             log.warning(
                 "ignored %d announcements or samples of platforms outside the config",
                 self.strangers,
@@ -400,7 +287,7 @@ class LiveMonitor:
     def _reject(self, p: str, what: str, why: str, kind: str = "knowledge") -> None:
         """Logged once per peer and kind of fault, then at 10, 100, 1000… rejections."""
         n = self.rejected[(p, what, kind)] = self.rejected.get((p, what, kind), 0) + 1
-        if _logged(n):
+        if loop.logged(n):
             log.warning("rejected %s from %s (%s, %d so far): %s", what, p, kind, n, why)
 
     def _sample(
@@ -411,7 +298,7 @@ class LiveMonitor:
         if p not in self.present or pt not in self.subs:
             return  # in flight when its subscription was dropped
         if p in self.trust:
-            wire.verify(self.trust[p], wire.key(p, "topic", topic), payload, signature)
+            verify(self.trust[p], wire.key(p, "topic", topic), payload, signature)
         available, valid, msg = wire.topic_message(payload, name)
         if msg is wire.END:
             self.ended[pt] = available
@@ -419,11 +306,13 @@ class LiveMonitor:
             try:
                 values = self.read(name, valid, msg)
             except DkError as exc:
-                raise wire.WireError(str(exc), "field") from None
+                raise WireError(str(exc), "field") from None
+            processor = self.processor
+            assert processor is not None  # a subscription exists once it has started
             try:
-                self.processor.put(name, available, valid, values)
+                processor.put(name, available, valid, values)
             except DkError as exc:
-                raise wire.WireError(str(exc), "value") from None
+                raise WireError(str(exc), "value") from None
             self.received += 1
         sent = self.clocks.get(pt)
         if sent is None or available > sent:
@@ -432,34 +321,30 @@ class LiveMonitor:
     def _alive(self, p: str) -> list[Event]:
         if p in self.present:
             return []
-        if p not in self.known:
+        kb = self.km.kb
+        if p not in kb.platforms:
             try:
-                self.known[p] = self._fetch(p)
+                kb.add_platform(self._fetch(p))  # online
             except DkError as exc:
                 self._reject(p, "knowledge", str(exc))
                 return []
-        self.present.add(p)
-        changes: list[Event] = [Change("joined", self.watermark(), p)]
-        if self.kb is None:
-            return changes
-        if p not in self.kb.platforms:
-            self.kb.add_platform(self.known[p])
         else:
             try:
                 self._refresh(p)
             except DkError as exc:
                 self._reject(p, "knowledge", str(exc))
-            self.kb.set_online(p, True)
-        return changes + self._rematch(p, f"platform {p} joined")
+            kb.set_online(p, True)
+        self.present.add(p)
+        return [change("joined", self.watermark(), p), *self._rematch(p, f"platform {p} joined")]
 
     def _refresh(self, p: str) -> None:
         """A platform back again: a new ontology replaces what was known of it; otherwise
         only the differences in specs and objects are applied."""
-        assert self.kb is not None
+        kb = self.km.kb
         before = self.digests.get(p)
         ont = self._ontology(p) if before is not None else None
         if ont is not None and ont["digest"] != before:
-            if p == self.config.local:
+            if p == self.km.local:
                 self.digests[p] = ont["digest"]
                 log.warning(
                     "%s came back with another ontology; the formulas keep the one "
@@ -469,38 +354,37 @@ class LiveMonitor:
             else:
                 log.info("%s came back with another ontology: its knowledge is replaced", p)
                 fresh = self._fetch(p, ont)
-                self.kb.remove_platform(p)
-                self.kb.add_platform(fresh)
-                self.known[p] = fresh
+                kb.remove_platform(p)
+                kb.add_platform(fresh)
                 return
         self._update(p)
 
     def _left(self, p: str) -> list[Event]:
         if p not in self.present:
             return []
-        changes: list[Event] = [Change("left", self.watermark(), p)]
+        changes: list[Event] = [change("left", self.watermark(), p)]
         self.present.discard(p)
-        if self.kb is None:
-            return changes
-        self.kb.set_online(p, False)
+        self.km.kb.set_online(p, False)
         return changes + self._rematch(p, f"platform {p} went away")
 
     def _changed(self, p: str) -> list[Event]:
-        if self.kb is None:
-            self.known[p] = self._fetch(p)
-            return []
         self._update(p)
         return self._rematch(p, f"platform {p} changed its topics")
 
     # ---- subscriptions -----------------------------------------------------------------
 
     def _rematch(self, p: str, why: str) -> list[Event]:
-        """The formulas' features (expanded at start) matched again; subscriptions follow."""
+        """The formulas' features (expanded at start) matched again; subscriptions follow.
+        Before the start, the first match subscribes."""
+        if self.monitor is None or self.processor is None:
+            return []
         request = self.monitor.rematch(self.source)
         self.read = dict_reader(self.source.name, self.processor.wanted)
         return self._subscribe(request, p, why)
 
     def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
+        processor = self.processor
+        assert processor is not None  # called once started
         now = self.watermark()
         before = self.topics
         self.topics = {
@@ -513,7 +397,7 @@ class LiveMonitor:
                 self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
                     wire.key(q, "topic", t),
-                    lambda s, q=q, t=t, name=f"{q}/{t}": self.events.put(
+                    lambda s, q=q, t=t, name=f"{q}/{t}": self.inbox.put(
                         (
                             "sample",
                             q,
@@ -524,21 +408,21 @@ class LiveMonitor:
                         )
                     ),
                 )
-                changes.append(Change("subscribed", now, q, feature=str(key), topic=t))
+                changes.append(change("subscribed", now, q, feature=str(key), topic=t))
         for q, t in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()
             self.clocks.pop((q, t), None)
-            changes.append(Change("unsubscribed", now, q, why, topic=t))
+            changes.append(change("unsubscribed", now, q, why, topic=t))
         for key, pts in before.items():
             if pts and not self.topics.get(key):
                 changes.append(
-                    Change(
+                    change(
                         "source_lost",
                         now,
                         p or "",
                         why,
                         feature=str(key),
-                        last_sample=self.processor.newest(key),
+                        last_sample=processor.newest(key),
                     )
                 )
         return changes

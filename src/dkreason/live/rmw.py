@@ -25,8 +25,10 @@ import re
 import struct
 from dataclasses import dataclass
 
-from .wire import WireError
+from ..errors import WireError
 
+CLOCK = "/clock"  # sim time (`use_sim_time`), as `ros2 bag play --clock` publishes it
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 ADMIN = "@ros2_lv"
 TOKENS = f"{ADMIN}/**"
 MAX_TOKEN = 4096  # characters of one token's key expression

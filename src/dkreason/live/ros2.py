@@ -26,12 +26,12 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
 
-from ..errors import DkError
+from ..errors import DkError, WireError
 from ..manager import KnowledgeManager
 from ..model import FeatureKey, TopicMatch
 from ..monitor import Monitor
@@ -41,12 +41,12 @@ from ..stream.binding import message_type_fits, recording_names
 from ..stream.policy import StreamPolicy
 from ..stream.typestore import ros_reader
 from ..stream.units import NS
-from . import rmw
+from . import loop, rmw
+from .change import Event, change
 from .inbox import Inbox
-from .monitor import Change, Event, _Live, _logged
 from .record import Recorder, RecordError
-from .ros2node import CLOCK, CLOCK_TYPE
-from .wire import WireError, direct
+from .rmw import CLOCK, CLOCK_TYPE
+from .session import direct
 
 log = logging.getLogger("dkreason.ros2")
 MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
@@ -125,7 +125,7 @@ class Ros2Monitor:
         self.remap = dict(remap or {})
         self.recorder = recorder
         self.monitor = Monitor(km.plan(formulas), km.request, policy, keep_states=keep_states)
-        self.processor = self.monitor.start(_Live())
+        self.processor = self.monitor.start(loop.LiveSource())
         request = self.monitor.request
         namespaces = dict(request.namespaces)
         self.wants: dict[str, list[tuple[FeatureKey, TopicMatch]]] = {}
@@ -133,7 +133,7 @@ class Ros2Monitor:
             for m in f.topics:
                 for name in recording_names(m, request.local, namespaces.get(m.platform)):
                     self.wants.setdefault(name, []).append((f.feature.key, m))
-        self.events = Inbox(QUEUED)
+        self.inbox = Inbox(QUEUED)
         self.dropped = 0  # samples the queue had no room for within PUT_WAIT (zenoh threads)
         self.told = 0  # of those, reported
         self.seen: dict[str, rmw.Publisher] = {}  # token → every publisher discovered
@@ -145,6 +145,7 @@ class Ros2Monitor:
         self.clock: int | None = None  # sim time: the latest /clock
         self.labelled = False  # the robots' attachments are in Jazzy's first layout
         self.received = 0
+        self.report_at: float | None = None  # monotonic s: name the features nothing feeds
         self.stop = threading.Event()
         self.declared = [
             session.liveliness().declare_subscriber(
@@ -175,7 +176,7 @@ class Ros2Monitor:
         """Memory stays bounded: a full queue holds zenoh's thread back (and so the link and
         a blocking publisher) for up to PUT_WAIT s; only then is the event dropped, and
         counted."""
-        if not self.events.put(event, timeout=PUT_WAIT):
+        if not self.inbox.put(event, timeout=PUT_WAIT):
             self.dropped += 1
 
     # ---- the loop ----------------------------------------------------------------------
@@ -200,45 +201,42 @@ class Ros2Monitor:
         self, until: Fraction | None = None, duration: float | None = None, wait: float = 10.0
     ) -> Iterator[Event]:
         """Events as they happen until every formula is decided, the stream clock passes
-        `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts.
-        `wait` s after the start, each feature no publisher feeds yet is named, with the
-        names it would bind by and the publishers seen instead."""
+        `until` (s), `duration` (wall s) is over, or `stop` is set; then the end verdicts,
+        each recorded when asked.  `wait` s after the start, each feature no publisher feeds
+        yet is named, with the names it would bind by and the publishers seen instead."""
+        self.report_at = time.monotonic() + wait
         end = None if until is None else int(until * NS)
-        stop_at = None if duration is None else time.monotonic() + duration
-        report_at: float | None = time.monotonic() + wait
         try:
-            try:
-                while not self.stop.is_set() and not self.monitor.done:
-                    if stop_at is not None and time.monotonic() >= stop_at:
-                        break
-                    if report_at is not None and time.monotonic() >= report_at:
-                        report_at = None
-                        self.unfed()
-                    mark = self.now()
-                    if end is not None and mark is not None and mark > end:
-                        break
-                    out: list[Event] = []
-                    for event in self.events.drain(self._idle()):
-                        out += self._handle(event)
-                    if self.dropped != self.told:
-                        self.told = self.dropped
-                        log.warning(
-                            "%d samples or announcements dropped so far: the monitor "
-                            "fell more than %g s behind with %d queued",
-                            self.told,
-                            PUT_WAIT,
-                            QUEUED,
-                        )
-                    mark = self.watermark()
-                    if mark is not None:
-                        self.processor.advance(mark if end is None else min(mark, end))
-                    yield from self._out([*out, *self.monitor.events()])
-            finally:
-                self.close()
-            yield from self._out(self.monitor.finish())
+            for event in loop.run(self.monitor, self.processor, self, end, duration):
+                if self.recorder is not None:
+                    t = event.time
+                    at = None if t is None else round(t * NS)
+                    self.recorder.event(at if at is not None else self.now() or 0, event.to_json())
+                yield event
         finally:
             if self.recorder is not None:
                 self.recorder.close()
+
+    # ---- what the loop asks (loop.Feed) ------------------------------------------------
+
+    def over(self) -> bool:
+        return False  # robots publish until they stop: no end is announced
+
+    def tick(self) -> None:
+        """The features nothing feeds yet, named once `wait` is over; the samples dropped
+        since the last pass, counted."""
+        if self.report_at is not None and time.monotonic() >= self.report_at:
+            self.report_at = None
+            self.unfed()
+        if self.dropped != self.told:
+            self.told = self.dropped
+            log.warning(
+                "%d samples or announcements dropped so far: the monitor "
+                "fell more than %g s behind with %d queued",
+                self.told,
+                PUT_WAIT,
+                QUEUED,
+            )
 
     def unfed(self) -> None:
         """One line per feature that no publisher feeds yet: what would feed it, and what
@@ -264,7 +262,7 @@ class Ros2Monitor:
                     "--domain right, --bridge needed?)",
                 )
 
-    def _idle(self) -> float:
+    def idle(self) -> float:
         """How long to wait for the next event: on the wall clock, no longer than until the
         watermark (which moves at most as fast as the wall clock between events) can reach
         the next state due: a state waits for its delay, not for the next sample."""
@@ -273,19 +271,7 @@ class Ros2Monitor:
             return 0.1
         return min(0.1, max(0.0, (self.processor.quiet_until - mark) / NS))
 
-    def _out(self, events: Sequence[Event]) -> Iterator[Event]:
-        """Events as they go out, each recorded (at its own time, else now) when asked."""
-        for event in events:
-            if self.recorder is not None:
-                at = (
-                    event.time  # a change's time is ns
-                    if isinstance(event, Change) or event.time is None
-                    else round(event.time * NS)
-                )
-                self.recorder.event(at if at is not None else self.now() or 0, event.to_json())
-            yield event
-
-    def _handle(self, event: tuple[Any, ...]) -> list[Event]:
+    def handle(self, event: tuple[Any, ...]) -> list[Event]:
         try:
             if event[0] == "sample":
                 self._sample(*event[1:])
@@ -304,7 +290,7 @@ class Ros2Monitor:
         sub = self.subs.get(where)
         shown = sub.topic if sub is not None else where
         n = self.rejected[(shown, kind)] = self.rejected.get((shown, kind), 0) + 1
-        if _logged(n):
+        if loop.logged(n):
             log.warning("rejected %s (%s, %d so far): %s", shown, kind, n, why)
 
     def _warn(self, *why: str) -> None:
@@ -411,7 +397,7 @@ class Ros2Monitor:
         for key in features:
             self.feeding.setdefault(key, set()).add(pub.key)
             m = next(m for k, m in self.wants[name] if k == key)
-            changes.append(Change("subscribed", now, m.platform, pub.describe(), str(key), m.topic))
+            changes.append(change("subscribed", now, m.platform, pub.describe(), str(key), m.topic))
         return changes
 
     def _gone(self, token: str) -> list[Event]:
@@ -430,14 +416,14 @@ class Ros2Monitor:
             ((m.platform, m.topic) for _, m in self.wants.get(sub.name, ())), ("", sub.topic)
         )
         changes: list[Event] = [
-            Change("unsubscribed", now, platform, f"{pub.describe()} went away", topic=topic)
+            change("unsubscribed", now, platform, f"{pub.describe()} went away", topic=topic)
         ]
         for feature in sub.features:
             feeding = self.feeding[feature]
             feeding.discard(key)
             if not feeding:
                 changes.append(
-                    Change(
+                    change(
                         "source_lost",
                         now,
                         platform,

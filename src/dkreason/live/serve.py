@@ -32,7 +32,7 @@ class PlatformNode:
     def __init__(
         self, km: KnowledgeManager, session: Any, heartbeat: float = 0.02, sign: Any = None
     ) -> None:
-        """`sign`: (key expression, payload) → signature (wire.signer), or None."""
+        """`sign`: (key expression, payload) → signature (signing.signer), or None."""
         self.km, self.session, self.sign = km, session, sign
         self.name = km.local
         self.heartbeat = heartbeat
