@@ -419,7 +419,7 @@ def _progress(args: argparse.Namespace) -> int:
     from .parse.formula import parse_formula
     from .progress import Progressor
     from .progress.state import feature_uses
-    from .progress.states import read_states
+    from .progress.statefile import read_states
 
     progressor = Progressor()
     trees = (
