@@ -369,9 +369,9 @@ def fusable(draw: st.DrawFn) -> str:
 conjunctions = st.lists(fusable(), min_size=1, max_size=3).map(
     lambda parts: " and ".join(f"({p})" for p in parts)
 )
-batches = st.lists(st.one_of(conjunctions, conjunctions, formulas(), thresholds), max_size=4).map(
-    lambda picks: [f for pick in picks for f in ([pick] if isinstance(pick, str) else pick)]
-)
+batches = st.lists(
+    st.one_of(conjunctions, conjunctions, single, formulas(), families, thresholds), max_size=4
+).map(lambda picks: [f for pick in picks for f in ([pick] if isinstance(pick, str) else pick)])
 
 
 def engine_run(engine: str, batch: list[str], trace: Trace) -> list[tuple[int | None, Any]]:
