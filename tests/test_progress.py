@@ -1,4 +1,5 @@
-"""The progression engine against a simple offline evaluator of the semantics (tests/oracle.py).
+"""The progression engine against a simple offline evaluator of the semantics (tests/oracle.py),
+and its two engines (the fused monitors and the general graph) against each other.
 
 Random formulas (every operator, nested, bounded and unbounded intervals, [a, a]) on random
 traces with uneven steps that do not start at 0, with unknown values.
