@@ -24,7 +24,7 @@ from dkreason.parse.config import read_config
 from dkreason.parse.formula import parse_formula
 from dkreason.parse.sslt import parse_text, parse_xml
 from dkreason.progress import Progressor
-from dkreason.progress.states import read_states
+from dkreason.progress.statefile import read_states
 from dkreason.stream.sources import JsonlSource
 
 FAST = settings(

@@ -1,4 +1,5 @@
-"""The progression engine against a simple offline evaluator of the semantics (tests/oracle.py).
+"""The progression engine against a simple offline evaluator of the semantics (tests/oracle.py),
+and its two engines (the fused monitors and the general graph) against each other.
 
 Random formulas (every operator, nested, bounded and unbounded intervals, [a, a]) on random
 traces with uneven steps that do not start at 0, with unknown values.
@@ -318,7 +319,7 @@ def judged_alone_and_together(batch: list[str], trace: Trace) -> None:
 
 
 def test_times_print_as_exact_decimals_never_as_fractions() -> None:
-    from dkreason.progress.nodes import fmt
+    from dkreason.progress.witness import fmt
 
     assert fmt(Fraction(279258777611209011, 200000000)) == "1396293888.056045055"
     assert fmt(1779999999970000029, Fraction(1, 10**9)) == "1779999999.970000029"
@@ -336,3 +337,122 @@ def test_thresholds_sharing_a_feature_report_when_it_was_unknown() -> None:
     assert all(
         [u.to_json() for u in v.unknown] == [{"feature": "X", "from": 1, "to": 2}] for v in verdicts
     )
+
+
+# ---- one progression contract: the general engine and the fused monitors agree -----------
+
+states = st.sampled_from(
+    ["P", "Q", "not P", "X > 2", "X <= 1", "P and X > 2", "Q or X + 1 >= 3", "true", "false"]
+)
+windows = st.one_of(intervals.filter(bool), st.just(""))
+
+
+@st.composite
+def fusable(draw: st.DrawFn) -> str:
+    """A formula the fused monitors take: an invariant, or a response in each way it is
+    written (`->`, `not A or`, `A or`, none), or `always not always[a, b] S`."""
+    a, b, window = draw(states), draw(states), draw(windows)
+    return draw(
+        st.sampled_from(
+            [
+                f"always ({a})",
+                f"always (({a}) -> eventually{window} ({b}))",
+                f"always (not ({a}) or eventually{window} ({b}))",
+                f"always (({a}) or eventually{window} ({b}))",
+                f"always (({a}) -> not always{window} ({b}))",
+                f"always eventually{window} ({b})",
+                f"always not always{window} ({b})",
+            ]
+        )
+    )
+
+
+conjunctions = st.lists(fusable(), min_size=1, max_size=3).map(
+    lambda parts: " and ".join(f"({p})" for p in parts)
+)
+batches = st.lists(
+    st.one_of(conjunctions, conjunctions, single, formulas(), families, thresholds), max_size=4
+).map(lambda picks: [f for pick in picks for f in ([pick] if isinstance(pick, str) else pick)])
+
+
+def engine_run(engine: str, batch: list[str], trace: Trace) -> list[tuple[int | None, Any]]:
+    """Every verdict of a batch judged together, with the index of the state that gave it."""
+    p = Progressor(engine=engine)
+    for f in batch:
+        p.add(f)
+    out: list[tuple[int | None, Any]] = []
+    for k, (t, values) in enumerate(trace):
+        out += [(k, v) for v in p.step(t, values)]
+    return out + [(None, v) for v in p.finish()]
+
+
+@SETTINGS
+@given(batches.filter(bool), traces())
+def test_both_engines_give_the_same_verdict_time_and_witness(
+    batch: list[str], trace: Trace
+) -> None:
+    """What the fused monitors decide, the general engine decides at the same state with the
+    same witness (and the same unknown spans), alone or beside other formulas."""
+    assert engine_run("auto", batch, trace) == engine_run("general", batch, trace)
+
+
+def test_the_general_engine_can_be_forced() -> None:
+    formula = "always (P -> eventually[0, 2] Q)"
+    auto, general = Progressor(), Progressor(engine="general")
+    for p in (auto, general):
+        p.add(formula)
+    assert auto.fused.members and not auto.general.roots
+    assert general.general.roots and not general.fused.members
+
+
+def test_an_unknown_engine_is_a_one_line_error() -> None:
+    with pytest.raises(DkError, match=r"^unknown engine 'fast' \(auto or general\)$"):
+        Progressor(engine="fast")
+
+
+@pytest.mark.parametrize("engine", ["auto", "general"])
+@pytest.mark.parametrize(
+    ("formula", "trace", "witness"),
+    [
+        (
+            "always (X > 1)",
+            [(0, {"X": 0})],
+            "always (X > 1) is false at 0, because X > 1 was false at 0 (X = 0)",
+        ),
+        (
+            "always (X > 1) and always (X > 0)",
+            [(0, {"X": 2}), (1, {"X": 0})],
+            "always (X > 1) and always (X > 0) is false at 0, because X > 1 was false at 1 (X = 0)",
+        ),
+        (
+            "always (P -> eventually[0, 2] Q)",
+            [
+                (0, {"P": False, "Q": False}),
+                (1, {"P": True, "Q": False}),
+                (3, {"P": False, "Q": False}),
+            ],
+            "always (P -> eventually[0, 2] Q) is false at 0, because P held at 1, but Q never "
+            "held within [1, 3]",
+        ),
+        (
+            "always eventually[0, 1] Q",
+            [(0, {"Q": False}), (1, {"Q": False})],
+            "always eventually[0, 1] Q is false at 0, because eventually[0, 1] (Q) is false at "
+            "0, because Q never held within [0, 1]",
+        ),
+        (
+            "always not always[0, 1] P",
+            [(0, {"P": True}), (2, {"P": True})],
+            "always not always[0, 1] P is false at 0, because always[0, 1] (P) is true at 0, "
+            "because P held throughout [0, 1]",
+        ),
+    ],
+)
+def test_witnesses_name_the_formula_its_start_and_what_decided_it(
+    engine: str, formula: str, trace: list[tuple[int, dict[str, Any]]], witness: str
+) -> None:
+    """The leftmost failing part of a conjunction; a response's trigger and its window."""
+    p = Progressor(engine=engine)
+    p.add(formula)
+    (verdict,) = [v for t, values in trace for v in p.step(t, values)]
+    assert verdict.verdict is False and verdict.witness == witness

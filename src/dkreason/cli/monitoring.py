@@ -13,7 +13,7 @@ from ..manager import KnowledgeManager
 from ..parse.formula import parse_formula
 from ..progress import Progressor, Verdict
 from ..progress.state import feature_uses
-from ..progress.states import read_states
+from ..progress.statefile import read_states
 from ..stream.binding import open_recordings
 from ..stream.info import bindings, describe
 from ..stream.info import render as render_info

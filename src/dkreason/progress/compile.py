@@ -2,6 +2,7 @@
 
 Formulas arrive without quantifiers (a plan's trees, expand.py); implication becomes
 `not a or b`; every maximal temporal-free subformula becomes one generated `StateNode`.
+`general.py` runs the graphs.
 """
 
 from __future__ import annotations
@@ -28,11 +29,11 @@ from .nodes import (
     NotNode,
     PastNode,
     StateNode,
-    Time,
     UntilNode,
     WindowNode,
 )
 from .state import compile_state, is_state, render
+from .witness import Time
 
 PAST = {"historically", "once", "previous"}
 
@@ -69,8 +70,8 @@ def interval_text(i: Interval, unit: Fraction | int = 1) -> str:
 class Graph:
     """One shared node graph for formulas that start at the same state."""
 
-    def __init__(self) -> None:
-        self.ctx = Ctx()
+    def __init__(self, unit: Fraction | int = 1) -> None:
+        self.ctx = Ctx(unit)
         self.cache: dict[Formula, Node] = {}
 
     def node(self, f: Formula) -> Node:
@@ -80,6 +81,10 @@ class Graph:
         self.cache[f] = made
         return made
 
+    def text(self, f: Formula) -> str:
+        """How a witness names `f`: as its node does (a state formula, without making one)."""
+        return render(f) if is_state(f) else self.node(f).text
+
     def _make(self, f: Formula) -> Node:
         ctx = self.ctx
         if is_state(f):
@@ -88,9 +93,14 @@ class Graph:
         if isinstance(f, Not):
             return NotNode(ctx, self.node(f.arg))
         if isinstance(f, Connective):
+            said: str | None = None  # for `or`: what held when it is false
             if f.op == "->":
-                return BoolNode(ctx, "or", self.node(Not(f.left)), self.node(f.right))
-            return BoolNode(ctx, f.op, self.node(f.left), self.node(f.right))
+                said = self.text(f.left)
+                return BoolNode(ctx, "or", self.node(Not(f.left)), self.node(f.right), said)
+            if f.op == "or":
+                a = f.left
+                said = self.text(a.arg) if isinstance(a, Not) else f"not ({self.text(a)})"
+            return BoolNode(ctx, f.op, self.node(f.left), self.node(f.right), said)
         if isinstance(f, Temporal):
             lo, hi = exact(f.interval.lo), exact(f.interval.hi)
             text = interval_text(f.interval, ctx.unit)

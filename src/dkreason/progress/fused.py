@@ -13,8 +13,10 @@ the state reaching its end, and with members sorted by window end each check is 
 however many formulas share the group.  Invariants comparing one feature with a constant
 (`always (X > c)`) on the same side share a `Thresholds`: its members sorted so that those a
 value breaks are a prefix, so a state costs one comparison however many thresholds there are.
-The decisions are those of the general engine (nodes.py), checked against the same offline
-semantics in the tests.
+The decisions are those of the general engine (general.py), and so are the witnesses, made
+by the same phrases (witness.py): the tests check both against the general engine on random
+formulas and traces.  An `Engine` (engine.py); the generated code keeps to this module and
+the callables it is given.
 """
 
 from __future__ import annotations
@@ -22,10 +24,10 @@ from __future__ import annotations
 import functools
 import operator
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import Any, TypeVar
 
 from ..model import FeatureKey
 from ..parse.formula import (
@@ -41,23 +43,27 @@ from ..parse.formula import (
     Temporal,
     Unary,
 )
-from .compile import exact
-from .nodes import Time, Why, fmt
-from .state import _boolean_keys, _py, evaluate, features, is_state, key, reads, render
+from .compile import exact, interval_text
+from .engine import Held, Report, Stepper, Unknown
+from .state import boolean_keys, evaluate, features, is_state, key, python, reads, render
+from .witness import Time, Why, but, operator_text, settled, state_was, window_closed
 
 TRUE = BoolConst(True)
 INF = float("inf")
-Stepper = Callable[..., Any]  # the owner's step for one state: its verdicts (t, values, given)
-Held = Callable[[], tuple[int, Any]]  # the owner's (pos, last_input) that it holds
+V = TypeVar("V")
 
 
 @dataclass(frozen=True, slots=True)
 class Shape:
     kind: str  # "invariant" | "response"
-    a: Formula  # the invariant, or the response's trigger
+    a: Formula  # the invariant, or the response's trigger (TRUE: none)
     b: Formula | None = None
     lo: Time = 0
     hi: Time | None = None
+    # for witnesses: the trigger as written (None without `->` or `or`), and the window
+    # operator (`eventually[a, b] B`, or the `always[a, b] S` of `not always[a, b] S`)
+    trigger: Formula | None = None
+    window: Temporal | None = None
 
 
 def shape(f: Formula) -> Shape | None:
@@ -67,70 +73,53 @@ def shape(f: Formula) -> Shape | None:
     body = f.arg
     if is_state(body):
         return Shape("invariant", body)
-    trigger: Formula = TRUE
+    trigger: Formula | None = None
     if isinstance(body, Connective) and body.op in ("->", "or") and is_state(body.left):
-        trigger = body.left if body.op == "->" else Not(body.left)
+        a = body.left
+        trigger = a if body.op == "->" else a.arg if isinstance(a, Not) else Not(a)
         body = body.right
-    if (
-        isinstance(body, Not)
-        and isinstance(body.arg, Temporal)
-        and body.arg.op == "always"
-        and is_state(body.arg.arg)
-    ):
-        body = Temporal("eventually", body.arg.interval, Not(body.arg.arg))
-    if isinstance(body, Temporal) and body.op == "eventually" and is_state(body.arg):
-        lo, hi = exact(body.interval.lo), exact(body.interval.hi)
-        assert lo is not None
-        return Shape("response", trigger, body.arg, lo, hi)
-    return None
-
-
-def shapes(f: Formula) -> list[Shape] | None:
-    """A conjunction of fused shapes (what `forall` over a sort expands to), part by part."""
-    if isinstance(f, Connective) and f.op == "and":
-        left, right = shapes(f.left), shapes(f.right)
-        return left + right if left is not None and right is not None else None
-    one = shape(f)
-    return [one] if one is not None else None
+    target: Formula
+    if isinstance(body, Not) and isinstance(body.arg, Temporal) and body.arg.op == "always":
+        window, target = body.arg, Not(body.arg.arg)
+    elif isinstance(body, Temporal) and body.op == "eventually":
+        window, target = body, body.arg
+    else:
+        return None
+    if not is_state(window.arg):
+        return None
+    lo, hi = exact(window.interval.lo), exact(window.interval.hi)
+    assert lo is not None
+    return Shape("response", trigger or TRUE, target, lo, hi, trigger, window)
 
 
 class Member:
-    """One fused formula: its shape and how to report it."""
+    """One fused part: its shape and where its value goes."""
 
-    def __init__(self, s: Shape, on_false: Callable[[Why], None], unit: Fraction | int = 1) -> None:
-        self.shape, self.on_false, self.unit = s, on_false, unit
+    def __init__(self, s: Shape, report: Report, unit: Fraction | int = 1) -> None:
+        self.shape, self.report, self.unit = s, report, unit
         self.hi: Time | float = INF if s.hi is None else s.hi
         self.unknown = False
         self.done = False
+        self.first: Time | None = None  # the time of its first state
 
-    def fmt(self, t: Time | None) -> str:
-        return fmt(t, self.unit)
-
-    def fail(self, why: Why) -> None:
+    def fail(self, cause: Why) -> None:
+        assert self.first is not None
         self.done = True
-        self.on_false(why)
+        # every fused part is an `always`; the verdict names the formula in its place
+        self.report(False, settled("always", self.first, False, cause, self.unit))
 
     def fail_now(self, t: Time, values: dict[FeatureKey, Any]) -> None:
-        shown = ", ".join(f"{k} = {values[k]}" for k in features(self.shape.a))
-        self.fail(
-            Why(
-                render(self.shape.a),
-                t,
-                f"was false at {self.fmt(t)}" + (f" ({shown})" if shown else ""),
-            )
-        )
+        a = self.shape.a
+        self.fail(state_was(render(a), t, False, features(a), values, self.unit))
 
     def expire(self, ti: Time) -> None:
-        s = self.shape
-        assert s.b is not None
-        within = f"[{self.fmt(ti + s.lo)}, {self.fmt(None if s.hi is None else ti + s.hi)}]"
-        if isinstance(s.b, Not):
-            text, detail = render(s.b.arg), f"held throughout {within}"
-        else:
-            text, detail = render(s.b), f"never held within {within}"
-        if s.a != TRUE:
-            text = f"{render(s.a)} held at {self.fmt(ti)}, but {text}"
-        self.fail(Why(text, ti, detail))
+        """The window from ti closed: why, as the general engine says it."""
+        s, unit = self.shape, self.unit
+        assert s.window is not None
+        child = render(s.window.arg)
+        text = operator_text(s.window.op, interval_text(s.window.interval, unit), child)
+        why = window_closed(text, child, ti, s.lo, s.hi, s.window.op == "always", unit)
+        self.fail(why if s.trigger is None else but(render(s.trigger), ti, why, unit))
 
 
 class Group:
@@ -298,7 +287,10 @@ class Thresholds:
     are those whose c is on x's side, a prefix when sorted by c."""
 
     def __init__(
-        self, op: str, members: list[tuple[int | float, Member]], on_unknown: Callable[[], None]
+        self,
+        op: str,
+        members: list[tuple[int | float, Member]],
+        on_unknown: Callable[[int, Any], None],
     ) -> None:
         self.on_unknown = on_unknown
         self.broken = _COMPARE[_BREAKS[op]]  # broken(c, x): x breaks `x op c`
@@ -307,9 +299,9 @@ class Thresholds:
         self.members = [m for _, m in members]
         self.unknown = False
 
-    def step(self, t: Time, x: Any, values: Any) -> bool:
+    def step(self, t: Time, x: Any, values: Any, pos: int, given: Any) -> bool:
         if x is None:  # unknown: every member sees an unknown state
-            self.on_unknown()
+            self.on_unknown(pos, given)
             if not self.unknown:
                 self.unknown = True
                 for m in self.members:
@@ -324,66 +316,83 @@ class Thresholds:
         return n > 0
 
 
-class FusedSet:
-    """Every fused formula of a progressor, run by one generated step function."""
+Run = Callable[[Time, Any, int, Any], bool]  # one state (t, values, pos, given): decided?
+Make = Callable[[int, Any, Callable[[int, Any], Any]], tuple[Stepper[Any], Held]]
 
-    def __init__(self, on_unknown: Callable[[list[FeatureKey]], None], owner: Any) -> None:
-        """`owner`: the progressor, whose state-keeping `fast` does too."""
+
+class FusedSet:
+    """Every fused part of a progressor, run by one generated step function.  An `Engine`
+    (engine.py), and more: while every part a progressor has is fused, `fast` gives its
+    whole step for one state, generated."""
+
+    def __init__(self, unit: Fraction | int, unknown: Unknown) -> None:
+        self.unit, self.unknown = unit, unknown
         self.members: list[Member] = []
-        self.on_unknown = on_unknown
-        self.owner = owner
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
         # the generated step for the current members (None: generate it at the next state),
-        # and the same as the owner's whole step_state (when every formula it has is fused)
-        self.run: Callable[[Time, Any], bool] | None = None
-        self.make: Callable[[int, Any], tuple[Stepper, Held]] | None = None
+        # and what makes the fast step from it
+        self.run: Run | None = None
+        self.make: Make | None = None
 
-    def add(self, s: Shape, on_false: Callable[[Why], None], unit: Fraction | int = 1) -> Member:
-        m = Member(s, on_false, unit)
+    def add(self, part: Formula, report: Report) -> bool:
+        s = shape(part)
+        if s is None:
+            return False
+        m = Member(s, report, self.unit)
         self.members.append(m)
         if s.kind == "response":
             assert s.b is not None
             self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo)).add(m)
-        self.run = self.make = None
-        return m
+        self.changed()
+        return True
 
-    def step(self, t: Time, values: Any) -> bool:
-        """Run one state; True when some member was decided (the code is then regenerated)."""
+    def changed(self) -> None:
+        """A part came or was decided: the code is generated again at the next state."""
+        self.run = self.make = None
+
+    def step(self, pos: int, t: Time, values: Mapping[FeatureKey, Any], given: Any) -> None:
         if self.run is None:
             self.members = [m for m in self.members if not m.done]
+            for m in self.members:
+                if m.first is None:  # added since the last state: starts now
+                    m.first = t
             self.groups = {k: g for k, g in self.groups.items() if g.members}
             self.run, self.make = _generate(self) if self.members else (_never, None)
-        if self.run(t, values):
-            self.run = self.make = None
-            return True
-        return False
+        if self.run(t, values, pos, given):
+            self.changed()
 
     def finish(self) -> None:
         for g in self.groups.values():
             g.finish()
+        for m in self.members:
+            if not m.done and m.first is not None:
+                m.done = True
+                m.report(None if m.unknown else True, None)
 
-    def note_unknown(self, values: Any, keys: list[FeatureKey]) -> None:
-        self.on_unknown([k for k in keys if values[k] is None])
+    def fast(
+        self, pos: int, given: Any, resume: Callable[[int, Any], Sequence[V]]
+    ) -> tuple[Stepper[V], Held] | None:
+        """The owner's whole step for one state, from position `pos` (time `given`) on, its
+        position kept inside (`Held` reads it); at a decision it hands back to the owner's
+        `resume(pos, given)`, which reports and steps generally from the next state on.  None
+        while the code is not generated."""
+        return None if self.make is None else self.make(pos, given, resume)
+
+    def note_unknown(self, values: Any, keys: list[FeatureKey], pos: int, given: Any) -> None:
+        self.unknown([k for k in keys if values[k] is None], pos, given)
 
 
-def _never(t: Time, values: Any) -> bool:
+def _never(t: Time, values: Any, pos: int, given: Any) -> bool:
     return False
 
 
-_SYNC = "\0sync"  # in `fast`: where the owner's position is brought up to date (before calls
-# out to what reads it)
-
-
-def _generate(
-    fs: FusedSet,
-) -> tuple[Callable[[Time, Any], bool], Callable[[int, Any], tuple[Stepper, Held]]]:
-    """`step(t, v) -> decided?` for the current members, compiled once; and `make`, which
-    gives `fast`: the same as the owning progressor's whole `step_state` (its state kept, its
-    verdicts returned), which it calls instead (`Progressor.stepper`) while every formula it
-    has is fused and started: one call a state.  `fast` holds the owner's position and
-    last input in its own closure (no attribute stores a state) and writes them back
-    before anything reads them: a call out that notes an unknown, a decision; `held` reads
-    them for the owner otherwise."""
+def _generate(fs: FusedSet) -> tuple[Run, Make]:
+    """`step(t, v, pos, given) -> decided?` for the current members, compiled once; and
+    `make(pos, given, resume)`, which gives `fast`: the same as the owner's whole step for one
+    state (its verdicts returned), which the owner calls instead while every part it has is
+    fused and started: one call a state.  `fast` holds the position and time in its own
+    closure (no attribute stores a state) and passes them to what notes an unknown; at a
+    decision it returns `resume(pos, given)`; `held` reads them for the owner otherwise."""
     formulas: dict[Formula, str] = {}
     thresholds: dict[tuple[FeatureKey, str], list[tuple[int | float, Member]]] = {}
     for m in fs.members:
@@ -409,7 +418,7 @@ def _generate(
     lines = [*(f"    {line}" for line in reading)]
     by_known: dict[str, list[tuple[Formula, str]]] = {}  # formulas tested alike, tested once
     for f, var in formulas.items():
-        bools = _boolean_keys(f)
+        bools = boolean_keys(f)
         known = (
             " and ".join(
                 f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None"
@@ -421,14 +430,13 @@ def _generate(
     for known, alike in by_known.items():
         lines += [
             f"    if {known}:",
-            *(f"        {var} = {_py(f, names)}" for f, var in alike),
+            *(f"        {var} = {python(f, names)}" for f, var in alike),
             "    else:",
         ]
-        lines.append(_SYNC)  # the unknown's span is noted at the owner's position
         for f, var in alike:
             lines += [
                 f"        {var} = slow({const(f)}, v, t)",
-                f"        fs.note_unknown(v, {const(features(f))})",
+                f"        fs.note_unknown(v, {const(features(f))}, pos, given)",
             ]
     lines.append("    decided = False")
 
@@ -436,13 +444,13 @@ def _generate(
         return "True" if f == TRUE else formulas[f]
 
     for (k, op), members in thresholds.items():
-        group, x = Thresholds(op, members, functools.partial(fs.on_unknown, [k])), names[k]
+        group = Thresholds(op, members, functools.partial(fs.unknown, [k]))
+        x = names[k]
         # the first threshold is fixed until one breaks (which regenerates this code): a
         # state that breaks none costs one comparison, not a call
         lines += [
             f"    if {x} is None or {const(group.cs[0])} {_BREAKS[op]} {x}:",
-            _SYNC,
-            f"        if {const(group.step)}(t, {x}, v):",
+            f"        if {const(group.step)}(t, {x}, v, pos, given):",
             "            decided = True",
         ]
     for m in fs.members:
@@ -468,29 +476,25 @@ def _generate(
             f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
             "        decided = True",
         ]
-    scope["P"] = fs.owner
-    body = "\n".join(line for line in lines if line != _SYNC)
-    fast = "\n".join(
-        "            P.pos, P.last_input = pos, last_input" if line == _SYNC else "    " + line
-        for line in lines
-    )
+    body = "\n".join(lines)
+    fast = "\n".join("    " + line for line in lines)
     source = (
-        f"def step(t, v):\n{body}\n    return decided\n"
-        "def make(pos, last_input):\n"
-        "    def fast(t, v, given=None):\n"
-        "        nonlocal pos, last_input\n"
+        f"def step(t, v, pos, given):\n{body}\n    return decided\n"
+        "def make(pos, given, resume):\n"
+        "    def fast(t, v, g=None):\n"
+        "        nonlocal pos, given\n"
         "        pos += 1\n"
-        "        last_input = t if given is None else given\n"
+        "        given = t if g is None else g\n"
         f"{fast}\n"
-        "        if decided:  # regenerated at the next state, by the owner's own step\n"
-        "            P.pos, P.last_input = pos, last_input\n"
-        "            fs.run = fs.make = None\n"
-        "            P.stepper, P.held = P.step_state, None\n"
-        "            return P._decided(False) if P.decided else []\n"
+        "        if decided:  # generated again at the next state, by the owner's own step\n"
+        "            fs.changed()\n"
+        "            return resume(pos, given)\n"
         "        return ()\n"
         "    def held():\n"
-        "        return pos, last_input\n"
+        "        return pos, given\n"
         "    return fast, held\n"
     )
     exec(compile(source, "<fused monitors>", "exec"), scope)
-    return scope["step"], scope["make"]
+    run: Run = scope["step"]
+    make: Make = scope["make"]
+    return run, make

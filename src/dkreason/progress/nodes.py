@@ -8,21 +8,31 @@ end); past operators keep the bounded history their windows need.  Kleene logic 
 a value computed with pending children read as unknown is final whenever it is True or False.
 
 Every node has a `level` (leaves 0): each state ticks the nodes with open work in level order,
-and `finish` settles the end of the stream the same way, children before parents.
+and `finish` settles the end of the stream the same way, children before parents.  A decided
+value comes with its reason, phrased by witness.py; a value returned at once is explained on
+demand (`explain`), at the same state.
 """
 
 from __future__ import annotations
 
 import bisect
+import operator
 from collections import deque
-from collections.abc import Callable
 from fractions import Fraction
 from typing import Any, Protocol
 
 from ..model import FeatureKey
 from .state import StateFn, kleene
-
-Time = int | Fraction
+from .witness import (
+    Time,
+    Why,
+    but,
+    next_late,
+    operator_text,
+    settled,
+    state_was,
+    window_closed,
+)
 
 
 class _Pending:
@@ -35,22 +45,6 @@ class _Pending:
 PENDING: Any = _Pending()
 
 
-class Why:
-    """Why a node decided a value at a position: for witnesses, built only on decisions."""
-
-    __slots__ = ("text", "at", "detail", "cause")
-
-    def __init__(self, text: str, at: Time, detail: str, cause: Why | None = None) -> None:
-        self.text, self.at, self.detail, self.cause = text, at, detail, cause
-
-    def render(self) -> str:
-        own = f"{self.text} {self.detail}"
-        return own if self.cause is None else f"{own}, because {self.cause.render()}"
-
-    def __repr__(self) -> str:
-        return f"Why({self.render()!r})"
-
-
 class Waiter(Protocol):
     def deliver(self, key: Any, value: Any, why: Why | None) -> None: ...
 
@@ -58,46 +52,13 @@ class Waiter(Protocol):
 class Ctx:
     """What every node of one graph sees: the current position, time and state."""
 
-    def __init__(self) -> None:
+    def __init__(self, unit: Fraction | int = 1) -> None:
         self.pos = -1
         self.now: Time = 0
         self.values: dict[FeatureKey, Any] = {}
         self.start = 0
-        self.unit: Fraction | int = 1  # seconds per time unit
+        self.unit = unit  # seconds per time unit
         self.ticking: set[Node] = set()
-        self.on_unknown: Callable[[FeatureKey], None] = lambda key: None
-
-
-def fmt(t: Time | None, unit: Fraction | int = 1) -> str:
-    """A time for people: in seconds (`unit` is the seconds per time unit of the stream)."""
-    if t is None:
-        return "oo"
-    if unit != 1:
-        t = Fraction(t) * unit
-    if isinstance(t, Fraction):
-        if t.denominator == 1:
-            return str(t.numerator)
-        as_float = float(t)
-        if Fraction(repr(as_float)) == t:
-            return repr(as_float)
-        digits = _decimals(t.denominator)  # exact when it is a finite decimal (ns times are)
-        if digits is None:
-            return str(t)
-        whole, part = divmod(abs(t.numerator) * 10**digits // t.denominator, 10**digits)
-        return f"{'-' if t < 0 else ''}{whole}.{part:0{digits}d}".rstrip("0")
-    return str(t)
-
-
-def _decimals(denominator: int) -> int | None:
-    """Digits after the point that show 1/denominator exactly; None if no number does."""
-    twos = fives = 0
-    while denominator % 2 == 0:
-        denominator //= 2
-        twos += 1
-    while denominator % 5 == 0:
-        denominator //= 5
-        fives += 1
-    return max(twos, fives) if denominator == 1 else None
 
 
 class Node:
@@ -111,8 +72,10 @@ class Node:
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         raise NotImplementedError
 
-    def fmt(self, t: Time | None) -> str:
-        return fmt(t, self.ctx.unit)
+    def explain(self, t: Time, value: Any) -> Why:
+        """The reason for the value this node returned at once at the current position (its
+        delivered values come with theirs)."""
+        return settled(self.text, t, value, None, self.ctx.unit)
 
     def tick(self) -> None:
         pass
@@ -132,6 +95,12 @@ class Node:
         raise NotImplementedError
 
 
+order = operator.attrgetter("level", "text")
+"""The order nodes tick and finish in: children before parents, and among equals by text, so
+which of two decisions comes first (and so a witness) depends on neither a set's order nor
+what else shares the graph."""
+
+
 class StateNode(Node):
     """A temporal-free subformula: decided at once from the current state."""
 
@@ -144,27 +113,10 @@ class StateNode(Node):
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         if self.pos != i:
             self.pos, self.value = i, self.fn(self.ctx.values, t)
-            if self.value is None:
-                for k in self.keys:
-                    if self.ctx.values[k] is None:
-                        self.ctx.on_unknown(k)
         return self.value
 
-    def why(self, t: Time) -> Why:
-        shown = ", ".join(f"{k} = {self.ctx.values[k]}" for k in self.keys)
-        word = {True: "held", False: "was false", None: "was unknown"}[self.value]
-        return Why(self.text, t, f"{word} at {self.fmt(t)}" + (f" ({shown})" if shown else ""))
-
-
-def why_of(node: Node, t: Time, value: Any) -> Why:
-    """The reason for a value a node returned at once (not delivered)."""
-    if isinstance(node, StateNode):
-        return node.why(t)
-    return Why(node.text, t, f"was {_word(value)} at {node.fmt(t)}")
-
-
-def _word(value: Any) -> str:
-    return {True: "true", False: "false", None: "unknown"}.get(value, "pending")
+    def explain(self, t: Time, value: Any) -> Why:
+        return state_was(self.text, t, self.value, self.keys, self.ctx.values, self.ctx.unit)
 
 
 class NotNode(Node):
@@ -180,30 +132,39 @@ class NotNode(Node):
             return self._wait(i, waiter, key)
         return None if v is None else not v
 
+    def explain(self, t: Time, value: Any) -> Why:
+        return self.child.explain(t, None if value is None else not value)
+
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
         self._resolve(key[0], None if value is None else not value, why)
 
 
 class BoolNode(Node):
-    """and, or, <->: short-circuits on a decisive child, waits for pending ones."""
+    """and, or, <->: short-circuits on a decisive child, waits for pending ones.
 
-    def __init__(self, ctx: Ctx, op: str, left: Node, right: Node) -> None:
+    `said` (`or` only) is what held when it is false, as a witness says it: `A` for
+    `A -> B` (compiled as `not A or B`), for `not A or B` too, and `not (A)` for `A or B`."""
+
+    def __init__(self, ctx: Ctx, op: str, left: Node, right: Node, said: str | None) -> None:
         super().__init__(ctx)
-        self.op, self.left, self.right = op, left, right
+        self.op, self.left, self.right, self.said = op, left, right, said
         self.level = max(left.level, right.level) + 1
         self.text = f"({left.text}) {op} ({right.text})"
         self.open: dict[int, list[Any]] = {}
         self.decisive = {"and": False, "or": True}.get(op)
+        self.sides: tuple[Any, Any] = (PENDING, PENDING)  # behind the last value returned at once
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         if i in self.waiters:
             return self._wait(i, waiter, key)
         a = self.left.request(i, t, self, (i, 0))
         if a is self.decisive:
+            self.sides = (a, PENDING)
             return a
         b = self.right.request(i, t, self, (i, 1))
         value = self._combine(a, b)
         if value is not PENDING:
+            self.sides = (a, b)
             return value
         self.open[i] = [a, b, t]
         return self._wait(i, waiter, key)
@@ -215,6 +176,18 @@ class BoolNode(Node):
             return PENDING
         return kleene(self.op, a, b)
 
+    def explain(self, t: Time, value: Any) -> Why:
+        a, b = self.sides
+        if value is not None and value is self.decisive:
+            return (self.left if a is value else self.right).explain(t, value)
+        return self._why(t, value, self.right.explain(t, b))
+
+    def _why(self, t: Time, value: Any, right: Why) -> Why:
+        """The reason for a value both sides gave, the right one's reason `right`."""
+        if value is False and self.said is not None:
+            return but(self.said, t, right, self.ctx.unit)
+        return right
+
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
         i, side = key
         record = self.open.get(i)
@@ -224,6 +197,8 @@ class BoolNode(Node):
         result = self._combine(record[0], record[1])
         if result is not PENDING:
             del self.open[i]
+            if side == 1 and why is not None:  # the right side settled it, the left was known
+                why = self._why(record[2], result, why)
             self._resolve(i, result, why)
 
 
@@ -239,7 +214,7 @@ class WindowNode(Node):
         self.decisive = op == "eventually"
         self.lo, self.hi, self.child = lo, hi, child
         self.level = child.level + 1
-        self.text = f"{op}{interval} ({child.text})"
+        self.text = operator_text(op, interval, child.text)
         self.times: list[Time] = []  # waiting positions, by time
         self.entries: list[list[Any]] = []  # [position, time, unknown?]
         self.child_open: dict[int, Time] = {}  # child positions requested but not delivered
@@ -296,11 +271,19 @@ class WindowNode(Node):
             for entry in self.entries[first:last]:
                 entry[2] = True
             return
-        settled = self.entries[first:last]
+        done = self.entries[first:last]
         del self.entries[first:last], self.times[first:last]
-        cause = why or why_of(self.child, tj, v)
-        for i, ti, _ in settled:
-            self._resolve(i, v, Why(self.text, ti, f"is {_word(v)} at {self.fmt(ti)}", cause))
+        cause = why or self.child.explain(tj, v)
+        for i, ti, _ in done:
+            self._resolve(i, v, settled(self.text, ti, v, cause, self.ctx.unit))
+
+    def explain(self, t: Time, value: Any) -> Why:
+        if value is not None and value is self.decisive:  # the child's value now decided it
+            return settled(self.text, t, value, self.child.explain(t, value), self.ctx.unit)
+        return self._closed(t, value)  # a window [t, t], closed at once
+
+    def _closed(self, ti: Time, value: Any) -> Why:
+        return window_closed(self.text, self.child.text, ti, self.lo, self.hi, value, self.ctx.unit)
 
     def _close(self, at_end: bool = False) -> None:
         now, pos = self.ctx.now, self.ctx.pos
@@ -315,24 +298,7 @@ class WindowNode(Node):
                     break
             del self.entries[0], self.times[0]
             value = None if unknown else (not self.decisive)
-            within = f"[{self.fmt(ti + self.lo)}, {self.fmt(hi)}]"
-            how = (
-                "was unknown within"
-                if unknown
-                else "never held within"
-                if self.decisive
-                else "held throughout"
-            )
-            self._resolve(
-                i,
-                value,
-                Why(
-                    self.text,
-                    ti,
-                    f"is {_word(value)} at {self.fmt(ti)}",
-                    Why(self.child.text, ti, f"{how} {within}"),
-                ),
-            )
+            self._resolve(i, value, self._closed(ti, value))
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
         j, tj = key
@@ -350,7 +316,7 @@ class NextNode(Node):
     def __init__(self, ctx: Ctx, lo: Time, hi: Time | None, child: Node, interval: str) -> None:
         super().__init__(ctx)
         self.lo, self.hi, self.child = lo, hi, child
-        self.level, self.text = child.level + 1, f"next{interval} ({child.text})"
+        self.level, self.text = child.level + 1, operator_text("next", interval, child.text)
         self.waiting: list[tuple[int, Time]] = []
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
@@ -366,19 +332,11 @@ class NextNode(Node):
         for i, ti in ready:
             gap = now - ti
             if gap < self.lo or (self.hi is not None and gap > self.hi):
-                self._resolve(
-                    i,
-                    False,
-                    Why(
-                        self.text,
-                        ti,
-                        f"is false at {self.fmt(ti)}: the next state came {self.fmt(gap)} later",
-                    ),
-                )
+                self._resolve(i, False, next_late(self.text, ti, gap, self.ctx.unit))
                 continue
             v = self.child.request(pos, now, self, i)
             if v is not PENDING:
-                self._resolve(i, v, why_of(self.child, now, v))
+                self._resolve(i, v, self.child.explain(now, v))
         if not self.waiting:
             self.ctx.ticking.discard(self)
 
@@ -387,9 +345,7 @@ class NextNode(Node):
 
     def finish(self) -> None:
         for i, ti in self.waiting:
-            self._resolve(
-                i, False, Why(self.text, ti, f"is false at {self.fmt(ti)}: no next state")
-            )
+            self._resolve(i, False, next_late(self.text, ti, None, self.ctx.unit))
         self.waiting = []
 
 
@@ -472,7 +428,7 @@ class UntilNode(Node):
             if value is PENDING:
                 still.append((i, ti))
             else:
-                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {self.fmt(ti)}"))
+                self._resolve(i, value, settled(self.text, ti, value, None, self.ctx.unit))
         self.entries = still
         self._trim()
         if not self.entries:
@@ -517,7 +473,7 @@ class PastNode(Node):
         self.text = (
             f"({left.text}) since{interval} ({right.text})"
             if left is not None
-            else f"{op}{interval} ({right.text})"
+            else operator_text(op, interval, right.text)
         )
         self.hist: deque[list[Any]] = deque()  # [position, time, φ (since), ψ]
         self.entries: list[tuple[int, Time]] = []
@@ -614,7 +570,7 @@ class PastNode(Node):
             if value is PENDING:
                 still.append((i, ti))
             else:
-                self._resolve(i, value, Why(self.text, ti, f"is {_word(value)} at {self.fmt(ti)}"))
+                self._resolve(i, value, settled(self.text, ti, value, None, self.ctx.unit))
         self.entries = still
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:

@@ -9,11 +9,17 @@ stream allows, never retracted.
 
 Formulas with quantifiers come from a plan (`KnowledgeManager.plan`), already expanded:
 `p.add(f.text, f.tree)`.  The progressor knows nothing of knowledge bases.
+
+Each top-level conjunct of a formula (a part) goes to one of two engines behind one contract
+(engine.py): the generated fused monitors (fused.py) when they take its shape, the general
+node graph (general.py) otherwise or always (`engine="general"`).  Both give the same
+verdicts at the same states with the same witnesses (witness.py).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+import functools
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from decimal import Decimal
 from fractions import Fraction
@@ -22,11 +28,15 @@ from typing import Any
 from ..errors import DkError
 from ..inputs.numbers import exact
 from ..model import FeatureKey
-from ..parse.formula import Formula, feature_key, parse_formula, quantifiers
-from .compile import Graph, scaled
-from .fused import FusedSet, Held, Member, shapes
-from .nodes import PENDING, Time, Why, fmt, why_of
-from .state import features
+from ..parse.formula import Connective, Formula, feature_key, parse_formula, quantifiers
+from .compile import scaled
+from .engine import Engine, Held, Report, Stepper
+from .fused import FusedSet
+from .general import General
+from .state import features, is_state
+from .witness import Time, Why, refuted, undecided
+
+ENGINES = ("auto", "general")
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,34 +94,49 @@ def exact_time(t: Any) -> Time:
     return value.numerator if value.denominator == 1 else value
 
 
-class _Monitor:
-    """One formula: a fused step function, or the root of a shared node graph."""
+class _Formula:
+    """One formula: the Kleene conjunction of its parts' values, as the engines report them.
+    When several parts fail at one state, the leftmost is the witness (both engines alike)."""
 
-    def __init__(self, text: str, keys: list[FeatureKey]) -> None:
-        self.text, self.keys = text, keys
-        self.value: Any = PENDING
+    def __init__(self, text: str, keys: list[FeatureKey], decided: list[_Formula]) -> None:
+        self.text, self.keys, self.decided = text, keys, decided
+        self.open = 0  # parts not reported yet
+        self.value: bool | None = True  # so far
         self.why: Why | None = None
+        self.failed = -1  # the part that is the witness
+        self.queued = False  # in `decided`, to be reported
         self.reported = False
         self.started = False
-        self.first: Any = None  # time of the first state it judged
-        self.graph: Graph | None = None
-        self.node: Any = None
-        self.members: list[Member] = []  # fused parts; the formula is their conjunction
-        self.decided: list[_Monitor] = []  # the progressor's list of monitors to report
 
-    def start(self, t: Time) -> None:
-        assert self.graph is not None
-        v = self.node.request(self.graph.ctx.pos, t, self, None)
-        if v is not PENDING:
-            self.deliver(None, v, why_of(self.node, t, v))
+    def report(self, part: int) -> Report:
+        self.open += 1
+        return functools.partial(self.part, part)
 
-    def deliver(self, key: Any, value: Any, why: Why | None) -> None:
-        self.value, self.why = value, why
-        self.decided.append(self)
+    def part(self, n: int, value: bool | None, why: Why | None) -> None:
+        self.open -= 1
+        if self.reported:
+            return
+        if value is False and (self.value is not False or n < self.failed):
+            self.value, self.why, self.failed = False, why, n
+        elif value is None and self.value is True:
+            self.value = None
+        if (self.value is False or not self.open) and not self.queued:
+            self.queued = True
+            self.decided.append(self)
 
-    def false(self, why: Why) -> None:
-        if self.value is PENDING:  # the first failing part decides
-            self.deliver(None, False, why)
+
+def conjuncts(f: Formula) -> list[Formula]:
+    """The top-level conjuncts of `f`, left to right (a `forall` expands to them); a state
+    formula stays whole (one check of the state, its witness every value it read)."""
+    out: list[Formula] = []
+    todo = [f]
+    while todo:
+        g = todo.pop()
+        if isinstance(g, Connective) and g.op == "and" and not is_state(g):
+            todo += [g.right, g.left]
+        else:
+            out.append(g)
+    return out
 
 
 _UNSEEN: list[tuple[FeatureKey, Any]] = [(FeatureKey(""), object())]  # no state has this key
@@ -130,23 +155,31 @@ def _spelling(
 
 
 class Progressor:
-    """`unit` is the seconds per unit of the times given to `step` (1; 1/10**9 for ns)."""
+    """`unit` is the seconds per unit of the times given to `step` (1; 1/10**9 for ns).
+    `engine`: "auto" gives each part of a formula to the fused monitors when they take its
+    shape and to the general engine otherwise; "general" gives every part to the general
+    engine (the same verdicts, times and witnesses, more slowly)."""
 
-    def __init__(self, unit: Fraction | int = 1) -> None:
+    def __init__(self, unit: Fraction | int = 1, engine: str = "auto") -> None:
+        if engine not in ENGINES:
+            raise DkError(f"unknown engine {engine!r} ({' or '.join(ENGINES)})")
         self.unit = unit
-        self.monitors: list[_Monitor] = []
-        self.fused = FusedSet(self._note_unknowns, self)
-        self.unstarted: list[_Monitor] = []
-        self.decided: list[_Monitor] = []
-        self.graphs: list[Graph] = []
+        self.fused = FusedSet(unit, self.note_unknown)
+        self.general = General(unit, self.note_unknown)
+        self.engines: tuple[Engine, ...] = (
+            (self.fused, self.general) if engine == "auto" else (self.general,)
+        )
+        self.formulas: list[_Formula] = []
+        self.unstarted: list[_Formula] = []
+        self.decided: list[_Formula] = []
         self.keys: set[FeatureKey] = set()
         self.pos = -1
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
-        # what a state calls: `step_state`, or once every formula is fused and started, the
+        # what a state calls: `step_state`, or once every part is fused and started, the
         # fused set's `fast` (the same, generated whole: one call a state), which holds
         # pos and last_input meanwhile (`held` reads them)
-        self.stepper: Callable[..., Sequence[Verdict]] = self.step_state
+        self.stepper: Stepper[Verdict] = self.step_state
         self.held: Held | None = None
         # `step`: the last time given, and how the caller spells each feature
         self.stepped: tuple[Time | float, Any] = (float("-inf"), None)
@@ -163,22 +196,13 @@ class Progressor:
                 )
         parsed = scaled(tree, Fraction(1) / self.unit)
         self._general()  # the general step while this one is new
-        monitor = _Monitor(formula, features(parsed))
-        monitor.decided = self.decided
-        parts = shapes(parsed)
-        if parts is not None:
-            monitor.members = [self.fused.add(p, monitor.false, self.unit) for p in parts]
-        else:
-            if not self.graphs or self.graphs[-1].ctx.pos >= 0:
-                graph = Graph()
-                graph.ctx.on_unknown = self._note_unknown
-                graph.ctx.unit = self.unit
-                self.graphs.append(graph)
-            monitor.graph = self.graphs[-1]
-            monitor.node = monitor.graph.node(parsed)
-        self.monitors.append(monitor)
-        self.unstarted.append(monitor)
-        self.keys.update(monitor.keys)
+        judged = _Formula(formula, features(parsed), self.decided)
+        for n, part in enumerate(conjuncts(parsed)):
+            report = judged.report(n)
+            next(e for e in self.engines if e.add(part, report))
+        self.formulas.append(judged)
+        self.unstarted.append(judged)
+        self.keys.update(judged.keys)
         self.spelling = _UNSEEN
 
     def step(
@@ -209,49 +233,39 @@ class Progressor:
         """`step` for the stream processor's states, checked already: exact times that
         increase, every feature a value (`given`: the time as the caller wrote it)."""
         self.pos += 1
-        self.last_input = t if given is None else given
+        self.last_input = given = t if given is None else given
         if self.unstarted:
             for m in self.unstarted:
-                m.started, m.first = True, t
-        fused = self.fused
-        if fused.members:
-            fused.step(t, values)
-        if self.graphs:  # their nodes may explain themselves later: a copy of their own
-            values = dict(values)
-        for graph in self.graphs:
-            ctx = graph.ctx
-            if ctx.pos < 0:
-                ctx.start = self.pos
-            ctx.pos, ctx.now, ctx.values = self.pos, t, values  # type: ignore[assignment]
-            for node in sorted(ctx.ticking, key=lambda n: n.level):
-                node.tick()
-        if self.unstarted:
-            for m in self.unstarted:
-                if m.node is not None:
-                    m.start(t)
+                m.started = True
             self.unstarted = []
-        elif fused.make is not None and not self.graphs:  # from the next state on, one call
-            self.stepper, self.held = fused.make(self.pos, self.last_input)
+        if self.fused.members:
+            self.fused.step(self.pos, t, values, given)
+        if self.general.roots:
+            self.general.step(self.pos, t, values, given)
+        else:  # from the next state on, one call (when the fused code stands)
+            fast = self.fused.fast(self.pos, given, self.resume)
+            if fast is not None:
+                self.stepper, self.held = fast
         if not self.decided:
             return []
         return self._decided(at_end=False)
 
+    def resume(self, pos: int, given: Any) -> list[Verdict]:
+        """For the fused fast step, at a decision: the position and time it held come back,
+        the decided verdicts are reported, and `step_state` runs from the next state on."""
+        self.pos, self.last_input = pos, given
+        self.stepper, self.held = self.step_state, None
+        return self._decided(at_end=False)
+
     def finish(self) -> list[Verdict]:
         """End of stream: settle every undecided formula by the finite-trace semantics."""
-        for graph in self.graphs:
-            for node in sorted(set(graph.cache.values()), key=lambda n: n.level):
-                node.finish()
-        self.fused.finish()
         self._general()
-        for m in self.monitors:
-            if m.value is not PENDING:
-                continue
-            if not m.started:
-                m.deliver(None, None, None)
-            elif m.members:
-                unknown = any(part.unknown for part in m.members)
-                m.deliver(None, None if unknown else True, None)
-        self.fused.members = []
+        for engine in self.engines:
+            engine.finish()
+        for m in self.formulas:
+            if not m.started and not m.queued:
+                m.value, m.queued = None, True
+                self.decided.append(m)
         return self._decided(at_end=True)
 
     def _general(self) -> None:
@@ -262,53 +276,36 @@ class Progressor:
 
     def _decided(self, at_end: bool) -> list[Verdict]:
         out = []
-        order = {id(m): n for n, m in enumerate(self.monitors)}
+        order = {id(m): n for n, m in enumerate(self.formulas)}
         ready = sorted(self.decided, key=lambda m: order[id(m)])
         self.decided.clear()
         for m in ready:
-            if m.reported:
-                continue
             if m.value is None and not at_end:  # unknown for good: said at the end
                 self.decided.append(m)
                 continue
             m.reported = True
             witness = None
-            if m.value is False and m.why is not None:
-                if m.members:  # the fused step names the failing part only
-                    witness = Why(
-                        m.text, m.first, f"is false at {fmt(m.first, self.unit)}", m.why
-                    ).render()
-                else:  # the root node's reason, with the formula as the user wrote it
-                    witness = Why(m.text, m.why.at, m.why.detail, m.why.cause).render()
             unknown: tuple[UnknownSpan, ...] = ()
-            if m.value is None:
+            if m.value is False and m.why is not None:
+                witness = refuted(m.text, m.why)
+            elif m.value is None:
                 unknown = tuple(
                     UnknownSpan(k, s[0], s[1]) for k in m.keys for s in self.unknown.get(k, ())
                 )
-                witness = "the data left it undecided: " + (
-                    ", ".join(
-                        f"{u.feature} unknown from {fmt(u.start, self.unit)} to "
-                        f"{fmt(u.end, self.unit)}"
-                        for u in unknown
-                    )
-                    if unknown
-                    else "no state was seen"
-                    if not m.started
-                    else ""
+                witness = undecided(
+                    ((u.feature, u.start, u.end) for u in unknown), m.started, self.unit
                 )
             out.append(Verdict(m.text, m.value, self.last_input, at_end, witness, unknown))
         return out
 
-    def _note_unknowns(self, keys: list[FeatureKey]) -> None:
-        for k in keys:
-            self._note_unknown(k)
-
-    def _note_unknown(self, key: FeatureKey) -> None:
-        spans = self.unknown.setdefault(key, [])
-        if spans and spans[-1][2] >= self.pos - 1:
-            spans[-1][1], spans[-1][2] = self.last_input, self.pos
-        elif not spans or spans[-1][2] != self.pos:
-            spans.append([self.last_input, self.last_input, self.pos])
+    def note_unknown(self, keys: Iterable[FeatureKey], pos: int, given: Any) -> None:
+        """The engines' `Unknown`: these features were unknown at the state at `pos`."""
+        for key in keys:
+            spans = self.unknown.setdefault(key, [])
+            if spans and spans[-1][2] >= pos - 1:
+                spans[-1][1], spans[-1][2] = given, pos
+            elif not spans or spans[-1][2] != pos:
+                spans.append([given, given, pos])
 
 
-__all__ = ["Progressor", "UnknownSpan", "Verdict", "fmt"]
+__all__ = ["ENGINES", "Progressor", "UnknownSpan", "Verdict"]

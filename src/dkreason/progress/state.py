@@ -236,8 +236,8 @@ def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
     keys = features(f)
     scope: dict[str, Any] = {"slow": evaluate, "formula": f}
     names, lines = reads(keys, "values", scope)
-    bools = _boolean_keys(f)
-    body = _py(f, names)
+    bools = boolean_keys(f)
+    body = python(f, names)
     known = (
         " and ".join(
             (f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None") for k in keys
@@ -256,13 +256,16 @@ def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
     return scope["state"], keys
 
 
-def _boolean_keys(f: Any) -> set[FeatureKey]:
+def boolean_keys(f: Any) -> set[FeatureKey]:
+    """The features `f` reads as conditions (their values must be booleans)."""
     if isinstance(f, Atom):
         return {key(f.feature)}
-    return set().union(*(_boolean_keys(child) for child in children(f)))
+    return set().union(*(boolean_keys(child) for child in children(f)))
 
 
-def _py(n: Any, names: dict[FeatureKey, str]) -> str:
+def python(n: Any, names: dict[FeatureKey, str]) -> str:
+    """Python source for a state formula or expression, two-valued, the features read
+    into the local `names`."""
     if isinstance(n, BoolConst):
         return "True" if n.value else "False"
     if isinstance(n, Atom | Ref):
@@ -270,15 +273,15 @@ def _py(n: Any, names: dict[FeatureKey, str]) -> str:
     if isinstance(n, Num):
         return repr(n.value) if math.isfinite(n.value) else "1e999" if n.value > 0 else "-1e999"
     if isinstance(n, Compare | Arith):
-        return f"({_py(n.left, names)} {n.op} {_py(n.right, names)})"
+        return f"({python(n.left, names)} {n.op} {python(n.right, names)})"
     if isinstance(n, Unary):
-        return f"(-{_py(n.arg, names)})" if n.op == "-" else f"abs({_py(n.arg, names)})"
+        return f"(-{python(n.arg, names)})" if n.op == "-" else f"abs({python(n.arg, names)})"
     if isinstance(n, Str):
         return repr(n.value)
     if isinstance(n, Not):
-        return f"(not {_py(n.arg, names)})"
+        return f"(not {python(n.arg, names)})"
     if isinstance(n, Connective):
-        a, b = _py(n.left, names), _py(n.right, names)
+        a, b = python(n.left, names), python(n.right, names)
         return {
             "and": f"({a} and {b})",
             "or": f"({a} or {b})",

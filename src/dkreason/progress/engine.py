@@ -1,0 +1,57 @@
+"""The one contract between the progressor and its progression engines, checked by mypy: the
+general node graph (general.py) and the generated fused monitors (fused.py).
+
+The progressor splits a formula into its top-level conjuncts (parts) and gives each to an
+engine; the formula's verdict is their Kleene conjunction.  An engine judges each part from
+the next state on and reports its value once, by `finish` at the latest: False with a `Why`
+phrased by witness.py (so both engines explain alike), True, or None (unknown for good).  It
+tells the progressor which features its undecided parts read were unknown at each state, for
+the unknown verdicts' witnesses.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import Any, Protocol, TypeVar
+
+from ..model import FeatureKey
+from ..parse.formula import Formula
+from .witness import Time, Why
+
+Report = Callable[[bool | None, Why | None], None]
+"""A part's value and, when false, why: the reason at its first state (witness.refuted)."""
+
+Unknown = Callable[[Iterable[FeatureKey], int, Any], None]
+"""These features were unknown at the state at this position (and time, as given)."""
+
+
+class Engine(Protocol):
+    """What the progressor asks of a progression engine."""
+
+    def add(self, part: Formula, report: Report) -> bool:
+        """Judge `part` (quantifier-free, in stream units) from the next state on; False when
+        this engine does not take formulas of its shape."""
+        ...
+
+    def step(self, pos: int, t: Time, values: Mapping[FeatureKey, Any], given: Any) -> None:
+        """One state: its position, exact time, every feature's value, the time as given."""
+        ...
+
+    def finish(self) -> None:
+        """End of stream: every part that saw a state reports, by the finite-trace semantics."""
+        ...
+
+
+V = TypeVar("V", covariant=True)
+
+
+class Stepper(Protocol[V]):
+    """A progressor's step for one checked state: its verdicts."""
+
+    def __call__(
+        self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
+    ) -> Sequence[V]: ...
+
+
+Held = Callable[[], tuple[int, Any]]
+"""The position and time (as given) of the last state a fused fast step took."""
