@@ -81,6 +81,12 @@ class Graph:
         self.cache[f] = made
         return made
 
+    def rank(self) -> None:
+        """Fix the order its nodes tick in (nodes.order), once: a graph that runs takes no
+        more formulas."""
+        for n, node in enumerate(sorted(self.cache.values(), key=lambda n: (n.level, n.text))):
+            node.rank = n
+
     def text(self, f: Formula) -> str:
         """How a witness names `f`: as its node does (a state formula, without making one)."""
         return render(f) if is_state(f) else self.node(f).text

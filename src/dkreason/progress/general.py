@@ -65,14 +65,16 @@ class General:
         return True
 
     def step(self, pos: int, t: Time, values: Mapping[FeatureKey, Any], given: Any) -> None:
-        unknown = [k for k in self.reads if values[k] is None]
-        if unknown:
-            self.unknown(unknown, pos, given)
+        for k in self.reads:
+            if values[k] is None:  # (rare: no list made a state otherwise)
+                self.unknown([k for k in self.reads if values[k] is None], pos, given)
+                break
         copy = dict(values)  # the nodes may explain themselves later: a copy of their own
         for graph in self.graphs:
             ctx = graph.ctx
             if ctx.pos < 0:
                 ctx.start = pos
+                graph.rank()
             ctx.pos, ctx.now, ctx.values = pos, t, copy
             for node in sorted(ctx.ticking, key=order):
                 node.tick()

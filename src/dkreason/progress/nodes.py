@@ -64,6 +64,7 @@ class Ctx:
 class Node:
     level = 0
     text = ""
+    rank = 0  # its place in `order`
 
     def __init__(self, ctx: Ctx) -> None:
         self.ctx = ctx
@@ -95,10 +96,10 @@ class Node:
         raise NotImplementedError
 
 
-order = operator.attrgetter("level", "text")
-"""The order nodes tick and finish in: children before parents, and among equals by text, so
-which of two decisions comes first (and so a witness) depends on neither a set's order nor
-what else shares the graph."""
+order = operator.attrgetter("rank")
+"""The order nodes tick and finish in (`Graph.rank` sets it): children before parents, and
+among equals by text, so which of two decisions comes first (and so a witness) depends on
+neither a set's order nor what else shares the graph."""
 
 
 class StateNode(Node):
