@@ -1,5 +1,6 @@
 """Property tests for everything that takes outside input: formulas, SSL_T, specs XML, configs,
-JSON lines and live payloads give a result or one DkError line — never another exception.
+JSON lines, live payloads and MCAP chunk headers give a result or one DkError line — never
+another exception.
 
 Examples are bounded (`max_examples`, sizes) so the suite stays within its time budget; the
 strategies mix valid fragments with hostile ones so both paths are exercised."""
@@ -25,7 +26,12 @@ from dkreason.parse.formula import parse_formula
 from dkreason.parse.sslt import parse_text, parse_xml
 from dkreason.progress import Progressor
 from dkreason.progress.statefile import read_states
+from dkreason.stream.binding import open_recordings
+from dkreason.stream.info import describe
 from dkreason.stream.sources import JsonlSource
+
+from .craft import Chunk, chunk_headers, rows
+from .craft import write as craft
 
 FAST = settings(
     max_examples=150,
@@ -306,6 +312,38 @@ def _same(a: Any, b: Any) -> bool:
     if isinstance(a, dict):
         return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
     return bool(a == b)
+
+
+@settings(
+    max_examples=60,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
+@given(st.data(), st.booleans())
+def test_mcap_chunk_headers_described(
+    tmp_path_factory: pytest.TempPathFactory, data: st.DataObject, summary: bool
+) -> None:
+    """`dkreason info` over any chunk header (sizes to 2**64, CRCs, compressions misnamed or
+    unknown, bytes cut short), indexed or read front to back: a description, its damage
+    named, or one line; the counts never more than the chunks hold."""
+    path = tmp_path_factory.mktemp("chunks") / "r.mcap"
+    craft(
+        path,
+        [Chunk(rows(0, 5)), data.draw(chunk_headers(rows(10, 5))), Chunk(rows(20, 5))],
+        summary,
+    )
+    recordings = _total(open_recordings, [path])
+    if recordings is None:
+        return
+    try:
+        info = _total(describe, recordings.parts[0])
+    finally:
+        recordings.close()
+    if info is not None:
+        (topic,) = info.topics
+        assert topic.name == "/a" and topic.count is not None
+        assert (10 if summary else 5) <= topic.count <= 15  # read around it, or up to it
+        assert all("\n" not in d for d in info.damage)
 
 
 def test_the_strategies_reach_valid_input() -> None:

@@ -400,6 +400,32 @@ def test_custom_message_definitions_are_read_from_msg_files(tmp_path: Path) -> N
         msg_types([tmp_path / "CarMsg.txt"])
 
 
+@pytest.mark.parametrize(
+    ("text", "says"),
+    [
+        ("hello world\n", "field world has type 'hello', not a message type name"),
+        ("lorem ipsum dolor sit amet\n", "field ipsum has type 'lorem', not a message type name"),
+        ("import os\n", "field os has type 'import', not a message type name"),
+        ("{\n", "Could not parse"),
+    ],
+)
+def test_a_garbage_msg_file_is_refused_in_one_line_naming_it(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, traffic: Path, text: str, says: str
+) -> None:
+    """rosbags reads most text as some definition ("hello world": a field world of type
+    hello); one that no ROS definition could be is refused, not used."""
+    junk = tmp_path / "pkg" / "msg" / "Junk.msg"
+    junk.parent.mkdir(parents=True)
+    junk.write_text(text)
+    config = str(REPO / "examples" / "federation.toml")
+    argv = ["monitor", "--config", config, "--source", str(traffic), "--msg", str(junk)]
+    code = main([*argv, "always (Speed[car1] < 90)"])
+    out = capsys.readouterr()
+    assert code == 2 and out.out == ""
+    assert out.err.startswith(f"error: {junk}: not a message definition (") and says in out.err
+    assert out.err.count("\n") == 1
+
+
 def test_a_msg_file_replaces_a_standard_definition_of_the_same_type(tmp_path: Path) -> None:
     """--msg std_msgs/msg/String.msg with another definition is that type's definition (as it
     replaces a recording's own), not rosbags' 'already present' error."""

@@ -1,6 +1,10 @@
-"""Stream sources: fields read straight from serialised messages equal full deserialisation."""
+"""Stream sources: fields read straight from serialised messages equal full deserialisation;
+the stream policy, checked when made (and on the command line, one line each); a sample
+period bounded by the span it would fill with states."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rosbags.typesys.store import Typestore
 
+from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.stream.fastread import compile_extractor
 from dkreason.stream.fields import accessor, check
@@ -225,6 +230,71 @@ def test_an_end_before_the_start_is_refused_when_the_policy_is_made() -> None:
 
     with pytest.raises(DkError, match="end_time 50 is before start_time 100"):
         StreamPolicy(start_time=100, end_time=50)
+
+
+FEDERATION = str(Path(__file__).resolve().parents[1] / "examples" / "federation.toml")
+
+
+@pytest.mark.parametrize(
+    ("options", "says"),
+    [
+        (["--start", "100", "--end", "50"], "StreamPolicy end_time 50 is before start_time 100"),
+        (
+            ["--remap", "/a:=/x", "--remap", "/a:=/y"],
+            "--remap '/a:=/y': /a is already remapped to /x",
+        ),
+    ],
+)
+def test_contradictory_options_on_the_command_line_are_one_line_exit_2(
+    capsys: pytest.CaptureFixture[str], traffic: Path, options: list[str], says: str
+) -> None:
+    argv = ["monitor", "--config", FEDERATION, "--source", str(traffic), *options]
+    code = main([*argv, "--json", "always (Speed[car1] < 90)"])
+    out = capsys.readouterr()
+    assert code == 2 and out.out == "" and out.err == f"error: {says}\n"
+
+
+def test_a_period_too_fine_for_the_recordings_span_is_one_line_before_any_state(
+    capsys: pytest.CaptureFixture[str], traffic: Path
+) -> None:
+    """`--period 1e-9` over the 359 s traffic recording would make 3.6e11 states (it ran
+    forever): the count is known from the recording's span before the first state."""
+    from dkreason import KnowledgeManager, StreamPolicy
+
+    km = KnowledgeManager.from_config(FEDERATION)
+    run = km.monitor(
+        "always (Speed[car1] < 90)", [traffic], StreamPolicy(sample_period="1e-9"), keep_states=True
+    )
+    with pytest.raises(DkError) as error:
+        list(run)
+    assert run.states == []
+    assert str(error.value) == (
+        "--period 1e-09 s over 359.07 s would make 3.6e11 states (at most 10,000,000): give "
+        "a longer period, or a shorter span (--start, --end)"
+    )
+    argv = ["monitor", "--config", FEDERATION, "--source", str(traffic), "--period", "1e-9"]
+    code = main([*argv, "--json", "always (Speed[car1] < 90)"])
+    out = capsys.readouterr()
+    assert code == 2 and out.out == "" and out.err.endswith(f"\nerror: {error.value}\n")
+
+
+def test_without_a_known_end_the_period_is_bounded_at_each_advance(tmp_path: Path) -> None:
+    """JSON lines say nothing of their end before they are read: the states one advance of
+    the stream would make are counted before they are made."""
+    from dkreason import KnowledgeManager, StreamPolicy
+
+    lines = tmp_path / "r.jsonl"
+    lines.write_text(
+        "".join(
+            f'{{"topic": "topic3", "time": {t}, "msg": {{"id": 1, "spd": 50}}}}\n' for t in (0, 330)
+        )
+    )
+    km = KnowledgeManager.from_config(FEDERATION)
+    policy = StreamPolicy(sample_period="1e-9", delay_before_approximation=0)
+    run = km.monitor("always (Speed[car1] < 90)", [lines], policy, keep_states=True)
+    with pytest.raises(DkError, match=r"over 330 s would make 3.3e11 states \(at most"):
+        list(run)
+    assert run.states == []
 
 
 def test_pushed_times_are_seconds_and_nanoseconds_are_caught() -> None:

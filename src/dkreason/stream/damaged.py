@@ -10,7 +10,6 @@ the monitor has used every message before it.
 
 from __future__ import annotations
 
-import bz2
 import contextlib
 import io
 import os
@@ -23,7 +22,10 @@ from pathlib import Path
 from typing import Any, BinaryIO, Literal
 
 from ..errors import DkError
+from ..inputs.files import max_input, regular, shown
 from . import fields
+from .chunks import inflate_prefix
+from .mcapread import sound_prefix
 from .typestore import load_typestore, msg_types, ros_reader
 from .units import NS
 
@@ -163,10 +165,50 @@ class SequentialSource:
 
 
 # ---- MCAP ---------------------------------------------------------------------------------
-# Read here, not with mcap's StreamReader, so that an uncompressed chunk cut off mid-way still
-# gives its complete records (recorders write a chunk of ~1 MB at a time).
+# Read here, not with mcap's StreamReader, so that a chunk cut off or damaged mid-way still
+# gives its sound records (recorders write a chunk of ~1 MB at a time).
 
-_MAGIC = b"\x89MCAP0\r\n"
+MAGIC: dict[Kind, bytes] = {
+    "mcap": b"\x89MCAP0\r\n",
+    "ros1": b"#ROSBAG V2.0\n",
+    "db3": b"SQLite format 3\0",
+}
+_NAMES: dict[Kind, str] = {
+    "mcap": "an MCAP file",
+    "ros1": "a ROS 1 bag (format 2.0)",
+    "db3": "a rosbag2 sqlite3 file",
+}
+
+
+def check_magic(kind: Kind, path: Path) -> None:
+    """A DkError unless `path` begins as a recording of `kind` does: a file of anything else
+    (a gigabyte of zeros named `.bag`) is refused from its first bytes, before any reader
+    reads it to its end looking for a line or a record."""
+    regular(path)
+    try:
+        with path.open("rb") as handle:
+            begins = handle.read(len(MAGIC[kind]))
+    except OSError as exc:
+        raise DkError(f"{shown(path)}: cannot read ({exc.strerror})") from None
+    if begins != MAGIC[kind]:
+        raise DkError(
+            f"{shown(path)}: not a readable ROS recording (it does not begin as "
+            f"{_NAMES[kind]} does)"
+        )
+
+
+def _take(data: BinaryIO, n: int, size: int) -> bytes:
+    """n bytes of `data` (a stream of `size` bytes; fewer at its end), never asking it for
+    more than it holds (a file's read allocates what it is asked for first), nor for more
+    than one input may hold."""
+    n = min(n, size - data.tell())
+    limit = max_input()
+    if n > limit:
+        raise _Cut(
+            f"a record of more than the {limit:,} bytes one input may hold "
+            f"(raise DKREASON_MAX_INPUT to read it)"
+        )
+    return data.read(n)
 
 
 class _Bytes:
@@ -194,64 +236,67 @@ class _Bytes:
         return bytes(self.take(self.u32())).decode("utf-8", "replace")
 
 
-def _mcap_records(data: memoryview) -> Iterator[tuple[int, memoryview]]:
-    """(opcode, content) of each complete record; raises _Cut at a torn one, with the
-    complete records of a torn uncompressed chunk yielded first."""
-    pos = 0
-    while pos < len(data):
-        if pos + 9 > len(data):
+def _mcap_records(handle: BinaryIO, size: int) -> Iterator[tuple[int, bytes | memoryview]]:
+    """(opcode, content) of each complete record of the file after its magic; raises _Cut at
+    a torn one, after the sound records of a torn chunk."""
+    while handle.tell() < size:
+        head = _take(handle, 9, size)
+        if len(head) < 9:
             raise _Cut("the file ends in the middle of a record")
-        op, size = data[pos], int.from_bytes(data[pos + 1 : pos + 9], "little")
-        content = data[pos + 9 : pos + 9 + size]
-        if len(content) < size:
-            if op == 0x06:  # a chunk: its complete records are still good
-                yield from _mcap_chunk(content, torn=True)
+        op, length = head[0], int.from_bytes(head[1:], "little")
+        if op == 0x00:  # no record has it (zeros where records should be)
+            raise _Cut("a record of no kind (opcode 0x00)")
+        content = _take(handle, length, size)
+        if len(content) < length:
+            if op == 0x06:  # a chunk: its sound records are still good
+                with contextlib.suppress(_Cut):
+                    yield from _mcap_chunk(content)
             raise _Cut("the file ends in the middle of a record")
         if op == 0x02:  # the footer: only the closing magic follows
             return
         yield op, content
+
+
+def _chunk_records(data: memoryview) -> Iterator[tuple[int, memoryview]]:
+    """(opcode, content) of each record of a chunk's sound records."""
+    pos = 0
+    while pos < len(data):
+        size = int.from_bytes(data[pos + 1 : pos + 9], "little")
+        yield data[pos], data[pos + 9 : pos + 9 + size]
         pos += 9 + size
 
 
-def _mcap_chunk(content: memoryview, torn: bool = False) -> Iterator[tuple[int, memoryview]]:
+def _mcap_chunk(content: bytes | memoryview) -> Iterator[tuple[int, memoryview]]:
+    """The records of a chunk (whole or cut off) up to its damage, then _Cut saying what it
+    is (stream/mcapread.py's `sound_prefix`)."""
     chunk = _Bytes(content)
-    chunk.take(8 + 8 + 8 + 4)  # start and end time, uncompressed size and CRC
+    start, end, size, crc = chunk.u64(), chunk.u64(), chunk.u64(), chunk.u32()
     compression = chunk.text()
-    size = chunk.u64()
-    records = chunk.data[chunk.pos : chunk.pos + size]
-    if compression == "zstd":
-        import zstandard
-
-        records = memoryview(zstandard.ZstdDecompressor().decompressobj().decompress(records))
-    elif compression == "lz4":
-        import lz4.frame
-
-        records = memoryview(lz4.frame.LZ4FrameDecompressor().decompress(records))
-    elif compression:
-        raise _Cut(f"unknown chunk compression {compression!r}")
-    try:
-        yield from _mcap_records(records)
-    except _Cut:
-        if not torn:
-            raise
+    compressed = chunk.u64()
+    records, broken = inflate_prefix(
+        compression, bytes(chunk.data[chunk.pos : chunk.pos + compressed]), size
+    )
+    length, why = sound_prefix(records, crc, broken, start, end)
+    yield from _chunk_records(memoryview(records)[:length])
+    if why is not None:
+        raise _Cut(f"a chunk {why}")
 
 
 def _mcap(path: Path) -> Iterator[Item]:
-    from ..inputs.files import read_bytes
-
-    data = memoryview(read_bytes(path))
-    if bytes(data[:8]) != _MAGIC:
-        raise _Cut("not an MCAP file")
-    schemas: dict[int, str] = {}
-    try:
-        for op, content in _mcap_records(data[8:]):
-            items = _mcap_chunk(content) if op == 0x06 else iter([(op, content)])
-            for inner, body in items:
-                yield from _mcap_item(inner, _Bytes(body), schemas)
-    except _Cut as cut:
-        raise _Cut(f"{cut} ({len(data):,} bytes)") from None
-    except Exception as exc:
-        raise _Cut(f"{str(exc)[:120]} ({len(data):,} bytes)") from None
+    with path.open("rb") as handle:
+        size = os.fstat(handle.fileno()).st_size
+        if handle.read(len(MAGIC["mcap"])) != MAGIC["mcap"]:
+            raise _Cut("not an MCAP file")
+        schemas: dict[int, str] = {}
+        try:
+            for op, content in _mcap_records(handle, size):
+                items = _mcap_chunk(content) if op == 0x06 else iter([(op, content)])
+                for inner, body in items:
+                    yield from _mcap_item(inner, _Bytes(body), schemas)
+        except _Cut as cut:
+            raise _Cut(f"{cut} (byte {handle.tell():,} of {size:,})") from None
+        except Exception as exc:
+            raise _Cut(f"{str(exc)[:120]} (byte {handle.tell():,} of {size:,})") from None
 
 
 def _mcap_item(op: int, r: _Bytes, schemas: dict[int, str]) -> Iterator[Item]:
@@ -283,53 +328,61 @@ def _fields(header: bytes) -> dict[str, bytes]:
     return out
 
 
-def _ros1_records(data: BinaryIO) -> Iterator[tuple[dict[str, bytes], bytes]]:
-    """(header fields, data) of each record of a bag or of a chunk's bytes; raises _Cut at a
-    torn record, after yielding the complete records of a torn uncompressed chunk."""
-    while head := data.read(4):
+def _ros1_records(data: BinaryIO, size: int) -> Iterator[tuple[dict[str, bytes], bytes]]:
+    """(header fields, data) of each record of a bag or of a chunk's bytes (`size` of them);
+    raises _Cut at a torn record, after yielding the sound records of a torn chunk."""
+    while head := _take(data, 4, size):
         (hlen,) = struct.unpack("<I", head.ljust(4, b"\0"))
-        header = data.read(hlen)
-        size = data.read(4)
-        (dlen,) = struct.unpack("<I", size.ljust(4, b"\0"))
-        body = data.read(dlen)
-        if len(head) < 4 or len(header) < hlen or len(size) < 4 or len(body) < dlen:
+        header = _take(data, hlen, size)
+        length = _take(data, 4, size)
+        (dlen,) = struct.unpack("<I", length.ljust(4, b"\0"))
+        body = _take(data, dlen, size)
+        if len(head) < 4 or len(header) < hlen or len(length) < 4 or len(body) < dlen:
             fields_ = _fields(header)
-            if fields_.get("op") == b"\x05" and fields_.get("compression") == b"none":
+            if fields_.get("op") == b"\x05":
                 with contextlib.suppress(_Cut):
-                    yield from _ros1_records(io.BytesIO(body))
+                    yield from _ros1_chunk(fields_, body)
             raise _Cut("the data ends in the middle of a record")
-        yield _fields(header), body
+        fields_ = _fields(header)
+        if "op" not in fields_:  # every record says what it is (zeros say nothing)
+            raise _Cut("a record without its op field")
+        yield fields_, body
 
 
 def _ros1(path: Path) -> Iterator[Item]:
     with path.open("rb") as handle:
-        if handle.readline() != b"#ROSBAG V2.0\n":
+        size = os.fstat(handle.fileno()).st_size
+        if handle.read(len(MAGIC["ros1"])) != MAGIC["ros1"]:
             raise _Cut("not a ROS 1 bag (format 2.0)")
         try:
-            for fields_, body in _ros1_records(handle):
+            for fields_, body in _ros1_records(handle, size):
                 op = fields_.get("op", b"")
-                if op == b"\x05":
-                    yield from _ros1_chunk(fields_, body)
-                else:
-                    yield from _ros1_item(op, fields_, body)
+                records = _ros1_chunk(fields_, body) if op == b"\x05" else [(fields_, body)]
+                for inner, data in records:
+                    yield from _ros1_item(inner.get("op", b""), inner, data)
         except _Cut as cut:
-            raise _Cut(f"{cut} (byte {handle.tell():,} of {path.stat().st_size:,})") from None
+            raise _Cut(f"{cut} (byte {handle.tell():,} of {size:,})") from None
         except (struct.error, ValueError, OSError, KeyError, RuntimeError) as exc:
-            raise _Cut(f"{exc} (byte {handle.tell():,} of {path.stat().st_size:,})") from None
+            raise _Cut(f"{exc} (byte {handle.tell():,} of {size:,})") from None
 
 
-def _ros1_chunk(fields_: dict[str, bytes], body: bytes) -> Iterator[Item]:
-    compression = fields_.get("compression", b"none")
-    if compression == b"bz2":
-        body = bz2.decompress(body)
-    elif compression == b"lz4":
-        import lz4.frame
-
-        body = lz4.frame.decompress(body)
-    elif compression != b"none":
-        raise _Cut(f"unknown chunk compression {compression!r}")
-    for inner, data in _ros1_records(io.BytesIO(body)):
-        yield from _ros1_item(inner.get("op", b""), inner, data)
+def _ros1_chunk(fields_: dict[str, bytes], body: bytes) -> Iterator[tuple[dict[str, bytes], bytes]]:
+    """The records of a chunk (whole or cut off) up to its damage, then _Cut saying what it
+    is."""
+    compression = fields_.get("compression", b"none").decode("utf-8", "replace")
+    size = fields_.get("size", b"")
+    if len(size) != 4:
+        raise _Cut("a chunk without its size")
+    data, broken = inflate_prefix(
+        "" if compression == "none" else compression, body, int.from_bytes(size, "little")
+    )
+    try:
+        yield from _ros1_records(io.BytesIO(data), len(data))
+    except _Cut:
+        if broken is None:
+            raise
+    if broken is not None:
+        raise _Cut(f"a chunk {broken}")
 
 
 def _ros1_item(op: bytes, fields_: dict[str, bytes], body: bytes) -> Iterator[Item]:

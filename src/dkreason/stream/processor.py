@@ -43,6 +43,7 @@ from .sources import Message, Source
 from .units import NS, seconds
 
 _INF = float("inf")
+MAX_STATES = 10**7  # states a sample period may make over a stream (a few µs each: a minute)
 _NO_EXPIRY: tuple[list[FeatureKey], list[int]] = ([], [])  # read, never changed
 _NO_QS: list[int] = []
 _VALID_RANK = itemgetter(0, 1)  # a history entry's order: (valid, rank), never its value
@@ -145,6 +146,8 @@ class StreamProcessor:
         self.max_delay = _ns(policy.max_delay)
         if self.period is not None and self.period <= 0:
             raise DkError("the sample period must be positive")
+        self.recorded_end = source.last_record()  # where a recording ends (ns), if known
+        self.sized = False  # the periodic states to the stream's known end were counted
         self.keys: list[FeatureKey] = []  # the states' keys
         self.current: dict[FeatureKey, Any] = {}  # the last state's values (on every change)
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
@@ -515,6 +518,8 @@ class StreamProcessor:
     def _make_due(self, now: int, final: bool) -> float:
         """Make the states due by `now`; returns `_next_due()`."""
         if self.period is not None:
+            if not self.sized and self.next_state is not None:
+                self._size(now, final)
             while self.next_state is not None and (final or self.next_state + self.delay < now):
                 if final and self.next_state > self.max_valid:
                     break
@@ -577,6 +582,22 @@ class StreamProcessor:
                 values = current
             self.made = s
             self.on_state(s, values, fresh)
+
+    def _size(self, now: int, final: bool) -> None:
+        """Refuse a sample period that would make more than MAX_STATES states from the next
+        one to where the stream ends: its end time or the recording's last record (checked
+        once), or else to `now` (checked at each advance)."""
+        assert self.period is not None and self.next_state is not None
+        ends = [e for e in (self.end, self.recorded_end) if e is not None]
+        upto = min(ends) if ends else self.max_valid if final else now - self.delay
+        count = (upto - self.next_state) // self.period + 1
+        if count > MAX_STATES:
+            raise DkError(
+                f"--period {seconds(self.period):g} s over {seconds(upto - self.next_state):g} s "
+                f"would make {count:.2g} states (at most {MAX_STATES:,}): give a longer "
+                f"period, or a shorter span (--start, --end)".replace("e+", "e")
+            )
+        self.sized = bool(ends)
 
     def _expired(self, s: int, final: bool) -> tuple[list[FeatureKey], list[int]]:
         """The features whose newest sample grows stale at s, and every feature whose expiry

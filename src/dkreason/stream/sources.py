@@ -18,8 +18,9 @@ from typing import Any, Protocol
 from ..errors import DkError, ParseError, Span
 from ..inputs import files
 from . import fields
-from .damaged import DamagedRecording, SequentialSource, declared_size, kind_of
-from .mcapread import IndexedMcap, open_indexed
+from .chunks import bound_rosbags
+from .damaged import DamagedRecording, SequentialSource, check_magic, declared_size, kind_of
+from .mcapread import IndexedMcap, Survey, open_indexed
 from .typestore import (
     load_typestore,
     msg_types,
@@ -89,6 +90,7 @@ class RosbagSource:
         given = msg_types(msg_files)
         default = load_typestore(given, ros1, typestore)
         _foreign_channels_allowed()
+        bound_rosbags()
         try:
             self.reader = AnyReader([path], default_typestore=default)
             self.reader.open()
@@ -190,6 +192,11 @@ class RosbagSource:
                 f"{self.name}: damaged recording ({why(exc)}); {n} "
                 f"messages before it were monitored, the rest is lost"
             ) from None
+        lost = None if self._indexed is None else self._indexed.damage()
+        if lost is not None:  # read around: the chunks before and after the damage
+            raise DamagedRecording(
+                f"{self.name}: damaged recording: {lost}; the {n} messages read were monitored"
+            )
 
     def _batches(
         self, connections: list[Any]
@@ -197,6 +204,9 @@ class RosbagSource:
         """Messages in recording order, in batches: (key, record time, serialised message),
         and what each key is (the id of its connection).  An indexed MCAP file is read through
         mcapread, a chunk a batch (~5× rosbags' rate); anything else through rosbags."""
+        if self._indexed is not None:  # asked again: the file is read again from the start
+            self._indexed.close()
+            self._indexed = None
         by_topic = {c.topic: c for c in connections}
         found = kind_of(self.path)  # a bare file, or a bag folder's only storage file
         indexed = (
@@ -223,11 +233,27 @@ class RosbagSource:
             for connection, t_ns, raw in self.reader.messages(connections=connections):
                 yield ((id(connection), t_ns, raw),), same
             return
-        if self._indexed is not None:  # asked again: the file is read again from the start
-            self._indexed.close()
         self._indexed = indexed
         for batch in indexed.batches(channels):
             yield batch, channels
+
+    def survey(self) -> Survey | None:
+        """What an indexed MCAP file's chunks hold, read from them (counts, span, damage);
+        None for any other file, whose index is taken at its word."""
+        found = kind_of(self.path)
+        indexed = (
+            open_indexed(found[1])
+            if self.reader.is2 and found is not None and found[0] == "mcap"
+            else None
+        )
+        if indexed is None:
+            return None
+        try:
+            return indexed.survey(
+                ch for ch, (_, encoding) in indexed.channels.items() if encoding in ENCODINGS
+            )
+        finally:
+            indexed.close()
 
     def records(self) -> Iterator[Record]:
         """Every message in full, as plain data (what a live platform node publishes)."""
@@ -251,9 +277,12 @@ class RosbagSource:
             self.reader.close()
 
 
+ENCODINGS = ("cdr", "ros1")  # a channel's, when it is ROS (an MCAP may hold JSON, protobuf)
+
+
 def _ros(connection: Any) -> bool:
-    """A channel in a ROS encoding (an MCAP may hold others: JSON, protobuf)."""
-    return getattr(connection.ext, "serialization_format", "cdr") in ("cdr", "ros1")
+    """A channel in a ROS encoding."""
+    return getattr(connection.ext, "serialization_format", "cdr") in ENCODINGS
 
 
 def _foreign_channels_allowed() -> None:
@@ -447,6 +476,8 @@ def open_source(path: Path, msg_files: Sequence[Path] = (), typestore: str | Non
     if path.suffix == ".jsonl" or path.suffix == ".json" or str(path) == "-":
         return JsonlSource(path)
     found = kind_of(path) if path.exists() else None
+    if found is not None:
+        check_magic(*found)
     if (
         found is not None
         and found[0] == "db3"

@@ -3,6 +3,7 @@ input door, and readers of a message's wanted fields (from bytes where the layou
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -39,8 +40,14 @@ def with_definitions(store: Any, given: dict[str, Any]) -> Any:
     return fresh
 
 
+_TYPE = re.compile(r"[a-z][a-z0-9_]*/msg/[A-Z][A-Za-z0-9]*")  # as rosbags writes a message type
+_FIELD = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
 def msg_types(msg_files: Sequence[Path]) -> dict[str, Any]:
-    """The types `pkg/msg/Name.msg` files define, in rosbags' form."""
+    """The types `pkg/msg/Name.msg` files define, in rosbags' form.  rosbags reads most text
+    as some definition ("hello world": a field `world` of type `hello`), so each field's name
+    and type must also be ones ROS allows: a file of anything else is refused, not used."""
     from rosbags.typesys import get_types_from_msg
 
     types: dict[str, Any] = {}
@@ -48,11 +55,29 @@ def msg_types(msg_files: Sequence[Path]) -> dict[str, Any]:
         if path.suffix != ".msg" or path.parent.name != "msg":
             raise DkError(f"{path}: expected a message definition pkg/msg/Name.msg")
         name = f"{path.parent.parent.name}/msg/{path.stem}"
+        text = read_text(path)
         try:
-            types.update(get_types_from_msg(read_text(path), name))
+            found = get_types_from_msg(text, name)
         except Exception as exc:
             raise DkError(f"{path}: not a message definition ({why(exc)})") from None
+        for definition in found.values():
+            odd = _odd_field(definition)
+            if odd is not None:
+                raise DkError(f"{path}: not a message definition ({odd})")
+        types.update(found)
     return types
+
+
+def _odd_field(definition: Any) -> str | None:
+    """What in a parsed definition no ROS message definition has (None: nothing)."""
+    for field, (nodetype, spec) in definition[1]:
+        if not _FIELD.fullmatch(field):
+            return f"{field!r} is not a field name"
+        while int(nodetype) in (3, 4):  # an array or a sequence: of its elements
+            nodetype, spec = spec[0]
+        if int(nodetype) == 2 and not _TYPE.fullmatch(spec):
+            return f"field {field} has type {spec.rpartition('/')[2]!r}, not a message type name"
+    return None
 
 
 def why(exc: BaseException) -> str:

@@ -27,3 +27,9 @@ def to_ns(seconds: Any, what: str = "time") -> int:
 def seconds(ns: int) -> float | int:
     """Nanoseconds as the seconds people read (an int when whole)."""
     return ns // NS if ns % NS == 0 else ns / NS
+
+
+def seconds_text(ns: int) -> str:
+    """Nanoseconds as exact decimal seconds, for a message (`12.5`, `-0.000000001`)."""
+    sign, ns = ("-", -ns) if ns < 0 else ("", ns)
+    return f"{sign}{ns // NS}.{ns % NS:09d}".rstrip("0").rstrip(".")
