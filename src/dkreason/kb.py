@@ -27,7 +27,7 @@ from .facts import (
     rows_of,
     spec_facts,
 )
-from .inputs.files import read_bytes
+from .inputs.files import read_bytes, resolved
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
 from .parse.config import SCHEMA, Config, PlatformFiles, read_config, shipped_policy
@@ -102,12 +102,12 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
 
     parts: list[bytes | str] = [
         files.name,
-        *(str(p.resolve()) for p in files.ontology),
+        *(str(resolved(p)) for p in files.ontology),
         str(specs),
         spec_data,
         str(files.skip_imports),
         files.reasoning,
-        *(f"{k}={v.resolve()}" for k, v in sorted(imports.items())),
+        *(f"{k}={resolved(v)}" for k, v in sorted(imports.items())),
     ]
     platform, _ = cache.cached("platform", parts, parsed, lambda found: cache.unchanged(found[1]))
     return platform

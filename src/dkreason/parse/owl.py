@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DkError, ParseError, Span
-from ..inputs.files import decode, json_value, read_bytes
+from ..inputs.files import decode, json_value, read_bytes, resolved
 from ..model import IdValue, Ontology, Signature
 from ..names import local_name
 
@@ -27,7 +27,7 @@ THING = "http://www.w3.org/2002/07/owl#Thing"
 
 
 def read_ontology(path: Path, platform: str) -> Ontology:
-    return parse_ontology(read_bytes(path), str(path), platform, path.resolve().as_uri())
+    return parse_ontology(read_bytes(path), str(path), platform, resolved(path).as_uri())
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,7 +61,7 @@ def read_sources(
     todo: list[tuple[Path, str | None]] = [(Path(f), None) for f in files]
     while todo:
         path, iri = todo.pop(0)
-        where = path.resolve()
+        where = resolved(path)
         if where in loaded:
             continue
         loaded.add(where)
