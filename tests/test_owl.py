@@ -293,6 +293,32 @@ def test_an_xxe_inside_an_imported_file_is_refused_naming_it(tmp_path: Path) -> 
         KnowledgeManager.from_config(config)
 
 
+@pytest.mark.parametrize(
+    ("base", "ssn", "sosa"),
+    [
+        ('xml:base="elsewhere/"', "../ssn.ttl", "../sosa.ttl"),  # a group's base, relative
+        ("", "file:{dir}/ssn.ttl", "file://{dir}/sosa.ttl"),
+        ('xml:base="file:{dir}/"', "ssn.ttl", "./sosa.ttl"),
+        ('xml:base="file:///nowhere/"', "file:{dir}/ssn.ttl", "{dir}/sosa.ttl"),
+    ],
+    ids=["relative-base", "file-uris", "absolute-base", "uri-over-base"],
+)
+def test_a_catalog_honours_xml_base_and_file_uris(
+    tmp_path: Path, base: str, ssn: str, sosa: str
+) -> None:
+    from dkreason import KnowledgeManager
+
+    config = station(tmp_path)
+    (tmp_path / "catalog-v001.xml").write_text(
+        '<?xml version="1.0"?>\n<catalog xmlns="urn:oasis:names:tc:entity:xmlns:xml:catalog">'
+        f"<group {base.format(dir=tmp_path)}>"
+        f'<uri name="http://www.w3.org/ns/ssn/" uri="{ssn.format(dir=tmp_path)}"/>'
+        f'<uri name="http://www.w3.org/ns/sosa/" uri="{sosa.format(dir=tmp_path)}"/>'
+        "</group></catalog>"
+    )
+    assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
+
+
 def test_a_changed_import_is_read_again_not_taken_from_the_cache(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -80,7 +80,7 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
     xml = specs is not None and is_xml(specs)
     spec_data = read_bytes(specs) if specs else b""
 
-    def build() -> tuple[Platform, tuple[tuple[str, str], ...]]:
+    def build() -> tuple[Platform, tuple[tuple[str, str | None], ...]]:
         sources = read_sources(files.ontology, imports, files.skip_imports)
         parsed = parse_specs(spec_data, str(specs), xml=xml).specs if specs else ()
         ontology = ontology_of(sources.graph, str(files.ontology[0]), files.name)
@@ -90,9 +90,12 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
             ontology = entail(sources.graph, ontology)
         platform = make_platform(ontology, parsed, specs)
         platform.notes = sources.skipped
-        return platform, tuple((str(p), cache.digest(d)) for p, d in sources.read)
+        return platform, (
+            *((str(p), cache.digest(d)) for p, d in sources.read),
+            *((str(p), None) for p in sources.absent),
+        )
 
-    def parsed() -> tuple[Platform, tuple[tuple[str, str], ...]]:
+    def parsed() -> tuple[Platform, tuple[tuple[str, str | None], ...]]:
         found = build()
         # rdflib's graph and its store refer to each other: the parse leaves cycles.  They are
         # all younger than the last collection, so collecting the youngest generation finds
@@ -186,20 +189,8 @@ class KnowledgeBase:
                 self._check_specs(p, list(p.resolved))
             return self.engine.frozen()
 
-        def whole(found: object) -> bool:  # a damaged entry is derived again
-            arity = self.engine.views
-            return (
-                isinstance(found, dict)
-                and found.keys() == arity.keys()
-                and all(
-                    isinstance(row, tuple) and len(row) == arity[name]
-                    for name, rows in found.items()
-                    for row in rows
-                )
-            )
-
         views = cache.cached(
-            "views", [version("pyDatalog"), *self.engine.texts, content.digest()], compute, whole
+            "views", [version("pyDatalog"), *self.engine.texts, content.digest()], compute
         )
         if not computed:
             self.engine.restore(views)

@@ -11,6 +11,7 @@ import logging
 import os
 import re
 import warnings
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,11 +34,13 @@ def read_ontology(path: Path, platform: str) -> Ontology:
 @dataclass(frozen=True, slots=True)
 class Sources:
     """An ontology's files with everything they import, merged into one graph: what was read
-    (every file and catalog, to tell when a cached model went stale) and what was skipped."""
+    and what was looked for but absent (every file and catalog, to tell when a cached model
+    went stale) and what was skipped."""
 
     graph: Any
     read: tuple[tuple[Path, bytes], ...]
     skipped: tuple[str, ...]  # one warning line per import left out (imports = "skip")
+    absent: tuple[Path, ...] = ()  # catalogs looked for and not found
 
 
 def read_sources(
@@ -51,16 +54,17 @@ def read_sources(
     from rdflib import Graph, URIRef
     from rdflib.namespace import OWL, RDF
 
-    graph = Graph(bind_namespaces="none")
+    graph: Any = None
     read: list[tuple[Path, bytes]] = []
+    absent: list[Path] = []
     skipped: list[str] = []
     catalogs: dict[Path, dict[str, Path]] = {}
     loaded: set[Path] = set()
     names: set[str] = set()  # the ontologies loaded so far, by IRI without a trailing / or #
     prefixes: set[str] = set()
-    todo: list[tuple[Path, str | None]] = [(Path(f), None) for f in files]
+    todo: deque[tuple[Path, str | None]] = deque((Path(f), None) for f in files)
     while todo:
-        path, iri = todo.pop(0)
+        path, iri = todo.popleft()
         where = resolved(path)
         if where in loaded:
             continue
@@ -79,7 +83,9 @@ def read_sources(
             target = str(wanted)
             if target.rstrip("/#") in names:
                 continue
-            found = (imports or {}).get(target) or _catalog(path.parent, catalogs, read).get(target)
+            found = (imports or {}).get(target) or _catalog(
+                path.parent, catalogs, read, absent
+            ).get(target)
             if found is not None:
                 todo.append((found, target))
                 continue
@@ -90,37 +96,62 @@ def read_sources(
             if not skip:
                 raise ParseError(why, Span(str(path)))
             skipped.append(f"{path}: {why}; skipped")
-        for triple in part:
-            graph.add(triple)
+        if graph is None:  # the first file's graph is the merged one: not held twice
+            graph = part
+            prefixes = {prefix for prefix, _ in part.namespaces() if prefix}
+            continue
+        graph += part
         for prefix, ns in part.namespaces():
             if prefix and prefix not in prefixes:
                 prefixes.add(prefix)
                 graph.bind(prefix, ns)
-    return Sources(graph, tuple(read), tuple(skipped))
+        del part
+    return Sources(
+        Graph(bind_namespaces="none") if graph is None else graph,
+        tuple(read),
+        tuple(skipped),
+        tuple(absent),
+    )
+
+
+_XML_BASE = "{http://www.w3.org/XML/1998/namespace}base"
 
 
 def _catalog(
-    folder: Path, catalogs: dict[Path, dict[str, Path]], read: list[tuple[Path, bytes]]
+    folder: Path,
+    catalogs: dict[Path, dict[str, Path]],
+    read: list[tuple[Path, bytes]],
+    absent: list[Path],
 ) -> dict[str, Path]:
-    """IRI → file of the catalog-v001.xml in `folder` (none: empty), read once."""
+    """IRI → file of the catalog-v001.xml in `folder`, read once through the input door (none:
+    empty, and noted as absent, so one that appears later is read).  Each `uri` is resolved
+    as XML Base says, against the nearest `xml:base` and the catalog's own place; only a
+    `file:` URI or a path names a file (nothing is fetched)."""
     if folder not in catalogs:
         path = folder / "catalog-v001.xml"
-        catalogs[folder] = {}
-        if path.is_file():
-            from ..inputs import xmlsafe
+        found: dict[str, Path] = {}
+        catalogs[folder] = found
+        if not os.path.lexists(path):
+            absent.append(path)
+            return found
+        from urllib.parse import urljoin, urlsplit
+        from urllib.request import url2pathname
 
-            data = read_bytes(path)
-            read.append((path, data))
-            root, _ = xmlsafe.parse(data, str(path))
-            for element in root.iter():
-                if (
-                    element.tag.rsplit("}", 1)[-1] == "uri"
-                    and element.get("name")
-                    and element.get("uri")
-                ):
-                    catalogs[folder][str(element.get("name"))] = Path(
-                        os.path.normpath(folder / str(element.get("uri")))
-                    )
+        from ..inputs import xmlsafe
+
+        data = read_bytes(path)
+        read.append((path, data))
+        root, _ = xmlsafe.parse(data, str(path))
+        todo = [(root, Path(os.path.abspath(path)).as_uri())]
+        while todo:
+            element, base = todo.pop()
+            base = urljoin(base, element.get(_XML_BASE, ""))
+            name, uri = element.get("name"), element.get("uri")
+            if element.tag.rsplit("}", 1)[-1] == "uri" and name and uri:
+                target = urlsplit(urljoin(base, uri))
+                if target.scheme == "file" and target.netloc in ("", "localhost"):
+                    found[name] = Path(url2pathname(target.path))
+            todo.extend((child, base) for child in reversed(element))  # in document order
     return catalogs[folder]
 
 
