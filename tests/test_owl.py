@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -406,6 +409,115 @@ def test_a_malformed_owl_file_is_one_line_with_its_place(
         read_ontology(tmp_path / "s.owl", "s")
     message = str(error.value)
     assert f"s.owl{where}" in message and says in message and "\n" not in message
+
+
+# ---- OWL that cannot take the process down (issue 27, defects 3, 5 and 8) -------------------
+
+
+@pytest.mark.parametrize("kind", ["ofn", "omn", "omn-chain", "owx"])
+def test_deep_nesting_is_one_line_and_exit_2_not_a_signal(tmp_path: Path, kind: str) -> None:
+    from dkreason.workloads import nested_owl
+
+    from .conftest import REPO
+
+    (tmp_path / "deep.owl").write_text(nested_owl(kind, 10_000))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "deep.owl"\n')
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "dkreason.cli",
+            "match",
+            "--config",
+            str(tmp_path / "c.toml"),
+            "P[a]",
+        ],
+        capture_output=True,
+        text=True,
+        env=os.environ | {"PYTHONPATH": str(REPO / "src")},
+    )
+    assert done.returncode == 2, (done.returncode, done.stderr[-300:])
+    assert done.stderr.count("\n") == 1 and "deep.owl:" in done.stderr
+    assert "nested deeper than" in done.stderr
+
+
+@pytest.mark.parametrize("kind", ["ofn", "omn", "omn-chain", "owx"])
+def test_nesting_as_deep_as_real_ontologies_go_is_read(tmp_path: Path, kind: str) -> None:
+    from dkreason.workloads import nested_owl
+
+    (tmp_path / "deep.owl").write_text(nested_owl(kind, 20))
+    assert "http://example.org/hostile#A" in read_ontology(tmp_path / "deep.owl", "p").sorts
+
+
+def test_owl_text_that_names_a_file_is_not_read_as_that_file(tmp_path: Path) -> None:
+    """py-horned-owl opens a file when the text it is given is a path: never here."""
+    (tmp_path / "real.ofn").write_text(FUNCTIONAL)
+    (tmp_path / "s.ofn").write_text(str(tmp_path / "real.ofn"))
+    with pytest.raises(ParseError, match="s.ofn"):
+        read_ontology(tmp_path / "s.ofn", "s")
+
+
+@pytest.mark.parametrize("name", ["s.owl", "s.ofn", "s.omn", "s.owx"])
+def test_a_utf8_bom_is_read(tmp_path: Path, name: str) -> None:
+    text = {"s.ofn": FUNCTIONAL, "s.omn": MANCHESTER, "s.owx": OWL_XML}.get(name, MANCHESTER)
+    (tmp_path / name).write_text("\ufeff" + text, encoding="utf-8")
+    ont = read_ontology(tmp_path / name, "s")
+    assert signature(ont, "Altitude") == [["UAV"]]
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["", "  \n", "Prefix: : <http://x.org/s#>\n", MANCHESTER[: MANCHESTER.index("Ontology:") + 5]],
+    ids=["empty", "blank", "prefixes-only", "cut-in-the-header"],
+)
+def test_an_empty_or_cut_manchester_file_is_an_error(tmp_path: Path, text: str) -> None:
+    (tmp_path / "s.omn").write_text(text)
+    with pytest.raises(ParseError, match="s.omn"):
+        read_ontology(tmp_path / "s.omn", "s")
+
+
+ENTITIES = (
+    OWL_XML.replace("http://x.org/s#", "&s;")
+    .replace(
+        '<?xml version="1.0"?>\n',
+        '<?xml version="1.0"?>\n<!DOCTYPE Ontology [\n  <!ENTITY s "http://x.org/s#">\n'
+        '  <!ENTITY tricky "a ] > b">\n]>\n',
+    )
+    .replace("<Declaration>", "<!-- &tricky; --><Declaration>", 1)
+)
+
+
+@pytest.mark.parametrize("name", ["s.owl", "s.owx"])
+def test_owl_xml_with_internal_entities_is_read(tmp_path: Path, name: str) -> None:
+    (tmp_path / name).write_text(ENTITIES)
+    ont = read_ontology(tmp_path / name, "s")
+    assert signature(ont, "Altitude") == [["UAV"]]
+    assert ont.individuals == {"http://x.org/s#uav1"}
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        OWL_XML.replace("?>\n", "?>\n<!--" + "x" * 70_000 + "-->\n", 1),
+        FUNCTIONAL.replace("Ontology(", "#" + "x" * 70_000 + "\nOntology(", 1),
+    ],
+    ids=["owl-xml", "functional"],
+)
+def test_content_is_sniffed_past_a_preamble_of_any_length(tmp_path: Path, text: str) -> None:
+    (tmp_path / "s.owl").write_text(text)
+    assert signature(read_ontology(tmp_path / "s.owl", "s"), "Altitude") == [["UAV"]]
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["<!DOCTYPE x [" + "[" * 65_000, "<!DOCTYPE x [" + '<!ENTITY a "' * 20_000, "<!--" * 30_000],
+    ids=["brackets", "open-quotes", "open-comments"],
+)
+def test_a_hostile_preamble_is_one_line_in_one_pass(tmp_path: Path, text: str) -> None:
+    (tmp_path / "s.owl").write_text(text)
+    with pytest.raises(ParseError) as error:
+        read_ontology(tmp_path / "s.owl", "s")
+    assert "\n" not in str(error.value)
 
 
 # ---- entailed sort membership (issue 15, item 4) ----------------------------------------------

@@ -284,3 +284,40 @@ def fleet(folder: Path, nodes: int) -> None:
         (folder / f"p{n}.toml").write_text(
             f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n'
         )
+
+
+# ---- hostile ontologies (tests/test_owl.py, bench_owl_memory, bench_owlrl) -------------------
+
+
+HOSTILE = "http://example.org/hostile#"
+
+
+def nested_owl(syntax: str, depth: int) -> str:
+    """An ontology whose one axiom nests `depth` class expressions: in OWL Functional Syntax
+    ("ofn"), Manchester syntax with parentheses ("omn") or with a chain of restrictions and
+    none ("omn-chain"), or OWL/XML ("owx")."""
+    if syntax == "ofn":
+        return (
+            f"Prefix(:=<{HOSTILE}>)\nOntology(<{HOSTILE}>\nSubClassOf(:A "
+            + "ObjectIntersectionOf(:B " * depth
+            + ":C"
+            + ")" * depth
+            + ")\n)\n"
+        )
+    if syntax.startswith("omn"):
+        nested = (
+            "p some " * depth + "B" if syntax == "omn-chain" else "(" * depth + "B" + ")" * depth
+        )
+        return (
+            f"Prefix: : <{HOSTILE}>\nOntology: <{HOSTILE}>\nObjectProperty: p\nClass: B\n"
+            f"Class: A\n    SubClassOf: {nested}\n"
+        )
+    iri = f'<Class IRI="{HOSTILE}'
+    return (
+        f'<?xml version="1.0"?>\n<Ontology xmlns="http://www.w3.org/2002/07/owl#" '
+        f'ontologyIRI="{HOSTILE}"><SubClassOf>{iri}A"/>'
+        + f'<ObjectIntersectionOf>{iri}B"/>' * depth
+        + f'{iri}C"/>'
+        + "</ObjectIntersectionOf>" * depth
+        + "</SubClassOf></Ontology>\n"
+    )
