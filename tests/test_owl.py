@@ -630,15 +630,37 @@ def test_signatures_stay_told_under_owl_rl(tmp_path: Path) -> None:
     assert signature(ont, "Speed") == [["MovingObject"]]
 
 
-@pytest.mark.parametrize("name", ["entailing", "platform1", "weather"])
-def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
+def agrees_with_owlrl(km: Any, files: list[Path]) -> None:
     """owlrl is the oracle: every named object's sorts, told and entailed, closed under the
-    told hierarchy, are the sorts its OWL 2 RL closure types it with."""
+    told hierarchy, are the sorts its OWL 2 RL closure types it with, and its sameAs class is
+    the objects the closure says are sameAs it."""
     import owlrl
     from rdflib import URIRef
-    from rdflib.namespace import RDF
+    from rdflib.namespace import OWL, RDF
 
     from dkreason.parse.owl import read_sources
+
+    (platform,) = km.kb.platforms
+    ont = km.kb.platform(platform).ontology
+    closure = read_sources(files).graph
+    owlrl.DeductiveClosure(
+        owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False, datatype_axioms=False
+    ).expand(closure)
+    for sort in sorted(ont.sorts - {"http://www.w3.org/2002/07/owl#Thing"}):
+        ours = {o for o in km.kb.engine.query("instance_of", platform, None, sort)}
+        theirs = {
+            str(s) for s in closure.subjects(RDF.type, URIRef(sort)) if str(s) in ont.individuals
+        }
+        assert {str(o[1]) for o in ours} == theirs, local_name(sort)
+    rep = {str(r[1]): str(r[2]) for r in km.kb.engine.query("same_rep", platform, None, None)}
+    for obj in sorted(ont.individuals):
+        theirs = {str(o) for o in closure.objects(URIRef(obj), OWL.sameAs)} & ont.individuals
+        assert {o for o in ont.individuals if rep[o] == rep[obj]} == theirs | {obj}, obj
+
+
+@pytest.mark.parametrize("name", ["entailing", "platform1", "weather"])
+def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
+    from dkreason import KnowledgeManager
 
     if name == "entailing":
         km = entailing(tmp_path)
@@ -652,20 +674,25 @@ def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
         (tmp_path / "c.toml").write_text(
             f'[platforms.e]\nontology = "{files[0]}"\nreasoning = "owl-rl"\n'
         )
-        from dkreason import KnowledgeManager
-
         km = KnowledgeManager.from_config(tmp_path / "c.toml")
-    ont = km.kb.platform("e").ontology
-    closure = read_sources(files).graph
-    owlrl.DeductiveClosure(
-        owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False, datatype_axioms=False
-    ).expand(closure)
-    for sort in sorted(ont.sorts - {"http://www.w3.org/2002/07/owl#Thing"}):
-        ours = {o for o in km.kb.engine.query("instance_of", "e", None, sort)}
-        theirs = {
-            str(s) for s in closure.subjects(RDF.type, URIRef(sort)) if str(s) in ont.individuals
-        }
-        assert {str(o[1]) for o in ours} == theirs, local_name(sort)
+    agrees_with_owlrl(km, files)
+
+
+@pytest.mark.parametrize("kind", ["same-as", "transitive", "functional", "subclass"])
+def test_large_closures_equal_owlrls_and_stay_per_same_as_class(tmp_path: Path, kind: str) -> None:
+    """Chains make OWL RL's closure grow with the square of their length (issue 27, defect
+    5); the rules keep sameAs as classes and memberships per class, and still agree with
+    owlrl.  The lengths that took minutes are measured in benchmarks/bench_owlrl.py."""
+    from dkreason import KnowledgeManager
+    from dkreason.workloads import owl_rl_world
+
+    n = 40
+    (tmp_path / "o.ttl").write_text(owl_rl_world(kind, n))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.ttl"\nreasoning = "owl-rl"\n')
+    km = KnowledgeManager.from_config(tmp_path / "c.toml")
+    agrees_with_owlrl(km, [tmp_path / "o.ttl"])
+    ont = km.kb.platform("p").ontology
+    assert len(ont.entailed) <= 2 * n  # a pair per object at most, not a pair per two objects
 
 
 def test_an_unresolved_import_on_the_cli_is_one_line_and_exit_2(

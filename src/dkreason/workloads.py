@@ -321,3 +321,45 @@ def nested_owl(syntax: str, depth: int) -> str:
         + "</ObjectIntersectionOf>" * depth
         + "</SubClassOf></Ontology>\n"
     )
+
+
+_RL_HEAD = f"""@prefix : <{HOSTILE}> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:Robot a owl:Class .
+:Battery rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( :UnaryRelation
+    [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Robot ] ) ] .
+:near a owl:ObjectProperty, owl:TransitiveProperty ; rdfs:domain :Robot .
+:has a owl:ObjectProperty, owl:FunctionalProperty .
+"""
+
+
+def owl_rl_world(kind: str, n: int) -> str:
+    """Turtle in which OWL RL's closure is large for its size: a sameAs chain of `n` objects,
+    each of a class of its own under Robot ("same-as"); a transitive property along `n` objects
+    ("transitive"); a functional property with `n` values ("functional"); a subClassOf chain
+    `n` deep with an object in each class ("subclass")."""
+    if kind == "subclass":
+        body = "".join(
+            f":C{i} a owl:Class ; rdfs:subClassOf :{f'C{i + 1}' if i + 1 < n else 'Robot'} .\n"
+            f":o{i} a owl:NamedIndividual, :C{i} .\n"
+            for i in range(n)
+        )
+    elif kind == "same-as":
+        body = "".join(
+            f":K{i} a owl:Class ; rdfs:subClassOf :Robot .\n:o{i} a owl:NamedIndividual, :K{i}"
+            + (f" ; owl:sameAs :o{i + 1} .\n" if i + 1 < n else " .\n")
+            for i in range(n)
+        )
+    elif kind == "transitive":
+        body = "".join(
+            f":o{i} a owl:NamedIndividual" + (f" ; :near :o{i + 1} .\n" if i + 1 < n else " .\n")
+            for i in range(n)
+        )
+    else:
+        body = ":hub a owl:NamedIndividual .\n" + "".join(
+            f":o{i} a owl:NamedIndividual .\n:hub :has :o{i} .\n" for i in range(n)
+        )
+    return _RL_HEAD + body
