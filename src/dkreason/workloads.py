@@ -292,35 +292,49 @@ def fleet(folder: Path, nodes: int) -> None:
 HOSTILE = "http://example.org/hostile#"
 
 
-def nested_owl(syntax: str, depth: int) -> str:
-    """An ontology whose one axiom nests `depth` class expressions: in OWL Functional Syntax
-    ("ofn"), Manchester syntax with parentheses ("omn") or with a chain of restrictions and
-    none ("omn-chain"), or OWL/XML ("owx")."""
+def nested_owl(syntax: str, depth: int, axioms: int = 1) -> str:
+    """An ontology of `axioms` axioms, each nesting `depth` class expressions: in OWL
+    Functional Syntax ("ofn"), Manchester syntax with parentheses ("omn") or with a chain of
+    restrictions and none ("omn-chain"), or OWL/XML ("owx")."""
     if syntax == "ofn":
-        return (
-            f"Prefix(:=<{HOSTILE}>)\nOntology(<{HOSTILE}>\nSubClassOf(:A "
-            + "ObjectIntersectionOf(:B " * depth
-            + ":C"
-            + ")" * depth
-            + ")\n)\n"
-        )
+        nested = "ObjectIntersectionOf(:B " * depth + ":C" + ")" * depth
+        body = "".join(f"SubClassOf(:A{i} {nested})\n" for i in range(axioms))
+        return f"Prefix(:=<{HOSTILE}>)\nOntology(<{HOSTILE}>\n{body})\n"
     if syntax.startswith("omn"):
         nested = (
             "p some " * depth + "B" if syntax == "omn-chain" else "(" * depth + "B" + ")" * depth
         )
-        return (
-            f"Prefix: : <{HOSTILE}>\nOntology: <{HOSTILE}>\nObjectProperty: p\nClass: B\n"
-            f"Class: A\n    SubClassOf: {nested}\n"
-        )
+        body = "".join(f"Class: A{i}\n    SubClassOf: {nested}\n" for i in range(axioms))
+        return f"Prefix: : <{HOSTILE}>\nOntology: <{HOSTILE}>\nObjectProperty: p\nClass: B\n{body}"
     iri = f'<Class IRI="{HOSTILE}'
+    nested = f'<ObjectIntersectionOf>{iri}B"/>' * depth + f'{iri}C"/>'
+    nested += "</ObjectIntersectionOf>" * depth
+    body = "".join(f'<SubClassOf>{iri}A{i}"/>{nested}</SubClassOf>\n' for i in range(axioms))
     return (
         f'<?xml version="1.0"?>\n<Ontology xmlns="http://www.w3.org/2002/07/owl#" '
-        f'ontologyIRI="{HOSTILE}"><SubClassOf>{iri}A"/>'
-        + f'<ObjectIntersectionOf>{iri}B"/>' * depth
-        + f'{iri}C"/>'
-        + "</ObjectIntersectionOf>" * depth
-        + "</SubClassOf></Ontology>\n"
+        f'ontologyIRI="{HOSTILE}">\n{body}</Ontology>\n'
     )
+
+
+def assertions_owl(syntax: str, n: int) -> str:
+    """An ontology of `n` class assertions, in "ofn", "omn", "owx" or "turtle"."""
+    if syntax == "ofn":
+        body = "".join(f"ClassAssertion(:C :i{i})\n" for i in range(n))
+        return f"Prefix(:=<{HOSTILE}>)\nOntology(<{HOSTILE}>\nDeclaration(Class(:C))\n{body})\n"
+    if syntax == "omn":
+        body = "".join(f"Individual: i{i}\n  Types: C\n" for i in range(n))
+        return f"Prefix: : <{HOSTILE}>\nOntology: <{HOSTILE}>\nClass: C\n{body}"
+    if syntax == "owx":
+        body = "".join(
+            f'<ClassAssertion><Class IRI="{HOSTILE}C"/><NamedIndividual IRI="{HOSTILE}i{i}"/>'
+            "</ClassAssertion>\n"
+            for i in range(n)
+        )
+        return (
+            f'<?xml version="1.0"?>\n<Ontology xmlns="http://www.w3.org/2002/07/owl#" '
+            f'ontologyIRI="{HOSTILE}">\n{body}</Ontology>\n'
+        )
+    return f"@prefix : <{HOSTILE}> .\n" + "".join(f":i{i} a :C .\n" for i in range(n))
 
 
 _RL_HEAD = f"""@prefix : <{HOSTILE}> .
