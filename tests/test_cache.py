@@ -328,8 +328,12 @@ def test_a_folder_of_another_user_is_refused(
     assert "owned by" in caplog.records[0].getMessage()
 
 
-def test_freshness_reads_through_the_input_door(tmp_path: Path, private_cache: Path) -> None:
-    """Once cached, an import replaced by a FIFO is refused at once, not waited on."""
+@pytest.mark.parametrize("device", ["fifo", "/dev/zero"])
+def test_freshness_reads_through_the_input_door(
+    tmp_path: Path, private_cache: Path, device: str
+) -> None:
+    """Once cached, an import replaced by a FIFO or a link to /dev/zero is refused at once,
+    not waited on nor read until memory runs out."""
     from dkreason.errors import DkError
 
     from .test_owl import station
@@ -337,7 +341,10 @@ def test_freshness_reads_through_the_input_door(tmp_path: Path, private_cache: P
     config = station(tmp_path)
     assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
     (tmp_path / "ssn.ttl").unlink()
-    os.mkfifo(tmp_path / "ssn.ttl")
+    if device == "fifo":
+        os.mkfifo(tmp_path / "ssn.ttl")
+    else:
+        (tmp_path / "ssn.ttl").symlink_to(device)
     with pytest.raises(DkError, match="ssn.ttl: not a regular file"):
         KnowledgeManager.from_config(config)
 
