@@ -366,7 +366,7 @@ def answers(config: Path) -> tuple[list[str], object]:
     return km.list_topics(), km.check_formula(" and ".join(nine()))
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
 @given(kind=st.sampled_from(["platform", "views"]), where=st.floats(0, 1), bit=st.integers(0, 7))
 def test_a_flipped_bit_gives_the_same_answer_as_no_cache(
     tmp_path_factory: pytest.TempPathFactory, kind: str, where: float, bit: int
@@ -385,7 +385,7 @@ def test_a_flipped_bit_gives_the_same_answer_as_no_cache(
         assert answers(config) == truth
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=list(HealthCheck))
+@settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
 @given(kind=st.sampled_from(["platform", "views"]), cut=st.floats(0, 1))
 def test_a_foreign_pickle_after_any_prefix_of_an_entry_runs_nothing(
     tmp_path_factory: pytest.TempPathFactory, kind: str, cut: float
