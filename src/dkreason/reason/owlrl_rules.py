@@ -111,26 +111,27 @@ class _Rules:
             for part in lists.get(head, []):
                 self.in_unions[part].append(c)
         on = dict(pairs[OWL.onProperty])
-        # restrictions: (restriction, filler or value) by property; some/all by class too
+
+        def restrictions(predicate: Any) -> list[tuple[Any, Any, Any]]:
+            """(restriction, its property, its filler or value)"""
+            return [(x, on[x], y) for x, y in pairs[predicate] if x in on]
+
+        # restrictions by property (read by a new assertion) and by what a new membership is
         self.some: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
-        self.some_of: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
+        self.filled_by: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
+        for x, p, y in restrictions(OWL.someValuesFrom):
+            self.some[p].append((x, y))
+            self.filled_by[y].append((x, p))
         self.all: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
         self.all_of: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
+        for x, p, y in restrictions(OWL.allValuesFrom):
+            self.all[p].append((x, y))
+            self.all_of[x].append((p, y))
         self.value: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
         self.value_of: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
-        for table_on, table_of, predicate in (
-            (self.some, self.some_of, OWL.someValuesFrom),
-            (self.all, self.all_of, OWL.allValuesFrom),
-            (self.value, self.value_of, OWL.hasValue),
-        ):
-            for x, y in pairs[predicate]:
-                if x in on:
-                    table_on[on[x]].append((x, y))
-                    table_of[x].append((on[x], y))
-        self.filled_by: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)  # y → (x, p)
-        for p, restrictions in self.some.items():
-            for x, y in restrictions:
-                self.filled_by[y].append((x, p))
+        for x, p, y in restrictions(OWL.hasValue):
+            self.value[p].append((x, y))
+            self.value_of[x].append((p, y))
         self.chains: dict[Any, list[tuple[Any, list[Any], int]]] = defaultdict(list)
         for p, head in pairs[OWL.propertyChainAxiom]:
             chain = lists.get(head, [])
@@ -151,10 +152,11 @@ class _Rules:
         self.out: Index = defaultdict(lambda: defaultdict(set))
         self.into: Index = defaultdict(lambda: defaultdict(set))
         self.todo: deque[tuple[str, Any, Any, Any]] = deque()
+        is_type, is_same = canon.get(TYPE), canon.get(SAME)
         for s, p, o in triples:
-            if p == TYPE:
+            if p is is_type:
                 self.todo.append(("type", s, o, None))
-            elif p == SAME:
+            elif p is is_same:
                 self.todo.append(("same", s, o, None))
             else:
                 self.todo.append(("prop", s, p, o))
@@ -178,7 +180,7 @@ class _Rules:
         root = x
         while root in parent:
             root = parent[root]
-        while x in parent and parent[x] != root:
+        while x in parent and parent[x] is not root:
             parent[x], x = root, parent[x]
         return root
 
@@ -323,7 +325,7 @@ class _Rules:
     def same(self, x: Any, y: Any) -> None:
         """eq-sym/trans: one class; eq-rep: each side now has the other's memberships."""
         rx, ry = self.find(x), self.find(y)
-        if rx == ry:
+        if rx is ry:
             return
         mx, my = self.groups.pop(rx, [rx]), self.groups.pop(ry, [ry])
         if len(mx) < len(my):  # the smaller class joins the larger: n log n in all
