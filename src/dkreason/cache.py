@@ -70,7 +70,8 @@ def _private(where: Path, what: str) -> bool:
     write in; a folder that cannot be made (a read-only home) only costs the next run its parse,
     one that others control is a warning, once."""
     try:
-        where.mkdir(mode=0o700, parents=True, exist_ok=True)
+        if not os.path.isdir(where):
+            where.mkdir(mode=0o700, parents=True, exist_ok=True)
         info = os.stat(where)
     except (OSError, ValueError):
         return False
@@ -198,27 +199,29 @@ def _signer(secret: bytes, name: str) -> Any:
 
 def _load(entry: Path, secret: bytes) -> Any:
     """The value in `entry`, or _MISSING: not there, not a regular file (a symlink is not
-    followed, a FIFO not waited on), not signed with `secret` under this name, or unreadable."""
+    followed, a FIFO not waited on), not signed with `secret` under this name, or unreadable.
+    Read whole: its pickle is a fraction of the objects it makes."""
     try:
         fd = os.open(entry, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError:
         return _MISSING
     with os.fdopen(fd, "rb") as handle:
-        if not stat.S_ISREG(os.fstat(fd).st_mode) or handle.read(len(_MAGIC)) != _MAGIC:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
             return _MISSING
-        told, mac = handle.read(_MAC), _signer(secret, entry.name)
-        while chunk := handle.read(1 << 20):
-            mac.update(chunk)
-        if not hmac.compare_digest(told, mac.digest()):
-            return _MISSING
-        handle.seek(len(_MAGIC) + _MAC)
-        try:  # signed by us, so made by this code: only a change of Python can fail here
-            value = pickle.load(handle)
-        except Exception:
-            return _MISSING
+        data = memoryview(handle.read())
         with contextlib.suppress(OSError):
             os.utime(fd)  # used now: the last to go when the folder is pruned
-        return value
+    start = len(_MAGIC) + _MAC
+    mac = _signer(secret, entry.name)
+    mac.update(data[start:])
+    if data[: len(_MAGIC)] != _MAGIC or not hmac.compare_digest(
+        data[len(_MAGIC) : start], mac.digest()
+    ):
+        return _MISSING
+    try:  # signed by us, so made by this code: only a change of Python can fail here
+        return pickle.loads(data[start:])
+    except Exception:
+        return _MISSING
 
 
 class _Signed:
