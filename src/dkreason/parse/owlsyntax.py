@@ -14,6 +14,8 @@ preamble of any length.
 from __future__ import annotations
 
 import re
+from array import array
+from itertools import accumulate
 from pathlib import Path
 
 from ..errors import ParseError, Span
@@ -112,11 +114,32 @@ def _doctype_end(data: bytes, at: int) -> int:
 
 # ---- nesting depth -------------------------------------------------------------------------
 
-# A string, an IRI (its parentheses still counted), a comment, a parenthesis or brace, a word.
-_TOKEN = re.compile(rb'"(?:[^"\\]|\\.)*"|<[^<>\s]*>|#[^\r\n]*|[(){}]|,|[\w:.\-]+', re.S)
+# A string, a comment, an IRI (in Manchester syntax its parentheses still count: `<` also opens
+# a facet there, which an IRI-like run could hide), a parenthesis or brace, a comma, a word.
+_OPAQUE = rb'"(?:[^"\\]|\\.)*"|#[^\r\n]*|<[^<>\s]*>'
+_SKIPPED = re.compile(_OPAQUE, re.S)
+_NOT_PARENS = bytes(c for c in range(256) if c not in b"()")
+_STEPS = bytes.maketrans(b"()", b"\x01\xff")  # as signed bytes: +1, -1
 # Manchester syntax nests without parentheses too: `p some q some B` is two levels deep.
 _NESTING = {b"some", b"only", b"value", b"min", b"max", b"exactly", b"not", b"inverse", b"that"}
 _FLAT = {b"and", b"or", b","}
+_WORD = rb"[\w:.\-]+"
+_PLAIN = (  # a word that is neither a keyword nor a number
+    rb"(?!(?:" + b"|".join(sorted(_NESTING | _FLAT - {b","})) + rb"|\d+)(?![\w:.\-]))" + _WORD
+)
+_TOKEN = re.compile(  # a run of plain words is one token: a large ontology is mostly that
+    rb"(?P<opaque>" + _OPAQUE + rb")|(?P<mark>[(){},])"
+    rb"|(?P<run>(?:" + _PLAIN + rb"\s+)+" + _PLAIN + rb")|(?P<word>" + _WORD + rb")",
+    re.S,
+)
+
+
+def _parentheses(data: bytes) -> tuple[int, int]:
+    """(deepest, lowest) running count of OWL Functional Syntax's parentheses, outside strings,
+    comments and IRIs, at C speed: what every document of a sane depth costs."""
+    steps = _SKIPPED.sub(b"", data).translate(_STEPS, _NOT_PARENS)
+    depths = list(accumulate(array("b", steps)))
+    return max(depths, default=0), min(depths, default=0)
 
 
 def nesting(data: bytes, fmt: str) -> tuple[int, int]:
@@ -125,39 +148,47 @@ def nesting(data: bytes, fmt: str) -> tuple[int, int]:
     Manchester syntax each restriction keyword of a chain too; strings and comments do not."""
     manchester = fmt == "omn"
     chains = [0]  # per open parenthesis: restriction keywords since the last `and`, `or`, `,`
-    parens = deepest = where = 0
+    depth = deepest = where = 0  # open parentheses plus the keywords of their chains
     plain = False  # the last token was a name, IRI or string (two in a row end a chain)
     for token in _TOKEN.finditer(data):
-        text = token.group()
+        text, kind = token.group(), token.lastgroup
         first = text[:1]
-        if first in (b"#", b'"'):
-            plain = plain if first == b"#" else manchester
+        if kind == "opaque" and (first != b"<" or not manchester):
+            plain = plain if first == b"#" else True
             continue
-        opened = text.count(b"(") + text.count(b"{")  # an IRI's parentheses count too
-        closed = text.count(b")") + text.count(b"}")
+        opened, closed = (
+            (text.count(b"(") + text.count(b"{"), text.count(b")") + text.count(b"}"))
+            if kind != "word" and kind != "run"
+            else (0, 0)
+        )
+        if kind == "run":  # two names in a row: whatever chain there was has ended
+            if manchester:
+                depth -= chains[-1]
+                chains[-1] = 0
+                plain = True
+            continue
         if opened or closed:
-            for _ in range(opened):
-                chains.append(0)
-            for _ in range(closed):
-                if len(chains) > 1:
-                    chains.pop()
-            parens += opened - closed
-            plain = first == b"<" or text in (b")", b"}")  # an IRI or a whole group
+            chains += [0] * opened
+            depth += opened
+            plain = first == b"<" or first in b")}"  # an IRI or a whole group
         elif not manchester or text.isdigit():
             continue
         elif text in _NESTING:
             chains[-1] += 1
+            depth += 1
             plain = False
-        elif text in _FLAT or plain:
-            chains[-1] = 0
-            plain = text not in _FLAT
         else:
-            plain = True
-        depth = max(parens, 0) + (sum(chains) if manchester else 0)
+            if text in _FLAT or plain:
+                depth -= chains[-1]
+                chains[-1] = 0
+            plain = text not in _FLAT
         if depth > deepest:
             deepest, where = depth, token.start()
             if deepest > MAX_DEPTH:
                 break
+        for _ in range(closed):  # after the opening ones: an IRI's `(…)` is as deep as it goes
+            if len(chains) > 1:
+                depth -= 1 + chains.pop()
     return deepest, where
 
 
@@ -168,6 +199,10 @@ def _position(data: bytes, offset: int) -> tuple[int, int]:
 
 def check_depth(data: bytes, file: str, fmt: str) -> None:
     """Refuse, with its place, a document nested deeper than MAX_DEPTH."""
+    if fmt == "ofn":
+        deepest, lowest = _parentheses(data)
+        if deepest <= MAX_DEPTH and lowest >= 0:
+            return  # the common case, at C speed; else the token walk finds the place
     deepest, where = nesting(data, fmt)
     if deepest > MAX_DEPTH:
         raise ParseError(
