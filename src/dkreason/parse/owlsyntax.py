@@ -40,7 +40,7 @@ _BY_SUFFIX = {
     ".omn": "omn",
     ".owx": "owx",
 }
-BOM = b"\xef\xbb\xbf"
+_BOM = b"\xef\xbb\xbf"
 
 
 def syntax(data: bytes, file: str) -> str:
@@ -73,7 +73,7 @@ def preamble_end(data: bytes) -> int:
     """Where the first statement starts: past a BOM, space, `#` comments, an XML declaration
     or processing instructions, XML comments and a document type with its internal subset.
     One forward pass: every step consumes what it looks at."""
-    at = len(BOM) if data.startswith(BOM) else 0
+    at = len(_BOM) if data.startswith(_BOM) else 0
     while True:
         at = _SPACE.match(data, at).end()  # type: ignore[union-attr]  # \s* always matches
         if data.startswith(b"#", at):
