@@ -69,6 +69,7 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks.chapter7 --sorts
 	$(BIN)/python -m benchmarks.bench_fleet
 	$(BIN)/python -m benchmarks.bench_owlrl
+	$(BIN)/python -m benchmarks.bench_owl_memory
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info

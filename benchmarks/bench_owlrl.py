@@ -8,12 +8,19 @@ the OWL 2 RL closure of the same graph by owlrl (the tests' oracle) and by the `
 package (Rust; it leaves out property chains).  `make bench` installs both.
 Target (issue 15): the OWL RL step adds at most the time rdflib needs to parse the files.
 
+Then the closures that grow with the square of their input (dkreason.workloads.owl_rl_world,
+issue 27): a sameAs chain, a transitive chain, a functional property with many values, each a
+whole load with reasoning in a fresh process (seconds and peak MB); and a subClassOf chain
+1,000 deep without reasoning (refused before its million-row closure is made).  Target: a
+sameAs chain of 1,000 loads in under 10 s (it took minutes).
+
     python -m benchmarks.bench_owlrl [--json]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import subprocess
@@ -22,7 +29,15 @@ import tempfile
 import time
 from pathlib import Path
 
-from dkreason.workloads import COLUMNS, SETUPS, write
+from dkreason.workloads import COLUMNS, SETUPS, owl_rl_world, write
+
+CHAINS = [  # (kind, objects, reasoning)
+    ("same-as", 300, "owl-rl"),
+    ("same-as", 1000, "owl-rl"),
+    ("transitive", 1000, "owl-rl"),
+    ("functional", 2000, "owl-rl"),
+    ("subclass", 1000, "none"),
+]
 
 ROUNDS = 3
 REPO = Path(__file__).resolve().parents[1]
@@ -119,6 +134,49 @@ def measure() -> dict[str, dict[str, float | None]]:
     return out
 
 
+def _chain_point(config: Path) -> dict[str, float]:
+    """`--point chain`: a whole load in this process, seconds and peak MB (refused: what it
+    took to say so)."""
+    import resource
+
+    from dkreason import KnowledgeManager
+    from dkreason.errors import DkError
+
+    start = time.perf_counter()
+    with contextlib.suppress(DkError):
+        KnowledgeManager.from_config(config)
+    seconds = time.perf_counter() - start
+    return {
+        "seconds": seconds,
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    }
+
+
+def chains() -> dict[str, dict[str, float]]:
+    """Per chain workload: seconds and peak MB of a whole load, in a fresh process."""
+    out: dict[str, dict[str, float]] = {}
+    env = os.environ | {"DKREASON_CACHE": "off"}
+    with tempfile.TemporaryDirectory(prefix="dkreason-chains-") as tmp:
+        for kind, n, reasoning in CHAINS:
+            folder = Path(tmp) / f"{kind}-{n}"
+            folder.mkdir()
+            (folder / "o.ttl").write_text(owl_rl_world(kind, n), encoding="utf-8")
+            config = folder / "c.toml"
+            config.write_text(
+                f'[platforms.p]\nontology = "o.ttl"\nreasoning = "{reasoning}"\n',
+                encoding="utf-8",
+            )
+            done = subprocess.run(
+                [sys.executable, "-m", "benchmarks.bench_owlrl", "--point", "chain", str(config)],
+                capture_output=True,
+                text=True,
+                env=env,
+                check=True,
+            )
+            out[f"{kind} {n} ({reasoning})"] = json.loads(done.stdout)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--json", action="store_true")
@@ -126,11 +184,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.point:
         what, config, *files = args.point
-        print(_point(what, Path(config), [Path(f) for f in files]))
+        if what == "chain":
+            print(json.dumps(_chain_point(Path(config))))
+        else:
+            print(_point(what, Path(config), [Path(f) for f in files]))
         return 0
-    rows = measure()
+    rows, grown = measure(), chains()
     if args.json:
-        print(json.dumps(rows, indent=1))
+        print(json.dumps({"workloads": rows, "chains": grown}, indent=1))
         return 0
 
     def ms(value: float | None) -> str:
@@ -148,6 +209,9 @@ def main(argv: list[str] | None = None) -> int:
             f"{ms(step):>7}{ms(r['owlrl']):>7}{ms(r['reasonable']):>11}  "
             f"{step / (r['parse'] or 1):.1f}"
         )
+    print("\nclosures that grow with the square of their input: a whole load, fresh process")
+    for name, figures in grown.items():
+        print(f"  {name:<28}{figures['seconds']:>7.1f} s{figures['peak_mb']:>8.0f} MB peak")
     return 0
 
 

@@ -15,12 +15,15 @@ REPO = Path(__file__).resolve().parents[1]
 
 def pytest_configure(config: pytest.Config) -> None:
     """Parsed knowledge is cached in a folder of this session's (dkreason.cache), never in
-    the user's own ~/.cache; CLI subprocesses inherit it."""
+    the user's own ~/.cache, and signed with a key of this session's, never the user's own
+    (XDG_STATE_HOME); CLI subprocesses inherit both."""
     os.environ["DKREASON_CACHE"] = tempfile.mkdtemp(prefix="dkreason-cache-")
+    os.environ["XDG_STATE_HOME"] = tempfile.mkdtemp(prefix="dkreason-state-")
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
-    shutil.rmtree(os.environ.pop("DKREASON_CACHE", ""), ignore_errors=True)
+    for name in ("DKREASON_CACHE", "XDG_STATE_HOME"):
+        shutil.rmtree(os.environ.pop(name, ""), ignore_errors=True)
 
 
 SCENARIOS = REPO / "tests" / "data" / "thesis"

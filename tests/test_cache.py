@@ -9,8 +9,11 @@ import pickle
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from dkreason import KnowledgeManager, cache
 from dkreason.datalog import Datalog
@@ -207,20 +210,17 @@ def test_the_cache_stays_under_its_limit_dropping_what_was_used_longest_ago(
         for name in entries[-1]:  # made in this order, each workload a minute after the last
             os.utime(private_cache / name, (60.0 * n, 60.0 * n))
     KnowledgeManager.from_config(tmp_path / "w5" / "ch7.toml")  # the oldest, used again
-    grammar = private_cache / "mtl.lark-cache"  # lark's own, older than anything
-    grammar.write_bytes(b"tables")
-    os.utime(grammar, (1.0, 1.0))
-    mine = [p for p in private_cache.iterdir() if not p.name.endswith(".lark-cache")]
+    stranger = private_cache / "notes.txt"  # not named as an entry: never removed
+    stranger.write_bytes(b"notes")
+    os.utime(stranger, (1.0, 1.0))
+    mine = [p for p in private_cache.iterdir() if p != stranger]
     size = sum(p.stat().st_size for p in mine)
     cache.prune(private_cache, limit=size * 2 // 3)
     left = {p.name for p in private_cache.iterdir()}
     assert entries[0] <= left  # used last
     assert not entries[1] & left  # used longest ago
-    assert grammar.exists()
-    assert (
-        sum((private_cache / n).stat().st_size for n in left if not n.endswith(".lark-cache"))
-        <= size * 2 // 3
-    )
+    assert stranger.exists()
+    assert sum((private_cache / n).stat().st_size for n in left - {stranger.name}) <= size * 2 // 3
 
 
 def test_the_key_covers_the_whole_packages_code_with_no_list_to_forget(tmp_path: Path) -> None:
@@ -242,3 +242,162 @@ def test_the_key_covers_the_whole_packages_code_with_no_list_to_forget(tmp_path:
     (package / "parse" / "mtl.lark").write_text("start: 'b'\n")  # a grammar changed
     seen.add(code_digest(package))
     assert len(seen) == 4
+
+
+# ---- issue 27: a cache that is data, not code ------------------------------------------------
+
+
+class Planted:
+    """What an attacker puts in a cache entry: unpickling it creates `marker`."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self) -> tuple[Any, tuple[Path]]:
+        return Path.touch, (self.marker,)
+
+
+def cli_answer(config: Path, folder: Path) -> str:
+    """`dkreason match --json` in a fresh process (lark's tables are read at import)."""
+    done = subprocess.run(
+        [sys.executable, "-m", "dkreason.cli", "match", "--json", "--config", str(config), "X[b1]"],
+        capture_output=True,
+        text=True,
+        env=os.environ | {"DKREASON_CACHE": str(folder), "PYTHONPATH": str(REPO / "src")},
+    )
+    assert done.returncode == 0 and not done.stderr, done.stderr
+    return done.stdout
+
+
+def test_a_planted_pickle_runs_nothing_and_changes_no_answer(
+    tmp_path: Path, private_cache: Path
+) -> None:
+    config = write(Workload(30, 5, 5, 10, 5, nine()), tmp_path / "w")
+    answer = cli_answer(config, private_cache)
+    marker = tmp_path / "ran"
+    entries = [p for p in private_cache.iterdir() if p.is_file()]
+    for entry in entries:
+        entry.write_bytes(pickle.dumps(Planted(marker)))
+    for name in ("mtl.lark-cache", "sslt.lark-cache"):  # where lark kept its own tables
+        (private_cache / name).write_bytes(pickle.dumps(Planted(marker)))
+    assert cli_answer(config, private_cache) == answer
+    assert not marker.exists()
+    assert {p.name.split("-")[0] for p in entries} >= {"platform", "views", "lark"}
+
+
+def test_a_planted_symlink_is_replaced_never_written_through(
+    tmp_path: Path, private_cache: Path
+) -> None:
+    config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
+    answer = cli_answer(config, private_cache)
+    victim = tmp_path / "victim"
+    victim.write_text("precious")
+    names = [p.name for p in private_cache.iterdir()] + ["mtl.lark-cache", "sslt.lark-cache"]
+    for name in names:
+        (private_cache / name).unlink(missing_ok=True)
+        (private_cache / name).symlink_to(victim)
+    assert cli_answer(config, private_cache) == answer
+    assert victim.read_text() == "precious"
+    assert all(
+        not p.is_symlink() for p in private_cache.iterdir() if not p.name.endswith(".lark-cache")
+    )
+
+
+@pytest.mark.parametrize("mode", [0o777, 0o775])
+def test_a_folder_others_can_write_is_refused_with_one_warning(
+    tmp_path: Path, private_cache: Path, caplog: pytest.LogCaptureFixture, mode: int
+) -> None:
+    private_cache.mkdir()
+    private_cache.chmod(mode)
+    config = write(Workload(30, 5, 5, 0, 5, nine()), tmp_path / "w")
+    answers = [KnowledgeManager.from_config(config).list_topics() for _ in range(2)]
+    assert answers[0] == answers[1] and answers[0]
+    (warning,) = caplog.records
+    assert str(private_cache) in warning.getMessage() and "not used" in warning.getMessage()
+    assert not list(private_cache.iterdir())
+
+
+def test_a_folder_of_another_user_is_refused(
+    tmp_path: Path, private_cache: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    private_cache.mkdir(mode=0o700)
+    owner = private_cache.stat().st_uid
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(os, "geteuid", lambda: owner + 1)  # as seen by someone else
+        assert cache.folder() is None
+    assert "owned by" in caplog.records[0].getMessage()
+
+
+@pytest.mark.parametrize("device", ["fifo", "/dev/zero"])
+def test_freshness_reads_through_the_input_door(
+    tmp_path: Path, private_cache: Path, device: str
+) -> None:
+    """Once cached, an import replaced by a FIFO or a link to /dev/zero is refused at once,
+    not waited on nor read until memory runs out."""
+    from dkreason.errors import DkError
+
+    from .test_owl import station
+
+    config = station(tmp_path)
+    assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
+    (tmp_path / "ssn.ttl").unlink()
+    if device == "fifo":
+        os.mkfifo(tmp_path / "ssn.ttl")
+    else:
+        (tmp_path / "ssn.ttl").symlink_to(device)
+    with pytest.raises(DkError, match="ssn.ttl: not a regular file"):
+        KnowledgeManager.from_config(config)
+
+
+def test_a_catalog_that_appears_later_is_read(tmp_path: Path, private_cache: Path) -> None:
+    from .test_owl import station
+
+    config = station(tmp_path, platform='imports = "skip"')
+    (tmp_path / "w.sslt").write_text("")
+    catalog = (tmp_path / "catalog-v001.xml").read_bytes()
+    (tmp_path / "catalog-v001.xml").unlink()
+    assert "skipped" in KnowledgeManager.from_config(config).kb.warnings[0]
+    (tmp_path / "catalog-v001.xml").write_bytes(catalog)
+    assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
+
+
+def answers(config: Path) -> tuple[list[str], object]:
+    km = KnowledgeManager.from_config(config)
+    return km.list_topics(), km.check_formula(" and ".join(nine()))
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
+@given(kind=st.sampled_from(["platform", "views"]), where=st.floats(0, 1), bit=st.integers(0, 7))
+def test_a_flipped_bit_gives_the_same_answer_as_no_cache(
+    tmp_path_factory: pytest.TempPathFactory, kind: str, where: float, bit: int
+) -> None:
+    folder = tmp_path_factory.mktemp("flip")
+    config = write(Workload(30, 5, 5, 10, 5, nine(), sort_share=0.8), folder / "w")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("DKREASON_CACHE", "off")
+        truth = answers(config)
+        patch.setenv("DKREASON_CACHE", str(folder / "cache"))
+        assert answers(config) == truth
+        (entry,) = (folder / "cache").glob(f"{kind}-*")
+        data = bytearray(entry.read_bytes())
+        data[int(where * (len(data) - 1))] ^= 1 << bit
+        entry.write_bytes(bytes(data))
+        assert answers(config) == truth
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=list(HealthCheck))
+@given(kind=st.sampled_from(["platform", "views"]), cut=st.floats(0, 1))
+def test_a_foreign_pickle_after_any_prefix_of_an_entry_runs_nothing(
+    tmp_path_factory: pytest.TempPathFactory, kind: str, cut: float
+) -> None:
+    folder = tmp_path_factory.mktemp("foreign")
+    config = write(Workload(30, 5, 5, 0, 5, nine()), folder / "w")
+    marker = folder / "ran"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("DKREASON_CACHE", str(folder / "cache"))
+        truth = answers(config)
+        (entry,) = (folder / "cache").glob(f"{kind}-*")
+        data = entry.read_bytes()
+        entry.write_bytes(data[: int(cut * len(data))] + pickle.dumps(Planted(marker)))
+        assert answers(config) == truth
+    assert not marker.exists()

@@ -23,6 +23,8 @@ from dkreason.inputs.files import json_value
 from dkreason.live import wire
 from dkreason.parse.config import read_config
 from dkreason.parse.formula import parse_formula
+from dkreason.parse.owl import parse_ontology
+from dkreason.parse.owlsyntax import OWL_SYNTAXES, SYNTAXES, preamble_end, syntax
 from dkreason.parse.sslt import parse_text, parse_xml
 from dkreason.progress import Progressor
 from dkreason.progress.statefile import read_states
@@ -269,6 +271,130 @@ def test_live_payloads_read_fast_or_not_read_as_before(payload: bytes) -> None:
     before = _total(json_value, payload, Span("p/t"), False)
     with contextlib.suppress(DkError):
         assert _same(wire.decode(payload, wire.MAX_SAMPLE, "p/t"), before)
+
+
+# ---- OWL's own syntaxes (issue 27): nesting of any depth, hostile preambles ---------------
+
+NS = "http://x.org/s#"
+
+
+def _nest(opening: str, closing: str, leaf: str = ":B") -> st.SearchStrategy[str]:
+    """`depth` nested expressions: mostly shallow, now and then far past the bound."""
+    depths = st.one_of(st.integers(0, 70), st.sampled_from([200, 3000, 20_000]))
+    return depths.map(lambda d: opening * d + leaf + closing * d)
+
+
+OFN_PIECES = st.one_of(
+    st.sampled_from(
+        [
+            f"Prefix(:=<{NS}>)\n",
+            f"Ontology(<{NS}>\n",
+            ")",
+            "(",
+            "SubClassOf(:A ",
+            "ObjectIntersectionOf(",
+            "ObjectSomeValuesFrom(:p ",
+            "ClassAssertion(:A :a)\n",
+            "Declaration(Class(:A))\n",
+            '"a (( \\" (("',
+            '"',
+            f"<{NS}A((>",
+            "<",
+            "# a comment ((\n",
+            "\r",
+            "\ufeff",
+        ]
+    ),
+    _nest("ObjectIntersectionOf(:A ", ")"),
+    _nest("(", ")"),
+)
+OMN_PIECES = st.one_of(
+    st.sampled_from(
+        [
+            f"Prefix: : <{NS}>\n",
+            f"Ontology: <{NS}>\n",
+            "ObjectProperty: p\n",
+            "Class: A\n",
+            "Individual: a\n",
+            " SubClassOf: ",
+            " Types: ",
+            "p some ",
+            "p only ",
+            "not ",
+            " and ",
+            " or ",
+            "(",
+            ")",
+            "{a, b}",
+            "inverse ",
+            "p value a",
+            "p min 1 ",
+            "B",
+            '"x ((("',
+            "# note ((\n",
+            "\n",
+            "Types:",
+        ]
+    ),
+    _nest("p some ", "", "B"),
+    _nest("(", ")", "B"),
+    _nest("not (", ")", "B"),
+)
+OWX_PIECES = st.one_of(
+    st.sampled_from(
+        [
+            '<?xml version="1.0"?>',
+            f'<!DOCTYPE Ontology [<!ENTITY s "{NS}">]>',
+            '<Ontology xmlns="http://www.w3.org/2002/07/owl#">',
+            "</Ontology>",
+            "<SubClassOf>",
+            "</SubClassOf>",
+            '<Class IRI="&s;A"/>',
+            f'<Class IRI="{NS}B"/>',
+            "<ObjectIntersectionOf>",
+            "</ObjectIntersectionOf>",
+            "&s;",
+            "&undefined;",
+        ]
+    ),
+    _nest(
+        "<ObjectIntersectionOf><Class IRI='x:A'/>", "</ObjectIntersectionOf>", "<Class IRI='x:B'/>"
+    ),
+)
+
+
+@FAST
+@given(
+    st.sampled_from(["ofn", "omn", "owx"]).flatmap(
+        lambda fmt: st.tuples(
+            st.just(fmt),
+            st.lists({"ofn": OFN_PIECES, "omn": OMN_PIECES, "owx": OWX_PIECES}[fmt], max_size=14),
+            st.booleans(),
+        )
+    )
+)
+@example(("ofn", ["ObjectIntersectionOf(:A " * 10_000], True))
+@example(
+    ("omn", [f"Prefix: : <{NS}>\nOntology: <{NS}>\nClass: A SubClassOf: ", "(" * 10_000], False)
+)
+def test_owl_syntaxes_at_any_depth(case: tuple[str, list[str], bool]) -> None:
+    """An ontology in OWL Functional, Manchester or OWL/XML syntax, named by its suffix or
+    sniffed as .owl, of any depth: a result or one line, never a crash of the process."""
+    fmt, pieces, sniffed = case
+    _total(parse_ontology, "".join(pieces).encode(), "o.owl" if sniffed else f"o.{fmt}", "p")
+
+
+PREAMBLE_PIECES = ["<!DOCTYPE x", "[", "]", '"', "'", "<!--", "-->", "<?xml ", "?>", ">", "#"]
+
+
+@FAST
+@given(
+    st.lists(st.sampled_from([*PREAMBLE_PIECES, "\n", " ", "<Ontology>", "Prefix("]), max_size=30)
+)
+def test_a_preamble_of_any_shape_is_sniffed(pieces: list[str]) -> None:
+    data = "".join(pieces).encode()
+    assert 0 <= preamble_end(data) <= len(data)
+    assert syntax(data, "o.owl") in SYNTAXES | OWL_SYNTAXES.keys()
 
 
 JSON_VALUES = st.recursive(

@@ -626,3 +626,42 @@ def test_unknown_platforms_are_named_a_few_times_then_counted(
             LiveMonitor._stranger(monitor, f"fake{n}")  # type: ignore[arg-type]
     assert len(caplog.records) == 10 + 2  # ten named, then a count at 100 and 1000
     assert len(monitor.seen_strangers) == 10 and monitor.strangers == 2000
+
+
+# ---- issue 27: the knowledge inputs --------------------------------------------------------
+
+
+@pytest.mark.parametrize("where", ["ontology", "import"])
+def test_a_symlink_loop_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], where: str
+) -> None:
+    for f in (REPO / "tests" / "data" / "sosa-ssn").iterdir():
+        shutil.copy(f, tmp_path / f.name)
+    looped = tmp_path / ("weather.ttl" if where == "ontology" else "ssn.ttl")
+    looped.unlink()
+    os.symlink(tmp_path / "loop.ttl", looped)
+    os.symlink(looped, tmp_path / "loop.ttl")
+    (tmp_path / "c.toml").write_text('[platforms.w]\nontology = "weather.ttl"\n')
+    err = one_line_error(capsys, "match", "--config", str(tmp_path / "c.toml"), "P[a]")
+    assert looped.name in err and "symbolic links" in err
+
+
+def test_a_deep_subclass_chain_is_one_line_not_a_quadratic_closure(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Each object of a 1,000-deep chain is a member of every sort above it: a million rows
+    (1.27 GB) for a 60 KB file.  The closure is sized before it is made."""
+    from dkreason.workloads import owl_rl_world
+
+    (tmp_path / "o.ttl").write_text(owl_rl_world("subclass", 1000))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.ttl"\n')
+    err = one_line_error(capsys, "match", "--config", str(tmp_path / "c.toml"), "Battery[o1] > 1")
+    assert "o.ttl" in err and "rows" in err
+
+
+def test_a_chain_as_deep_as_real_hierarchies_go_is_read(tmp_path: Path) -> None:
+    from dkreason.workloads import owl_rl_world
+
+    (tmp_path / "o.ttl").write_text(owl_rl_world("subclass", 60))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.ttl"\n')
+    assert len(KnowledgeManager.from_config(tmp_path / "c.toml").list_sort("Robot")) == 60

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -293,6 +296,32 @@ def test_an_xxe_inside_an_imported_file_is_refused_naming_it(tmp_path: Path) -> 
         KnowledgeManager.from_config(config)
 
 
+@pytest.mark.parametrize(
+    ("base", "ssn", "sosa"),
+    [
+        ('xml:base="elsewhere/"', "../ssn.ttl", "../sosa.ttl"),  # a group's base, relative
+        ("", "file:{dir}/ssn.ttl", "file://{dir}/sosa.ttl"),
+        ('xml:base="file:{dir}/"', "ssn.ttl", "./sosa.ttl"),
+        ('xml:base="file:///nowhere/"', "file:{dir}/ssn.ttl", "{dir}/sosa.ttl"),
+    ],
+    ids=["relative-base", "file-uris", "absolute-base", "uri-over-base"],
+)
+def test_a_catalog_honours_xml_base_and_file_uris(
+    tmp_path: Path, base: str, ssn: str, sosa: str
+) -> None:
+    from dkreason import KnowledgeManager
+
+    config = station(tmp_path)
+    (tmp_path / "catalog-v001.xml").write_text(
+        '<?xml version="1.0"?>\n<catalog xmlns="urn:oasis:names:tc:entity:xmlns:xml:catalog">'
+        f"<group {base.format(dir=tmp_path)}>"
+        f'<uri name="http://www.w3.org/ns/ssn/" uri="{ssn.format(dir=tmp_path)}"/>'
+        f'<uri name="http://www.w3.org/ns/sosa/" uri="{sosa.format(dir=tmp_path)}"/>'
+        "</group></catalog>"
+    )
+    assert KnowledgeManager.from_config(config).list_sort("System") == ["baro1", "baro2"]
+
+
 def test_a_changed_import_is_read_again_not_taken_from_the_cache(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -380,6 +409,115 @@ def test_a_malformed_owl_file_is_one_line_with_its_place(
         read_ontology(tmp_path / "s.owl", "s")
     message = str(error.value)
     assert f"s.owl{where}" in message and says in message and "\n" not in message
+
+
+# ---- OWL that cannot take the process down (issue 27, defects 3, 5 and 8) -------------------
+
+
+@pytest.mark.parametrize("kind", ["ofn", "omn", "omn-chain", "owx"])
+def test_deep_nesting_is_one_line_and_exit_2_not_a_signal(tmp_path: Path, kind: str) -> None:
+    from dkreason.workloads import nested_owl
+
+    from .conftest import REPO
+
+    (tmp_path / "deep.owl").write_text(nested_owl(kind, 10_000))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "deep.owl"\n')
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "dkreason.cli",
+            "match",
+            "--config",
+            str(tmp_path / "c.toml"),
+            "P[a]",
+        ],
+        capture_output=True,
+        text=True,
+        env=os.environ | {"PYTHONPATH": str(REPO / "src")},
+    )
+    assert done.returncode == 2, (done.returncode, done.stderr[-300:])
+    assert done.stderr.count("\n") == 1 and "deep.owl:" in done.stderr
+    assert "nested deeper than" in done.stderr
+
+
+@pytest.mark.parametrize("kind", ["ofn", "omn", "omn-chain", "owx"])
+def test_nesting_as_deep_as_real_ontologies_go_is_read(tmp_path: Path, kind: str) -> None:
+    from dkreason.workloads import nested_owl
+
+    (tmp_path / "deep.owl").write_text(nested_owl(kind, 20))
+    assert "http://example.org/hostile#A0" in read_ontology(tmp_path / "deep.owl", "p").sorts
+
+
+def test_owl_text_that_names_a_file_is_not_read_as_that_file(tmp_path: Path) -> None:
+    """py-horned-owl opens a file when the text it is given is a path: never here."""
+    (tmp_path / "real.ofn").write_text(FUNCTIONAL)
+    (tmp_path / "s.ofn").write_text(str(tmp_path / "real.ofn"))
+    with pytest.raises(ParseError, match="s.ofn"):
+        read_ontology(tmp_path / "s.ofn", "s")
+
+
+@pytest.mark.parametrize("name", ["s.owl", "s.ofn", "s.omn", "s.owx"])
+def test_a_utf8_bom_is_read(tmp_path: Path, name: str) -> None:
+    text = {"s.ofn": FUNCTIONAL, "s.omn": MANCHESTER, "s.owx": OWL_XML}.get(name, MANCHESTER)
+    (tmp_path / name).write_text("\ufeff" + text, encoding="utf-8")
+    ont = read_ontology(tmp_path / name, "s")
+    assert signature(ont, "Altitude") == [["UAV"]]
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["", "  \n", "Prefix: : <http://x.org/s#>\n", MANCHESTER[: MANCHESTER.index("Ontology:") + 5]],
+    ids=["empty", "blank", "prefixes-only", "cut-in-the-header"],
+)
+def test_an_empty_or_cut_manchester_file_is_an_error(tmp_path: Path, text: str) -> None:
+    (tmp_path / "s.omn").write_text(text)
+    with pytest.raises(ParseError, match="s.omn"):
+        read_ontology(tmp_path / "s.omn", "s")
+
+
+ENTITIES = (
+    OWL_XML.replace("http://x.org/s#", "&s;")
+    .replace(
+        '<?xml version="1.0"?>\n',
+        '<?xml version="1.0"?>\n<!DOCTYPE Ontology [\n  <!ENTITY s "http://x.org/s#">\n'
+        '  <!ENTITY tricky "a ] > b">\n]>\n',
+    )
+    .replace("<Declaration>", "<!-- &tricky; --><Declaration>", 1)
+)
+
+
+@pytest.mark.parametrize("name", ["s.owl", "s.owx"])
+def test_owl_xml_with_internal_entities_is_read(tmp_path: Path, name: str) -> None:
+    (tmp_path / name).write_text(ENTITIES)
+    ont = read_ontology(tmp_path / name, "s")
+    assert signature(ont, "Altitude") == [["UAV"]]
+    assert ont.individuals == {"http://x.org/s#uav1"}
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        OWL_XML.replace("?>\n", "?>\n<!--" + "x" * 70_000 + "-->\n", 1),
+        FUNCTIONAL.replace("Ontology(", "#" + "x" * 70_000 + "\nOntology(", 1),
+    ],
+    ids=["owl-xml", "functional"],
+)
+def test_content_is_sniffed_past_a_preamble_of_any_length(tmp_path: Path, text: str) -> None:
+    (tmp_path / "s.owl").write_text(text)
+    assert signature(read_ontology(tmp_path / "s.owl", "s"), "Altitude") == [["UAV"]]
+
+
+@pytest.mark.parametrize(
+    "text",
+    ["<!DOCTYPE x [" + "[" * 65_000, "<!DOCTYPE x [" + '<!ENTITY a "' * 20_000, "<!--" * 30_000],
+    ids=["brackets", "open-quotes", "open-comments"],
+)
+def test_a_hostile_preamble_is_one_line_in_one_pass(tmp_path: Path, text: str) -> None:
+    (tmp_path / "s.owl").write_text(text)
+    with pytest.raises(ParseError) as error:
+        read_ontology(tmp_path / "s.owl", "s")
+    assert "\n" not in str(error.value)
 
 
 # ---- entailed sort membership (issue 15, item 4) ----------------------------------------------
@@ -492,15 +630,37 @@ def test_signatures_stay_told_under_owl_rl(tmp_path: Path) -> None:
     assert signature(ont, "Speed") == [["MovingObject"]]
 
 
-@pytest.mark.parametrize("name", ["entailing", "platform1", "weather"])
-def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
+def agrees_with_owlrl(km: Any, files: list[Path]) -> None:
     """owlrl is the oracle: every named object's sorts, told and entailed, closed under the
-    told hierarchy, are the sorts its OWL 2 RL closure types it with."""
+    told hierarchy, are the sorts its OWL 2 RL closure types it with, and its sameAs class is
+    the objects the closure says are sameAs it."""
     import owlrl
     from rdflib import URIRef
-    from rdflib.namespace import RDF
+    from rdflib.namespace import OWL, RDF
 
     from dkreason.parse.owl import read_sources
+
+    (platform,) = km.kb.platforms
+    ont = km.kb.platform(platform).ontology
+    closure = read_sources(files).graph
+    owlrl.DeductiveClosure(
+        owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False, datatype_axioms=False
+    ).expand(closure)
+    for sort in sorted(ont.sorts - {"http://www.w3.org/2002/07/owl#Thing"}):
+        ours = {o for o in km.kb.engine.query("instance_of", platform, None, sort)}
+        theirs = {
+            str(s) for s in closure.subjects(RDF.type, URIRef(sort)) if str(s) in ont.individuals
+        }
+        assert {str(o[1]) for o in ours} == theirs, local_name(sort)
+    rep = {str(r[1]): str(r[2]) for r in km.kb.engine.query("same_rep", platform, None, None)}
+    for obj in sorted(ont.individuals):
+        theirs = {str(o) for o in closure.objects(URIRef(obj), OWL.sameAs)} & ont.individuals
+        assert {o for o in ont.individuals if rep[o] == rep[obj]} == theirs | {obj}, obj
+
+
+@pytest.mark.parametrize("name", ["entailing", "platform1", "weather"])
+def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
+    from dkreason import KnowledgeManager
 
     if name == "entailing":
         km = entailing(tmp_path)
@@ -514,20 +674,28 @@ def test_memberships_equal_owlrls_closure(tmp_path: Path, name: str) -> None:
         (tmp_path / "c.toml").write_text(
             f'[platforms.e]\nontology = "{files[0]}"\nreasoning = "owl-rl"\n'
         )
-        from dkreason import KnowledgeManager
-
         km = KnowledgeManager.from_config(tmp_path / "c.toml")
-    ont = km.kb.platform("e").ontology
-    closure = read_sources(files).graph
-    owlrl.DeductiveClosure(
-        owlrl.OWLRL_Semantics, rdfs_closure=False, axiomatic_triples=False, datatype_axioms=False
-    ).expand(closure)
-    for sort in sorted(ont.sorts - {"http://www.w3.org/2002/07/owl#Thing"}):
-        ours = {o for o in km.kb.engine.query("instance_of", "e", None, sort)}
-        theirs = {
-            str(s) for s in closure.subjects(RDF.type, URIRef(sort)) if str(s) in ont.individuals
-        }
-        assert {str(o[1]) for o in ours} == theirs, local_name(sort)
+    agrees_with_owlrl(km, files)
+
+
+@pytest.mark.parametrize(  # owlrl, the oracle, writes sameAs out pairwise: kept small
+    ("kind", "n"), [("same-as", 12), ("transitive", 30), ("functional", 12), ("subclass", 30)]
+)
+def test_large_closures_equal_owlrls_and_stay_per_same_as_class(
+    tmp_path: Path, kind: str, n: int
+) -> None:
+    """Chains make OWL RL's closure grow with the square of their length (issue 27, defect
+    5); the rules keep sameAs as classes and memberships per class, and still agree with
+    owlrl.  The lengths that took minutes are measured in benchmarks/bench_owlrl.py."""
+    from dkreason import KnowledgeManager
+    from dkreason.workloads import owl_rl_world
+
+    (tmp_path / "o.ttl").write_text(owl_rl_world(kind, n))
+    (tmp_path / "c.toml").write_text('[platforms.p]\nontology = "o.ttl"\nreasoning = "owl-rl"\n')
+    km = KnowledgeManager.from_config(tmp_path / "c.toml")
+    agrees_with_owlrl(km, [tmp_path / "o.ttl"])
+    ont = km.kb.platform("p").ontology
+    assert len(ont.entailed) <= 2 * n  # a pair per object at most, not a pair per two objects
 
 
 def test_an_unresolved_import_on_the_cli_is_one_line_and_exit_2(

@@ -3,6 +3,7 @@ editor or kill loses a topic; the file keeps its mode and symlinks."""
 
 from __future__ import annotations
 
+import errno
 import os
 import shutil
 import subprocess
@@ -127,6 +128,26 @@ def test_removing_a_missing_topic_is_one_line_exit_2(tmp_path: Path) -> None:
     )
     assert done.returncode == 2 and done.stderr.count("\n") == 1 and "topic99" in done.stderr
     assert (tmp_path / "specs.sslt").read_text() == SSLT
+
+
+@pytest.mark.parametrize("action", ["add", "remove"])
+def test_a_full_disk_is_one_line_and_the_file_stays_intact(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], action: str
+) -> None:
+    from dkreason.cli import main
+
+    config = platform(tmp_path, SSLT)
+
+    def full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "fsync", full)
+    argument = NEW if action == "add" else "topic4"
+    assert main(["specs", action, "--config", str(config), argument]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "specs.sslt" in err and "No space left" in err, err
+    assert (tmp_path / "specs.sslt").read_text() == SSLT
+    assert not list(tmp_path.glob(".*.tmp"))
 
 
 def test_a_topic_added_behind_our_back_is_refused_not_duplicated(tmp_path: Path) -> None:

@@ -27,7 +27,7 @@ from .facts import (
     rows_of,
     spec_facts,
 )
-from .inputs.files import read_bytes
+from .inputs.files import read_bytes, resolved
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
 from .parse.config import SCHEMA, Config, PlatformFiles, read_config, shipped_policy
@@ -80,7 +80,7 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
     xml = specs is not None and is_xml(specs)
     spec_data = read_bytes(specs) if specs else b""
 
-    def build() -> tuple[Platform, tuple[tuple[str, str], ...]]:
+    def build() -> tuple[Platform, tuple[tuple[str, str | None], ...]]:
         sources = read_sources(files.ontology, imports, files.skip_imports)
         parsed = parse_specs(spec_data, str(specs), xml=xml).specs if specs else ()
         ontology = ontology_of(sources.graph, str(files.ontology[0]), files.name)
@@ -90,9 +90,12 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
             ontology = entail(sources.graph, ontology)
         platform = make_platform(ontology, parsed, specs)
         platform.notes = sources.skipped
-        return platform, tuple((str(p), cache.digest(d)) for p, d in sources.read)
+        return platform, (
+            *((str(p), cache.digest(d)) for p, d in sources.read),
+            *((str(p), None) for p in sources.absent),
+        )
 
-    def parsed() -> tuple[Platform, tuple[tuple[str, str], ...]]:
+    def parsed() -> tuple[Platform, tuple[tuple[str, str | None], ...]]:
         found = build()
         # rdflib's graph and its store refer to each other: the parse leaves cycles.  They are
         # all younger than the last collection, so collecting the youngest generation finds
@@ -102,12 +105,12 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
 
     parts: list[bytes | str] = [
         files.name,
-        *(str(p.resolve()) for p in files.ontology),
+        *(str(resolved(p)) for p in files.ontology),
         str(specs),
         spec_data,
         str(files.skip_imports),
         files.reasoning,
-        *(f"{k}={v.resolve()}" for k, v in sorted(imports.items())),
+        *(f"{k}={resolved(v)}" for k, v in sorted(imports.items())),
     ]
     platform, _ = cache.cached("platform", parts, parsed, lambda found: cache.unchanged(found[1]))
     return platform
@@ -186,20 +189,8 @@ class KnowledgeBase:
                 self._check_specs(p, list(p.resolved))
             return self.engine.frozen()
 
-        def whole(found: object) -> bool:  # a damaged entry is derived again
-            arity = self.engine.views
-            return (
-                isinstance(found, dict)
-                and found.keys() == arity.keys()
-                and all(
-                    isinstance(row, tuple) and len(row) == arity[name]
-                    for name, rows in found.items()
-                    for row in rows
-                )
-            )
-
         views = cache.cached(
-            "views", [version("pyDatalog"), *self.engine.texts, content.digest()], compute, whole
+            "views", [version("pyDatalog"), *self.engine.texts, content.digest()], compute
         )
         if not computed:
             self.engine.restore(views)

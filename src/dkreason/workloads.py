@@ -284,3 +284,96 @@ def fleet(folder: Path, nodes: int) -> None:
         (folder / f"p{n}.toml").write_text(
             f'[platforms.p{n}]\nontology = "p{n}.ttl"\nspecs = "p{n}.sslt"\n'
         )
+
+
+# ---- hostile ontologies (tests/test_owl.py, bench_owl_memory, bench_owlrl) -------------------
+
+
+HOSTILE = "http://example.org/hostile#"
+
+
+def nested_owl(syntax: str, depth: int, axioms: int = 1) -> str:
+    """An ontology of `axioms` axioms, each nesting `depth` class expressions: in OWL
+    Functional Syntax ("ofn"), Manchester syntax with parentheses ("omn") or with a chain of
+    restrictions and none ("omn-chain"), or OWL/XML ("owx")."""
+    if syntax == "ofn":
+        nested = "ObjectIntersectionOf(:B " * depth + ":C" + ")" * depth
+        body = "".join(f"SubClassOf(:A{i} {nested})\n" for i in range(axioms))
+        return f"Prefix(:=<{HOSTILE}>)\nOntology(<{HOSTILE}>\n{body})\n"
+    if syntax.startswith("omn"):
+        nested = (
+            "p some " * depth + "B" if syntax == "omn-chain" else "(" * depth + "B" + ")" * depth
+        )
+        body = "".join(f"Class: A{i}\n    SubClassOf: {nested}\n" for i in range(axioms))
+        return f"Prefix: : <{HOSTILE}>\nOntology: <{HOSTILE}>\nObjectProperty: p\nClass: B\n{body}"
+    iri = f'<Class IRI="{HOSTILE}'
+    nested = f'<ObjectIntersectionOf>{iri}B"/>' * depth + f'{iri}C"/>'
+    nested += "</ObjectIntersectionOf>" * depth
+    body = "".join(f'<SubClassOf>{iri}A{i}"/>{nested}</SubClassOf>\n' for i in range(axioms))
+    return (
+        f'<?xml version="1.0"?>\n<Ontology xmlns="http://www.w3.org/2002/07/owl#" '
+        f'ontologyIRI="{HOSTILE}">\n{body}</Ontology>\n'
+    )
+
+
+def assertions_owl(syntax: str, n: int) -> str:
+    """An ontology of `n` class assertions, in "ofn", "omn", "owx" or "turtle"."""
+    if syntax == "ofn":
+        body = "".join(f"ClassAssertion(:C :i{i})\n" for i in range(n))
+        return f"Prefix(:=<{HOSTILE}>)\nOntology(<{HOSTILE}>\nDeclaration(Class(:C))\n{body})\n"
+    if syntax == "omn":
+        body = "".join(f"Individual: i{i}\n  Types: C\n" for i in range(n))
+        return f"Prefix: : <{HOSTILE}>\nOntology: <{HOSTILE}>\nClass: C\n{body}"
+    if syntax == "owx":
+        body = "".join(
+            f'<ClassAssertion><Class IRI="{HOSTILE}C"/><NamedIndividual IRI="{HOSTILE}i{i}"/>'
+            "</ClassAssertion>\n"
+            for i in range(n)
+        )
+        return (
+            f'<?xml version="1.0"?>\n<Ontology xmlns="http://www.w3.org/2002/07/owl#" '
+            f'ontologyIRI="{HOSTILE}">\n{body}</Ontology>\n'
+        )
+    return f"@prefix : <{HOSTILE}> .\n" + "".join(f":i{i} a :C .\n" for i in range(n))
+
+
+_RL_HEAD = f"""@prefix : <{HOSTILE}> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:Robot a owl:Class .
+:Battery rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( :UnaryRelation
+    [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Robot ] ) ] .
+:near a owl:ObjectProperty, owl:TransitiveProperty ; rdfs:domain :Robot .
+:has a owl:ObjectProperty, owl:FunctionalProperty .
+"""
+
+
+def owl_rl_world(kind: str, n: int) -> str:
+    """Turtle in which OWL RL's closure is large for its size: a sameAs chain of `n` objects,
+    each of a class of its own under Robot ("same-as"); a transitive property along `n` objects
+    ("transitive"); a functional property with `n` values ("functional"); a subClassOf chain
+    `n` deep with an object in each class ("subclass")."""
+    if kind == "subclass":
+        body = "".join(
+            f":C{i} a owl:Class ; rdfs:subClassOf :{f'C{i + 1}' if i + 1 < n else 'Robot'} .\n"
+            f":o{i} a owl:NamedIndividual, :C{i} .\n"
+            for i in range(n)
+        )
+    elif kind == "same-as":
+        body = "".join(
+            f":K{i} a owl:Class ; rdfs:subClassOf :Robot .\n:o{i} a owl:NamedIndividual, :K{i}"
+            + (f" ; owl:sameAs :o{i + 1} .\n" if i + 1 < n else " .\n")
+            for i in range(n)
+        )
+    elif kind == "transitive":
+        body = "".join(
+            f":o{i} a owl:NamedIndividual" + (f" ; :near :o{i + 1} .\n" if i + 1 < n else " .\n")
+            for i in range(n)
+        )
+    else:
+        body = ":hub a owl:NamedIndividual .\n" + "".join(
+            f":o{i} a owl:NamedIndividual .\n:hub :has :o{i} .\n" for i in range(n)
+        )
+    return _RL_HEAD + body

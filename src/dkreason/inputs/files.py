@@ -66,6 +66,15 @@ def regular(path: Path) -> os.stat_result:
     return info
 
 
+def resolved(path: Path) -> Path:
+    """`path` made absolute with its symlinks followed; a loop of symlinks is one error line
+    (pathlib raises RuntimeError for it before Python 3.13, OSError after)."""
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError):
+        raise DkError(f"{shown(path)}: cannot read (a loop of symbolic links)") from None
+
+
 def _too_big(path: Path, limit: int) -> DkError:
     return DkError(
         f"{shown(path)}: larger than {limit} bytes (raise DKREASON_MAX_INPUT to read it)"
@@ -176,21 +185,26 @@ def locked(path: Path) -> Iterator[Path]:
 
 def write_atomic(path: Path, data: bytes) -> None:
     """Replace `path` in one step so a crash never leaves half a file behind; the file keeps
-    its mode (new files get the umask's)."""
+    its mode (new files get the umask's).  A write that fails (a full disk, a read-only
+    folder) is one error line, and `path` is as it was."""
     try:
         mode = stat.S_IMODE(os.stat(path).st_mode)
     except FileNotFoundError:
         umask = os.umask(0)
         os.umask(umask)
         mode = 0o666 & ~umask
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    tmp = None
     try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
         with os.fdopen(fd, "wb") as out:
             out.write(data)
             out.flush()
             os.fchmod(out.fileno(), mode)
             os.fsync(out.fileno())
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+    except BaseException as exc:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise DkError(f"{shown(path)}: cannot write ({exc.strerror}); left as it was") from None
         raise

@@ -14,14 +14,14 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from lark import Lark, Token, Transformer
+from lark import Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
-from ..cache import lark_file
 from ..errors import ParseError, Span
 from ..inputs.files import read_text
 from ..inputs.numbers import UNITS
 from ..model import Arg, FeatureKey, FeatureRef
+from .grammar import lalr
 
 FILE = "<formula>"
 MAX_NUMBER = 100  # characters of a number literal
@@ -249,17 +249,10 @@ class _ToAst(Transformer[Token, Any]):
         return _nest("forall", children[:-1], _formula(children[-1]))
 
 
-# Built at import, from lark's cache when the grammar is unchanged (a few ms, not the 40 ms
-# of an LALR analysis), so the first formula costs what later ones do.  The transformer runs
+# Built at import, its tables from the cache when the grammar is unchanged (a few ms, not the
+# 40 ms of an LALR analysis), so the first formula costs what later ones do.  The transformer runs
 # inside the LALR parser: the AST is built without a parse tree.
-_PARSER = Lark.open_from_package(
-    "dkreason.parse",
-    "mtl.lark",
-    parser="lalr",
-    maybe_placeholders=False,
-    transformer=_ToAst(),
-    cache=lark_file("mtl"),
-)
+_PARSER = lalr("mtl.lark", _ToAst())
 
 
 def _nest(op: str, bindings: list[tuple[str, str, Span]], body: Formula) -> Formula:

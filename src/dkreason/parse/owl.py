@@ -10,16 +10,27 @@ from __future__ import annotations
 import logging
 import os
 import re
+import tempfile
 import warnings
+from collections import deque
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ..errors import DkError, ParseError, Span
-from ..inputs.files import decode, json_value, read_bytes
+from ..inputs.files import json_value, read_bytes, resolved
 from ..model import IdValue, Ontology, Signature
 from ..names import local_name
+from .owlsyntax import (
+    MAX_DEPTH,
+    OWL_SYNTAXES,
+    SYNTAXES,
+    XML_SYNTAXES,
+    check_depth,
+    syntax,
+    write_rdf,
+)
 
 ARITY = {"UnaryRelation": 1, "BinaryRelation": 2, "TernaryRelation": 3}
 ARG = re.compile(r"arg([1-9])$")
@@ -27,17 +38,19 @@ THING = "http://www.w3.org/2002/07/owl#Thing"
 
 
 def read_ontology(path: Path, platform: str) -> Ontology:
-    return parse_ontology(read_bytes(path), str(path), platform, path.resolve().as_uri())
+    return parse_ontology(read_bytes(path), str(path), platform, resolved(path).as_uri())
 
 
 @dataclass(frozen=True, slots=True)
 class Sources:
     """An ontology's files with everything they import, merged into one graph: what was read
-    (every file and catalog, to tell when a cached model went stale) and what was skipped."""
+    and what was looked for but absent (every file and catalog, to tell when a cached model
+    went stale) and what was skipped."""
 
     graph: Any
     read: tuple[tuple[Path, bytes], ...]
     skipped: tuple[str, ...]  # one warning line per import left out (imports = "skip")
+    absent: tuple[Path, ...] = ()  # catalogs looked for and not found
 
 
 def read_sources(
@@ -51,17 +64,18 @@ def read_sources(
     from rdflib import Graph, URIRef
     from rdflib.namespace import OWL, RDF
 
-    graph = Graph(bind_namespaces="none")
+    graph: Any = None
     read: list[tuple[Path, bytes]] = []
+    absent: list[Path] = []
     skipped: list[str] = []
     catalogs: dict[Path, dict[str, Path]] = {}
     loaded: set[Path] = set()
     names: set[str] = set()  # the ontologies loaded so far, by IRI without a trailing / or #
     prefixes: set[str] = set()
-    todo: list[tuple[Path, str | None]] = [(Path(f), None) for f in files]
+    todo: deque[tuple[Path, str | None]] = deque((Path(f), None) for f in files)
     while todo:
-        path, iri = todo.pop(0)
-        where = path.resolve()
+        path, iri = todo.popleft()
+        where = resolved(path)
         if where in loaded:
             continue
         loaded.add(where)
@@ -79,7 +93,9 @@ def read_sources(
             target = str(wanted)
             if target.rstrip("/#") in names:
                 continue
-            found = (imports or {}).get(target) or _catalog(path.parent, catalogs, read).get(target)
+            found = (imports or {}).get(target) or _catalog(
+                path.parent, catalogs, read, absent
+            ).get(target)
             if found is not None:
                 todo.append((found, target))
                 continue
@@ -90,37 +106,62 @@ def read_sources(
             if not skip:
                 raise ParseError(why, Span(str(path)))
             skipped.append(f"{path}: {why}; skipped")
-        for triple in part:
-            graph.add(triple)
+        if graph is None:  # the first file's graph is the merged one: not held twice
+            graph = part
+            prefixes = {prefix for prefix, _ in part.namespaces() if prefix}
+            continue
+        graph += part
         for prefix, ns in part.namespaces():
             if prefix and prefix not in prefixes:
                 prefixes.add(prefix)
                 graph.bind(prefix, ns)
-    return Sources(graph, tuple(read), tuple(skipped))
+        del part
+    return Sources(
+        Graph(bind_namespaces="none") if graph is None else graph,
+        tuple(read),
+        tuple(skipped),
+        tuple(absent),
+    )
+
+
+_XML_BASE = "{http://www.w3.org/XML/1998/namespace}base"
 
 
 def _catalog(
-    folder: Path, catalogs: dict[Path, dict[str, Path]], read: list[tuple[Path, bytes]]
+    folder: Path,
+    catalogs: dict[Path, dict[str, Path]],
+    read: list[tuple[Path, bytes]],
+    absent: list[Path],
 ) -> dict[str, Path]:
-    """IRI → file of the catalog-v001.xml in `folder` (none: empty), read once."""
+    """IRI → file of the catalog-v001.xml in `folder`, read once through the input door (none:
+    empty, and noted as absent, so one that appears later is read).  Each `uri` is resolved
+    as XML Base says, against the nearest `xml:base` and the catalog's own place; only a
+    `file:` URI or a path names a file (nothing is fetched)."""
     if folder not in catalogs:
         path = folder / "catalog-v001.xml"
-        catalogs[folder] = {}
-        if path.is_file():
-            from ..inputs import xmlsafe
+        found: dict[str, Path] = {}
+        catalogs[folder] = found
+        if not os.path.lexists(path):
+            absent.append(path)
+            return found
+        from urllib.parse import urljoin, urlsplit
+        from urllib.request import url2pathname
 
-            data = read_bytes(path)
-            read.append((path, data))
-            root, _ = xmlsafe.parse(data, str(path))
-            for element in root.iter():
-                if (
-                    element.tag.rsplit("}", 1)[-1] == "uri"
-                    and element.get("name")
-                    and element.get("uri")
-                ):
-                    catalogs[folder][str(element.get("name"))] = Path(
-                        os.path.normpath(folder / str(element.get("uri")))
-                    )
+        from ..inputs import xmlsafe
+
+        data = read_bytes(path)
+        read.append((path, data))
+        root, _ = xmlsafe.parse(data, str(path))
+        todo = [(root, Path(os.path.abspath(path)).as_uri())]
+        while todo:
+            element, base = todo.pop()
+            base = urljoin(base, element.get(_XML_BASE, ""))
+            name, uri = element.get("name"), element.get("uri")
+            if element.tag.rsplit("}", 1)[-1] == "uri" and name and uri:
+                target = urlsplit(urljoin(base, uri))
+                if target.scheme == "file" and target.netloc in ("", "localhost"):
+                    found[name] = Path(url2pathname(target.path))
+            todo.extend((child, base) for child in reversed(element))  # in document order
     return catalogs[folder]
 
 
@@ -140,60 +181,11 @@ def served(
     return sources.graph.serialize(format="turtle"), digest.hexdigest()
 
 
-SYNTAXES = {"xml", "trix", "turtle", "nt", "nquads", "trig", "n3", "json-ld"}
-XML_SYNTAXES = {"xml", "trix", "owx"}
-OWL_SYNTAXES = {"ofn": "OWL Functional Syntax", "omn": "Manchester Syntax", "owx": "OWL/XML"}
-# Suffixes that say one syntax; any other (.owl, .rdf, .xml, none) is told by the content.
-_BY_SUFFIX = {
-    ".ttl": "turtle",
-    ".nt": "nt",
-    ".nq": "nquads",
-    ".trig": "trig",
-    ".n3": "n3",
-    ".jsonld": "json-ld",
-    ".json": "json-ld",
-    ".trix": "trix",
-    ".ofn": "ofn",
-    ".omn": "omn",
-    ".owx": "owx",
-}
-
-
-# What may precede an ontology's first statement: a BOM, space, comments, an XML declaration
-# or document type.
-_PREAMBLE = re.compile(
-    rb"^(\xef\xbb\xbf|\s|#[^\n]*\n|<\?xml[^>]*>|<!--.*?-->|"
-    rb"<!DOCTYPE[^>]*(\[.*?\])?\s*>)*",
-    re.S,
-)
-
-
-def syntax(data: bytes, file: str) -> str:
-    """The syntax of an ontology file: by its suffix where that says one, else by what it
-    starts with (an `.owl` file is RDF/XML, OWL/XML, Functional or Manchester syntax)."""
-    by_suffix = _BY_SUFFIX.get(Path(file).suffix.lower())
-    if by_suffix:
-        return by_suffix
-    head = _PREAMBLE.sub(b"", data[:65536])
-    if re.match(rb"(Prefix|Ontology)\s*\(", head):
-        return "ofn"
-    if re.match(rb"(Prefix|Ontology|Class|ObjectProperty|Individual)\s*:", head):
-        return "omn"
-    if head.startswith(b"<"):
-        root = re.match(rb"<\s*([\w.\-]+:)?([\w.\-]+)", head)
-        name = root.group(2) if root else b""
-        return "owx" if name == b"Ontology" else "trix" if name == b"TriX" else "xml"
-    if head[:1] in (b"{", b"["):
-        return "json-ld"
-    return "turtle"  # Turtle reads N-Triples too
-
-
 def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
     """The RDF graph of `data`, in `fmt` or the syntax its name or content says; nothing
     outside `data` is ever read: XML passes the XML hardening, JSON-LD may not name a remote
-    context, and OWL's own syntaxes are read by py-horned-owl into RDF/XML first."""
-    from rdflib import Graph
-
+    context, and OWL's own syntaxes are read by py-horned-owl into RDF/XML first
+    (parse/owlsyntax.py: bounded nesting, read from their text only)."""
     fmt = fmt or syntax(data, file)
     if fmt not in SYNTAXES and fmt not in OWL_SYNTAXES:
         raise ParseError(
@@ -202,21 +194,35 @@ def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
             f"Manchester syntax)",
             Span(file),
         )
-    if fmt in XML_SYNTAXES:
-        from ..inputs import xmlsafe
+    from ..inputs import xmlsafe
 
+    if fmt == "owx":
+        data = xmlsafe.standalone(data, file, MAX_DEPTH)
+    elif fmt in OWL_SYNTAXES:
+        check_depth(data, file, fmt)
+    elif fmt in XML_SYNTAXES:
         xmlsafe.check(data, file)
     elif fmt == "json-ld":
         _local_contexts(json_value(data, Span(file)), file)
-    if fmt in OWL_SYNTAXES:
-        data, fmt = _owl_to_rdf(data, file, fmt), "xml"
+    if fmt not in OWL_SYNTAXES:
+        return _rdf(file, base, data=data, format=fmt)
+    with tempfile.TemporaryDirectory(prefix="dkreason-owl-") as folder:
+        rdf = Path(folder) / "ontology.owl"
+        write_rdf(data, file, fmt, rdf)
+        return _rdf(file, base, source=str(rdf), format="xml")
+
+
+def _rdf(file: str, base: str | None, **what: Any) -> Any:
+    """rdflib's graph of `what` (data or a source, and a format); `file` names it in errors."""
+    from rdflib import Graph
+
     graph = Graph(bind_namespaces="none")
     quiet = logging.getLogger("rdflib.term")  # ill-typed literals: reported by us, once
     quiet.disabled = True
     try:
         with warnings.catch_warnings():  # rdflib's own deprecations are not the user's concern
             warnings.simplefilter("ignore", DeprecationWarning)
-            graph.parse(data=data, format=fmt, publicID=base)
+            graph.parse(publicID=base, **what)
     except RecursionError:
         raise ParseError("malformed RDF: nested too deeply", Span(file)) from None
     except Exception as exc:  # rdflib raises many types; all mean "this file is not RDF"
@@ -224,36 +230,6 @@ def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
     finally:
         quiet.disabled = False
     return graph
-
-
-def _owl_to_rdf(data: bytes, file: str, fmt: str) -> bytes:
-    """An ontology in an OWL syntax rdflib does not read, as RDF/XML (py-horned-owl)."""
-    import pyhornedowl
-
-    text = decode(data, file)
-    try:
-        ontology = pyhornedowl.open_ontology(text, fmt)  # type: ignore[arg-type]
-        rdf: str = ontology.save_to_string("owl")
-    except Exception as exc:  # its errors are ValueErrors that print a Rust debug dump
-        message = str(exc)
-        where = re.search(r"line_col: Pos\(\((\d+), (\d+)\)\)", message)
-        offset = re.search(r"BytePosition\((\d+)\)", message)
-        line = column = 0
-        if where:
-            line, column = int(where.group(1)), int(where.group(2))
-        elif offset:
-            before = data[: int(offset.group(1))]
-            line, column = before.count(b"\n") + 1, len(before) - before.rfind(b"\n")
-        why = re.search(
-            r"(ParserError|ValidityError|Error)\(\s*(\"[^\"]*\"|Error \{ "
-            r"variant: \w+)",
-            message,
-        )
-        shown = why.group(2).strip('"').replace("Error { variant: ", "") if why else "unreadable"
-        raise ParseError(
-            f"malformed {OWL_SYNTAXES[fmt]}: {shown}", Span(file, line, column)
-        ) from None
-    return rdf.encode("utf-8")
 
 
 def _local_contexts(doc: Any, file: str) -> None:

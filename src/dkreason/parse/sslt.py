@@ -18,24 +18,17 @@ from xml.sax.saxutils import quoteattr
 from lark import Lark, Token, Transformer
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
-from ..cache import lark_file
 from ..errors import DkError, ParseError, Span
 from ..inputs.files import decode, read_bytes
 from ..model import ArgKind, TopicArg, TopicFeature, TopicSpec
+from .grammar import lalr
 
 
 @cache
 def _parser() -> Lark:
     # The transformer runs inside the LALR parser (no parse tree): spans come from tokens.
-    # Built on first use (a specs file the cache does not hold), its tables from lark's cache.
-    return Lark.open_from_package(
-        "dkreason.parse",
-        "sslt.lark",
-        parser="lalr",
-        maybe_placeholders=False,
-        transformer=_ToModel(),
-        cache=lark_file("sslt"),
-    )
+    # Built on first use (a specs file the cache does not hold), its tables from the cache.
+    return lalr("sslt.lark", _ToModel())
 
 
 @dataclass(frozen=True, slots=True)

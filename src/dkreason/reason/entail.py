@@ -20,58 +20,73 @@ from typing import Any
 
 from ..model import Ontology
 from ..names import local_name
+from .owlrl_rules import Closure, closure
 
 
 def entail(graph: Any, told: Ontology) -> Ontology:
-    """`told` with the memberships and sameAs pairs OWL 2 RL entails from `graph`."""
+    """`told` with the memberships and sameAs pairs OWL 2 RL entails from `graph`.
+
+    Both are kept per sameAs class (the knowledge base gives a class's memberships to all its
+    members): a class's entailed sorts once, on the member each was entailed for, and just
+    enough entailed pairs to join what told sameAs leaves apart, never all n² pairs."""
     from rdflib import URIRef
-    from rdflib.namespace import OWL, RDF
 
-    from .owlrl_rules import closure as rl_closure
-
-    facts = rl_closure(graph)
+    found = closure(graph)
     supers = _told_supers(told)
     objects, sorts = told.individuals, told.sorts
-    typed: dict[str, set[str]] = defaultdict(set)  # every sort the closure gives an object
-    out_of: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)  # its assertions, to say why
-    into: dict[Any, list[tuple[Any, Any]]] = defaultdict(list)
-    for s, p, o in facts:
-        if p == RDF.type:
-            if isinstance(s, URIRef) and str(s) in objects and str(o) in sorts:
-                typed[str(s)].add(str(o))
-        else:
-            out_of[s].append((p, o))
-            into[o].append((s, p))
-    told_types = set(told.types)
+    told_sorts: dict[str, set[str]] = defaultdict(set)
+    for obj, cls in told.types:
+        told_sorts[obj].add(cls)
+    told_class = _classes(told.same_as)
     types: dict[tuple[str, str], str] = {}
-    for obj, classes in typed.items():
-        for cls in classes:  # the most specific only: the rules climb the told hierarchy
-            if (obj, cls) in told_types or any(
-                cls in supers[other] and other not in supers[cls] for other in classes
-            ):
-                continue
-            types[(obj, cls)] = "entailed by OWL RL from " + _why_type(
-                graph, out_of, into, URIRef(obj), URIRef(cls)
-            )
     same: dict[tuple[str, str], str] = {}
-    known = set(told.same_as)  # told pairs, then entailed ones, either way round
-    for a, b in ((s, o) for s, p, o in facts if p == OWL.sameAs):
-        pair = (str(a), str(b))
-        if (
-            a != b
-            and pair[0] in objects
-            and pair[1] in objects
-            and pair not in known
-            and pair[::-1] not in known
-        ):
-            known.add(pair)
-            same[pair] = f"entailed by OWL RL from {_why_same(graph, a, b)}"
+    for rep in found.types.keys() | found.groups.keys():
+        classes = found.types.get(rep, set())
+        members = sorted(
+            str(m) for m in found.members(rep) if isinstance(m, URIRef) and str(m) in objects
+        )
+        if not members:
+            continue
+        joined = {told_class.get(members[0], members[0])}
+        for m in members[1:]:  # one pair per told class of sameAs the first one's is apart from
+            if told_class.get(m, m) not in joined:
+                joined.add(told_class.get(m, m))
+                same[(members[0], m)] = (
+                    f"entailed by OWL RL from {_why_same(graph, URIRef(members[0]), URIRef(m))}"
+                )
+        held = {str(c) for c in classes} & sorts
+        given = set().union(*(told_sorts[m] for m in members))
+        for cls in held - given:  # the most specific only: the rules climb the told hierarchy
+            if any(cls in supers[other] and other not in supers[cls] for other in held):
+                continue
+            origin = str(found.origin.get((rep, URIRef(cls)), ""))
+            obj = origin if origin in members else members[0]
+            types[(obj, cls)] = "entailed by OWL RL from " + _why_type(
+                graph, found, URIRef(obj), URIRef(cls)
+            )
     return replace(
         told,
         types=(*told.types, *sorted(types)),
         same_as=(*told.same_as, *sorted(same)),
         entailed=types | same,
     )
+
+
+def _classes(pairs: tuple[tuple[str, str], ...]) -> dict[str, str]:
+    """Each object in a told sameAs pair → a representative of its told sameAs class."""
+    parent: dict[str, str] = {}
+
+    def root(x: str) -> str:
+        top = x
+        while parent.get(top, top) != top:
+            top = parent[top]
+        while x != top:
+            parent[x], x = top, parent[x]
+        return top
+
+    for a, b in pairs:
+        parent[root(a)] = root(b)
+    return {x: root(x) for x in parent}
 
 
 def _told_supers(told: Ontology) -> dict[str, set[str]]:
@@ -98,13 +113,7 @@ def _name(node: Any) -> str:
     return local_name(str(node))
 
 
-def _why_type(
-    graph: Any,
-    out_of: dict[Any, list[tuple[Any, Any]]],
-    into: dict[Any, list[tuple[Any, Any]]],
-    s: Any,
-    c: Any,
-) -> str:
+def _why_type(graph: Any, found: Closure, s: Any, c: Any) -> str:
     """The told axiom a membership s : c follows from, in a few words (the first found of the
     OWL 2 RL rules that type an object: domain, range, hasValue, someValuesFrom,
     intersection), else the rule set itself."""
@@ -112,14 +121,16 @@ def _why_type(
     from rdflib.collection import Collection
     from rdflib.namespace import OWL, RDFS
 
-    for p, _ in out_of.get(s, ()):  # s's assertions, told or entailed (chains)
-        for d in graph.objects(p, RDFS.domain):
-            if d == c:
-                return f"{_name(p)} rdfs:domain {_name(c)}"
-    for _, p in into.get(s, ()):
-        for r in graph.objects(p, RDFS.range):
-            if r == c:
-                return f"{_name(p)} rdfs:range {_name(c)}"
+    for p, subjects in found.out.items():  # s's assertions, told or entailed (chains)
+        if s in subjects:
+            for d in graph.objects(p, RDFS.domain):
+                if d == c:
+                    return f"{_name(p)} rdfs:domain {_name(c)}"
+    for p, objects in found.into.items():
+        if s in objects:
+            for r in graph.objects(p, RDFS.range):
+                if r == c:
+                    return f"{_name(p)} rdfs:range {_name(c)}"
     for restriction in graph.objects(c, OWL.equivalentClass):
         if not isinstance(restriction, BNode):
             continue
