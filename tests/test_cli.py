@@ -182,7 +182,8 @@ def test_usage_errors_are_one_line_too() -> None:
         ("relevant(X) <= wanted(X, _A, _B, _C, _D) &", "not a rule", 2),
         ("relevant(X) <= wanted(X, _, _, _, _)", "bare `_`", 2),
         ("relevant(X) <= wanted(X + 1, _A, _B, _C, _D)", "unsupported term 'X + 1'", 2),
-        ("relevant(X)", "expected a rule", 2),
+        ("relevant(X)", "X is a variable, and a fact holds constants only", 2),
+        ("relevant", "expected a rule `head(...) <= body` or a fact", 2),
         (".decl relevant(X) materialized\nrelevant(X) <= local(X)", "expected `.decl name", 2),
         (".decl relevant(X)\n.decl relevant(Y)", "relevant is declared twice (first at", 3),
         # a misspelt relation, a wrong arity, an undeclared one, a query no rule derives

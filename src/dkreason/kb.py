@@ -7,13 +7,15 @@ rules against both ontologies they join, so a bad file fails at load time with i
 
 from __future__ import annotations
 
+import difflib
 import gc
 import hashlib
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cache
 from pathlib import Path
 
-from .datalog import Datalog, Row, gc_paused
+from .datalog import Datalog, gc_paused
 from .errors import DkError, NameError_, ParseError, SortError, Span
 from .facts import (
     STATIC,
@@ -30,8 +32,12 @@ from .facts import (
 from .inputs.files import read_bytes
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
-from .parse.config import SCHEMA, Config, PlatformFiles, read_config, shipped_policy
+from .parse.config import Config, PlatformFiles, read_config, shipped_policy
 from .parse.sslt import without_spans
+from .policy.check import Diagnostic, Known, check
+from .policy.load import read_policy
+from .policy.resolve import Names
+from .policy.syntax import Row, RuleFile, Value
 
 
 @dataclass
@@ -148,16 +154,20 @@ class KnowledgeBase:
         self.rederived: list[str] = []  # the views the last change computed again
         self.warnings: list[str] = []
         self.engine = Datalog()
-        for path in (SCHEMA, *(shipped_policy() if policy is None else policy)):
-            self.engine.load_file(path)
-        self.engine.check_policy()
+        files = read_policy(
+            shipped_policy() if policy is None else policy,
+            Names([p.names for p in platforms.values()]),
+            config.path.parent if config else None,
+        )
         facts = merge(
             STATIC,
             {"local": [(local,)]},
-            *(self._platform_facts(p) for p in platforms.values()),
+            *(platform_facts(p) for p in platforms.values()),
             self._mapping_facts(),
             {"online": [(p,) for p in platforms if online is None or p in online]},
         )
+        # the rule files' warnings (dkreason.policy.check); an error was raised
+        self.rule_warnings = self.engine.load(files, known(facts, files, platforms))
         self._derive(facts)
         self._warn()
 
@@ -203,13 +213,6 @@ class KnowledgeBase:
         )
         if not computed:
             self.engine.restore(views)
-
-    def _platform_facts(self, p: Platform) -> Facts:
-        return merge(
-            {"platform": [(p.name,)]},
-            ontology_facts(p.ontology),
-            *(spec_facts(p.name, s) for s in p.resolved.values()),
-        )
 
     def _mapping_facts(self) -> Facts:
         """Facts of the pending mappings whose platforms are both present, now active."""
@@ -303,7 +306,7 @@ class KnowledgeBase:
             raise DkError(f"platform {p.name} is already known")
         self.platforms[p.name] = p
         try:
-            facts = merge(self._platform_facts(p), self._mapping_facts(), {"online": [(p.name,)]})
+            facts = merge(platform_facts(p), self._mapping_facts(), {"online": [(p.name,)]})
         except DkError:
             del self.platforms[p.name]
             raise
@@ -320,7 +323,7 @@ class KnowledgeBase:
         gone = tuple(m for m in self.mappings if name in (m.source, m.target))
         self._change(
             merge(
-                self._platform_facts(p),
+                platform_facts(p),
                 self._facts_of(gone),
                 {"online": [(name,)] if self.is_online(name) else []},
             ),
@@ -498,6 +501,71 @@ class KnowledgeBase:
         return m.rules
 
 
+def platform_facts(p: Platform) -> Facts:
+    """What a platform's ontology and specs tell the engine."""
+    return merge(
+        {"platform": [(p.name,)]},
+        ontology_facts(p.ontology),
+        *(spec_facts(p.name, s) for s in p.resolved.values()),
+    )
+
+
+def known(facts: Facts, files: Sequence[RuleFile], platforms: dict[str, Platform]) -> Known:
+    """The values facts hold, for the rule files' constants check (computed only if a file
+    of one's own has constants to check): what the engine is told and the files tell, and the
+    nearest name to one they do not hold."""
+
+    @cache
+    def values() -> frozenset[Value]:
+        told = (v for rows in facts.values() for row in rows for v in row)
+        return frozenset(told) | {v for f in files for x in f.facts for v in x.row}
+
+    @cache
+    def names() -> tuple[list[str], list[str]]:
+        iris = [
+            iri
+            for p in platforms.values()
+            for iri in (
+                *p.ontology.features,
+                *p.ontology.sorts,
+                *p.ontology.individuals,
+                *p.ontology.properties,
+            )
+        ]
+        plain = [
+            *map(local_name, iris),
+            *platforms,
+            *(t for p in platforms.values() for t in p.specs),
+        ]
+        return iris, plain
+
+    def near(value: str) -> str | None:
+        iris, plain = names()
+        found = difflib.get_close_matches(value, iris if "://" in value else plain, 1)
+        return found[0] if found else None
+
+    return Known(lambda value: value in values(), near)
+
+
+def check_config(config: Config, extra: Sequence[Path] = ()) -> list[Diagnostic]:
+    """Every error and warning of the config's policy with `extra` rule files besides, checked
+    against the knowledge its files hold (no rule is run)."""
+    platforms = load_platforms(config)
+    rules = (*config.rules, *(p for p in extra if p not in config.rules))
+    files = read_policy(rules, Names([p.names for p in platforms.values()]), config.path.parent)
+    mappings = load_mappings(config)
+    facts = merge(
+        STATIC,
+        *(platform_facts(p) for p in platforms.values()),
+        {
+            "bridge": [
+                (m.source, r.source, m.target, r.target, r.type) for m in mappings for r in m.rules
+            ]
+        },
+    )
+    return check(files, known(facts, files, platforms))
+
+
 def with_object(ont: Ontology, iri: str, sort: str, id_: IdValue | None) -> Ontology:
     """`ont` with one more rdf:type axiom (and the object's id, if given)."""
     return replace(
@@ -522,7 +590,12 @@ def _name_index(ont: Ontology) -> NameIndex:
     return NameIndex(
         ont.platform,
         ont.prefixes,
-        {"feature": ont.features.keys(), "sort": ont.sorts, "object": ont.individuals},
+        {
+            "feature": ont.features.keys(),
+            "sort": ont.sorts,
+            "object": ont.individuals,
+            "property": ont.properties,
+        },
     )
 
 
