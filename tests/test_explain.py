@@ -290,6 +290,7 @@ def test_the_readmes_explain_example_is_what_the_command_prints(
                 "always (Altitude[uav2] > 10)",
                 "--feature",
                 "Altitude[uav2]",
+                "--proof",  # the README's block shows the proof's first lines
             ]
         )
         == 0
@@ -460,8 +461,12 @@ def test_a_policy_answering_with_no_declared_topic_feature_is_one_error_line(
     code = main([command, "--config", str(config), "always (Speed[uav2] > 1)"])
     out = capsys.readouterr()
     assert code == 2
-    (line,) = (out.out + out.err).splitlines()
+    # the checker's warning about a topic no fact names, and the one error line
+    *warnings, line = (out.out + out.err).splitlines()
     topic, k = (part.strip(" '") for part in answer.split(","))
+    assert warnings == (
+        ["warning: odd.dl:1:22: 'nowhere' occurs in no fact"] if topic == "nowhere" else []
+    )
     assert line == (
         f"error: the policy answers Speed[uav2] with feature {k} of topic {topic} on "
         "platform1, which no topic specification there declares with 1 argument"

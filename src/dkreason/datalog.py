@@ -29,6 +29,7 @@ from .errors import RuleError, Span
 from .policy.check import Diagnostic, Known, Modes, check, declared
 from .policy.syntax import (
     Comparison,
+    Condition,
     Fact,
     Literal,
     Relation,
@@ -104,6 +105,7 @@ class Datalog:
         self.modes = Modes({}, [])
         self._frozen: dict[str, list[object]] = {}  # materialized view → its rules
         self._consts: dict[Value, Any] = {}  # value → its pyEngine.Const
+        self._derived: set[str] = set()  # the relations rules derive or files tell
         self._clauses: dict[Rule, object] = {}  # each rule's clause in the engine
         self._pruned: dict[str, set[Rule]] = defaultdict(set)  # empty relation → rules negating it
 
@@ -131,6 +133,7 @@ class Datalog:
         self.texts += [f.text for f in files] + [repr([(x.predicate, x.row) for x in facts])]
         self._activate()
         filled = {r.head.predicate for r in rules} | {x.predicate for x in facts}
+        self._derived |= filled
         for name in filled & self._pruned.keys():  # its negation no longer always holds
             for rule in self._pruned.pop(name):
                 self._assert(rule)
@@ -144,13 +147,14 @@ class Datalog:
             self.assert_rows(name, [fact.row for fact in told])
         return [d for d in found if d.severity == "warning"]
 
+    def derives(self, name: str) -> bool:
+        """Whether a rule derives the relation or a file tells it facts (what a hook is
+        asked for only then)."""
+        return name in self._derived
+
     def _empty(self, name: str) -> bool:
         """Nothing derives or tells the relation, nor can: it is and stays empty."""
-        return (
-            self.schema[name].kind not in ("input", "given")
-            and not any(r.head.predicate == name for r in self.rules)
-            and not any(f.predicate == name for file in self.files for f in file.facts)
-        )
+        return self.schema[name].kind not in ("input", "given") and not self.derives(name)
 
     def _assert(self, rule: Rule) -> None:
         """The rule into the engine, or in place of its clause there (held aside, if it is a
@@ -377,28 +381,57 @@ class Datalog:
             answer = pyEngine.Literal(predicate, terms).ask()
         return list(answer) if isinstance(answer, list) else []
 
+    def solve(self, body: Sequence[Condition], variables: Sequence[str]) -> list[Row]:
+        """The values of `variables` for which every condition of `body` holds: a question of
+        several conditions, asked through a rule made for it and retracted after (the caller
+        checks that it binds its variables in time)."""
+        from pyDatalog import pyEngine
+
+        self._activate()
+        for lit in body:
+            relation = self.schema.get(lit.predicate) if isinstance(lit, Literal) else None
+            if relation is not None and f"{relation.name}/{relation.arity}" not in self._logic.Db:
+                pyEngine.insert(pyEngine.Literal(relation.name, [0] * relation.arity).pred)
+        head = Literal("dkreason_query_", tuple(map(Var, variables)) or (1,))
+        clause = _clause(Rule(head, tuple(body), "", Span("<query>")), ())
+        pyEngine.assert_(clause)
+        try:
+            with gc_paused():
+                answer = _literal(head).ask()
+        finally:
+            pyEngine.retract(clause)
+        rows = list(answer) if isinstance(answer, list) else []
+        return rows if variables else [()] * bool(rows)
+
     def askable(self, predicate: str, args: Sequence[Value | None]) -> tuple[Diagnostic, ...]:
         """What goes wrong if `predicate` is asked with these arguments (None = free): the
         variables its rules would need before anything binds them (none: it may be asked)."""
         return self.modes.problems(predicate, tuple(a is not None for a in args))
 
 
+def _term(t: Term) -> object:
+    from pyDatalog import pyEngine
+
+    return pyEngine.Var(t.name) if isinstance(t, Var) else pyEngine.Const(t)
+
+
+def _literal(x: Condition) -> Any:
+    """A condition as pyParser would build it: `~name` for negation, the operator as the
+    predicate of a comparison."""
+    from pyDatalog import pyEngine
+
+    if isinstance(x, Comparison):
+        return pyEngine.Literal(x.op, [_term(x.left), _term(x.right)])
+    return pyEngine.Literal(("~" if x.negated else "") + x.predicate, [_term(a) for a in x.args])
+
+
 def _clause(rule: Rule, pruned: Sequence[str]) -> object:
-    """The clause as pyParser would build it (`~name` for negation, the operator as the
-    predicate of a comparison), without the negations of the `pruned` relations; a relation
-    it negates is known to the engine, empty as declared, though nothing tells it yet."""
+    """The rule's clause, without its negations of the `pruned` relations; a relation it
+    negates is known to the engine, empty as declared, though nothing tells it yet."""
     from pyDatalog import Logic, pyEngine
 
-    def term(t: Term) -> object:
-        return pyEngine.Var(t.name) if isinstance(t, Var) else pyEngine.Const(t)
-
-    def literal(x: Literal | Comparison) -> Any:
-        if isinstance(x, Comparison):
-            return pyEngine.Literal(x.op, [term(x.left), term(x.right)])
-        return pyEngine.Literal(("~" if x.negated else "") + x.predicate, [term(a) for a in x.args])
-
     body = [
-        literal(b)
+        _literal(b)
         for b in rule.body
         if not (isinstance(b, Literal) and b.negated and b.predicate in pruned)
     ]
@@ -406,4 +439,4 @@ def _clause(rule: Rule, pruned: Sequence[str]) -> object:
         base = getattr(lit.pred, "base_pred", None)
         if base is not None and base.id not in Logic.tl.logic.Db:
             pyEngine.insert(base)
-    return pyEngine.Clause(literal(rule.head), body)
+    return pyEngine.Clause(_literal(rule.head), body)

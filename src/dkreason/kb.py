@@ -32,7 +32,7 @@ from .facts import (
 from .inputs.files import read_bytes
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
-from .parse.config import Config, PlatformFiles, read_config, shipped_policy
+from .parse.config import Config, MappingFiles, PlatformFiles, read_config, shipped_policy
 from .parse.sslt import without_spans
 from .policy.check import Diagnostic, Known, check
 from .policy.load import read_policy
@@ -120,12 +120,14 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
 
 
 def load_mappings(config: Config) -> tuple[Mapping_, ...]:
+    return tuple(read_mapping(m) for m in config.mappings)
+
+
+def read_mapping(files: MappingFiles) -> Mapping_:
+    """A mapping's bridge rules, read from its COWL file."""
     from .parse.cowl import read_bridge_rules
 
-    return tuple(
-        Mapping_(m.source, m.target, str(m.file), read_bridge_rules(m.file))
-        for m in config.mappings
-    )
+    return Mapping_(files.source, files.target, str(files.file), read_bridge_rules(files.file))
 
 
 _CHECK_SLICE = 500
@@ -334,6 +336,37 @@ class KnowledgeBase:
         self.pending += gone
         self._warn()
         return p
+
+    def add_mapping(self, m: Mapping_) -> None:
+        """A mapping between two platforms: active at once if both are known (its bridge
+        rules checked against both ontologies; on error nothing changes), else when the
+        second one comes."""
+        if any(
+            (x.source, x.target) == (m.source, m.target) for x in (*self.mappings, *self.pending)
+        ):
+            raise DkError(f"a mapping {m.source}→{m.target} is already known")
+        self.pending += (m,)
+        try:
+            facts = self._mapping_facts()
+        except DkError:
+            self.pending = tuple(x for x in self.pending if x is not m)
+            raise
+        self._change(facts, self.engine.assert_rows)
+        self._warn()
+
+    def remove_mapping(self, source: str, target: str) -> Mapping_:
+        """Forget the mapping from `source` to `target`; its bridge rules no longer count."""
+        for m in self.pending:
+            if (m.source, m.target) == (source, target):
+                self.pending = tuple(x for x in self.pending if x is not m)
+                return m
+        for m in self.mappings:
+            if (m.source, m.target) == (source, target):
+                self._change(self._facts_of((m,)), self.engine.retract_rows)
+                self.mappings = tuple(x for x in self.mappings if x is not m)
+                self._warn()
+                return m
+        raise DkError(f"no mapping {source}→{target}")
 
     def set_online(self, name: str, online: bool) -> None:
         """Whether a known platform's topics are used; only what reads `online` is redone."""

@@ -6,11 +6,11 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
-from ..datalog import Row, Value
 from ..facts import THING, told_types
 from ..kb import KnowledgeBase
 from ..model import GroundFeature
 from ..names import local_name
+from ..policy.syntax import Row, Value
 
 Pattern = tuple[Value | None, ...]  # (predicate, *args); None = any value
 

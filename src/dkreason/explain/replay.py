@@ -10,8 +10,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from ..datalog import Comparison, Literal, Row, Rule, Term, Value, Var
 from ..kb import KnowledgeBase
+from ..policy.syntax import Comparison, Literal, Row, Rule, Term, Value, Var
 from .provenance import Pattern, Reader
 
 Env = dict[str, Value]

@@ -8,9 +8,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from ..datalog import Row, Value
 from ..kb import KnowledgeBase
 from ..match import Match, padded
+from ..policy.syntax import Row, Value
 from ..request import topic_match
 from .provenance import BRIDGE, Reader
 from .replay import MAX_DEPTH, Proof, Replayer

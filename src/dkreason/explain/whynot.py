@@ -8,8 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..datalog import Row
 from ..kb import KnowledgeBase
+from ..policy.syntax import Row
 from .provenance import Pattern
 from .replay import Failure, Replayer
 

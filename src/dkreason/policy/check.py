@@ -243,11 +243,11 @@ class Modes:
     def _rule(self, rule: Rule, mask: Mask) -> tuple[list[Diagnostic], list[Call]]:
         key = (id(rule), mask)
         if key not in self._checked:
-            self._checked[key] = _bindings(rule, mask, self.rules)
+            self._checked[key] = bindings(rule, mask, self.rules)
         return self._checked[key]
 
 
-def _bindings(
+def bindings(
     rule: Rule, mask: Mask, derived: dict[str, list[Rule]]
 ) -> tuple[list[Diagnostic], list[Call]]:
     """A rule asked with the masked head arguments bound, body left to right: the variables it
@@ -360,9 +360,9 @@ def _path(
     return path[::-1] if start != goal else []
 
 
-def _views(relations: dict[str, Relation], rules: Sequence[Rule]) -> list[Diagnostic]:
-    """A view is computed once, at load: it may not read, however indirectly, what dkreason
-    gives only while it asks a formula."""
+def given_readers(relations: dict[str, Relation], rules: Sequence[Rule]) -> dict[str, str]:
+    """Each relation that reads, however indirectly, what dkreason gives only while it asks a
+    formula, and the given relation it reads."""
     readers: dict[str, set[str]] = defaultdict(set)
     for rule in rules:
         for b in rule.body:
@@ -376,6 +376,12 @@ def _views(relations: dict[str, Relation], rules: Sequence[Rule]) -> list[Diagno
             if reader not in source:
                 source[reader] = source[name]
                 todo.append(reader)
+    return source
+
+
+def _views(relations: dict[str, Relation], rules: Sequence[Rule]) -> list[Diagnostic]:
+    """A view is computed once, at load: it may not read what is given per formula."""
+    source = given_readers(relations, rules)
     return [
         _error(
             f"view {name} reads {source[name]}, which dkreason gives only while it asks a "

@@ -18,6 +18,7 @@ import ast
 import json
 import os
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -103,7 +104,7 @@ class Relation:
     def arity(self) -> int:
         return len(self.columns)
 
-    def row(self, values: tuple[Value | None, ...] | list[Value]) -> dict[str, Value | None]:
+    def row(self, values: Sequence[Value]) -> dict[str, Value]:
         """A row of this relation with its columns named."""
         return dict(zip(self.columns, values, strict=True))
 

@@ -30,8 +30,11 @@ def read_table(table: Table) -> list[Fact]:
         text = read_text(table.path)
     except DkError as exc:  # missing, unreadable, too large: said where the table is named
         raise RuleError(f".input {table.relation}: {exc}", table.span) from None
-    quoting = csv.QUOTE_MINIMAL if table.delimiter == "," else csv.QUOTE_NONE
-    reader = csv.reader(text.splitlines(), delimiter=table.delimiter, quoting=quoting)
+    reader = csv.reader(
+        text.splitlines(),
+        delimiter=table.delimiter,
+        quoting=csv.QUOTE_MINIMAL if table.delimiter == "," else csv.QUOTE_NONE,
+    )
     facts = []
     try:
         for n, cells in enumerate(reader, 1):
