@@ -35,10 +35,13 @@ class Proof:
             yield from child.leaves()
 
     def find(self, predicate: str) -> Iterator[Proof]:
-        if self.fact[0] == predicate:
-            yield self
+        return (p for p in self.steps() if p.fact[0] == predicate)
+
+    def steps(self) -> Iterator[Proof]:
+        """Every step of the proof, itself first, depth first."""
+        yield self
         for child in self.children:
-            yield from child.find(predicate)
+            yield from child.steps()
 
 
 @dataclass(frozen=True, slots=True)

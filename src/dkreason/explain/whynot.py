@@ -11,7 +11,7 @@ from typing import Any
 from ..kb import KnowledgeBase
 from ..policy.syntax import Row
 from .provenance import Pattern
-from .replay import Failure, Replayer
+from .replay import Failure, Proof, Replayer
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,7 +81,9 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
     if failure.negated:
         if pred == "excluded" and c:
             return f"an incompat bridge rule excludes {name(c['Feature'])} here"
-        return f"{failure.condition_text} holds"
+        because = failure.because
+        rule = because.rule if isinstance(because, Proof) else None
+        return f"{failure.condition_text} holds" + (f" [{rule.span}]" if rule else "")
     misfit = _misfit(kb, c) if pred == "fits" and c["Entity"] else None
     if misfit:
         return misfit

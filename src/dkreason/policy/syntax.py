@@ -260,7 +260,8 @@ def _fact(node: ast.Call, at: _Positions) -> Fact:
                 "needs `<= body`; a constant is quoted: 'name')",
                 span,
             )
-    return Fact(literal.predicate, literal.args, literal.span)  # type: ignore[arg-type]
+    told = Span(literal.span.file, literal.span.line)  # a fact is cited by its line
+    return Fact(literal.predicate, literal.args, told)  # type: ignore[arg-type]
 
 
 _OPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
