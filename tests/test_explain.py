@@ -436,7 +436,7 @@ def test_a_relation_of_a_policy_s_own_is_not_read_as_the_shipped_one_of_that_nam
     )
     e = KnowledgeManager.from_config(config).explain("always (Speed[uav2] > 1)")
     (why_not,) = e.features[0].why_not
-    assert why_not.reason == "Speed[uav2] rejected: excluded(platform1, Speed) holds"
+    assert why_not.reason == "Speed[uav2] rejected: excluded(platform1, Speed) holds [own.dl:12]"
 
 
 UNDECLARED_ANSWERS = {

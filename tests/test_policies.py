@@ -13,7 +13,7 @@ from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.explain import render, to_json
 
-from .test_federation import P1, P3, drop_rule
+from .test_federation import P1, drop_rule
 
 
 def policy(scenario: Path, rules: str, base: str = "federation.toml") -> Path:
@@ -176,7 +176,8 @@ def test_c_a_rule_deriving_an_input_is_refused_with_its_place(
     """Deriving into bridge/5 made explain crash."""
     config = policy(
         scenario,
-        "bridge('platform1', 'Altitude', R, 'Height', 'equiv') <= platform(R) & (R == 'platform3')\n",
+        "bridge('platform1', 'Altitude', R, 'Height', 'equiv') <= platform(R) "
+        "& (R == 'platform3')\n",
     )
     code = main(["explain", "--config", str(config), "Altitude[uav2] > 1"])
     out = capsys.readouterr()

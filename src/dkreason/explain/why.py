@@ -134,7 +134,9 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
         if leaf.fact[0] == "topic_feature"
     )
     own = (
-        f"rule: {node.text} [{node.rule.span}]" for node in proof.steps() if reader.own(node.rule)
+        f"rule: {node.text} [{node.rule.span}]"
+        for node in proof.steps()
+        if node.rule is not None and reader.own(node.rule)
     )
     return tuple(lines) + tuple(dict.fromkeys(carried)) + tuple(dict.fromkeys(own))
 
