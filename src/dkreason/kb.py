@@ -169,7 +169,7 @@ class KnowledgeBase:
             {"online": [(p,) for p in platforms if online is None or p in online]},
         )
         # the rule files' warnings (dkreason.policy.check); an error was raised
-        self.rule_warnings = self.engine.load(files, known(facts, files, platforms))
+        self.rule_warnings = self.engine.load(files, known(facts, files))
         self._derive(facts)
         self._warn()
 
@@ -543,38 +543,26 @@ def platform_facts(p: Platform) -> Facts:
     )
 
 
-def known(facts: Facts, files: Sequence[RuleFile], platforms: dict[str, Platform]) -> Known:
+def known(facts: Facts, files: Sequence[RuleFile]) -> Known:
     """The values facts hold, for the rule files' constants check (computed only if a file
     of one's own has constants to check): what the engine is told and the files tell, and the
-    nearest name to one they do not hold."""
+    nearest to one they do not hold (an IRI: among those with the nearest local name)."""
 
     @cache
     def values() -> frozenset[Value]:
         told = (v for rows in facts.values() for row in rows for v in row)
         return frozenset(told) | {v for f in files for x in f.facts for v in x.row}
 
-    @cache
-    def names() -> tuple[list[str], list[str]]:
-        iris = [
-            iri
-            for p in platforms.values()
-            for iri in (
-                *p.ontology.features,
-                *p.ontology.sorts,
-                *p.ontology.individuals,
-                *p.ontology.properties,
-            )
-        ]
-        plain = [
-            *map(local_name, iris),
-            *platforms,
-            *(t for p in platforms.values() for t in p.specs),
-        ]
-        return iris, plain
-
     def near(value: str) -> str | None:
-        iris, plain = names()
-        found = difflib.get_close_matches(value, iris if "://" in value else plain, 1)
+        strings = [v for v in values() if isinstance(v, str) and v]
+        if "://" not in value:
+            plain = {local_name(v) if "://" in v else v for v in strings}
+            found = difflib.get_close_matches(value, plain, 1)
+            return found[0] if found else None
+        iris = [v for v in strings if "://" in v]
+        close = difflib.get_close_matches(local_name(value), {local_name(v) for v in iris}, 1)
+        named = [v for v in iris if close and local_name(v) == close[0]]
+        found = difflib.get_close_matches(value, named, 1, cutoff=0)
         return found[0] if found else None
 
     return Known(lambda value: value in values(), near)
@@ -596,7 +584,7 @@ def check_config(config: Config, extra: Sequence[Path] = ()) -> list[Diagnostic]
             ]
         },
     )
-    return check(files, known(facts, files, platforms))
+    return check(files, known(facts, files))
 
 
 def with_object(ont: Ontology, iri: str, sort: str, id_: IdValue | None) -> Ontology:

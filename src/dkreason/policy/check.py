@@ -424,10 +424,16 @@ def _warnings(
 
 
 def _variable_warnings(rule: Rule) -> list[Diagnostic]:
+    """Names that are variables by mistake: lower-case ones, and ones used once in a positive
+    atom of the body (once in the head, under negation or in a comparison is an error, or a
+    value the rule's readers bind)."""
     uses: dict[str, list[Span]] = defaultdict(list)
+    bound_once: set[str] = set()
     for item in (rule.head, *rule.body):
         for v, span in _variables(item):
             uses[v.name].append(span)
+            if isinstance(item, Literal) and not item.negated and item is not rule.head:
+                bound_once.add(v.name)
     out = []
     for name, spans in uses.items():
         if name[0].islower():
@@ -438,7 +444,7 @@ def _variable_warnings(rule: Rule) -> list[Diagnostic]:
                     spans[0],
                 )
             )
-        elif len(spans) == 1 and not name.startswith("_"):
+        elif len(spans) == 1 and name in bound_once and not name.startswith("_"):
             out.append(
                 _warning(
                     f"variable {name} occurs only once in the rule (name it _{name} if any "
