@@ -60,7 +60,7 @@ ERRORS = {
     "a variable only under negation": (
         "veto(Q, P, T) <= matched_topic(Q, P, T, _K, _A, _B, _C) & ~topic(P, T, Msg)\n",
         "own.dl:1:72: Msg in ~topic(…) is bound by no positive atom to its left: a negation "
-        "only tests values already bound",
+        "only tests values already bound (name it _Msg if any value will do)",
     ),
     "an unbound head variable": (
         "veto(Q, P, T) <= topic(P, T, _M)\n",

@@ -21,7 +21,7 @@ left.
 from __future__ import annotations
 
 import difflib
-from collections import defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
@@ -253,10 +253,13 @@ def bindings(
     """A rule asked with the masked head arguments bound, body left to right: the variables it
     needs before anything binds them, and the derived relations it asks (with their masks)."""
     bound = {t.name for t, b in zip(rule.head.args, mask, strict=True) if b and isinstance(t, Var)}
+    uses = Counter(v.name for item in (rule.head, *rule.body) for v, _ in _variables(item))
     problems: list[Diagnostic] = []
     calls: list[Call] = []
     for item in rule.body:
         free = [(v, s) for v, s in _variables(item) if v.name not in bound]
+        if isinstance(item, Literal) and item.negated:  # `_X` there alone: "any value", as `_`
+            free = [(v, s) for v, s in free if not (v.name[0] == "_" and uses[v.name] == 1)]
         if isinstance(item, Comparison):
             if item.op == "==" and len(free) == 1 and item.left != item.right:
                 bound.add(free[0][0].name)  # pyDatalog binds it to the other side
@@ -274,13 +277,22 @@ def bindings(
             problems += [
                 _error(
                     f"{v.name} in ~{item.predicate}(…) is bound by no positive atom to its "
-                    "left: a negation only tests values already bound",
+                    "left: a negation only tests values already bound"
+                    + (f" (name it _{v.name} if any value will do)" if uses[v.name] == 1 else ""),
                     span,
                 )
                 for v, span in free
             ]
-            if item.predicate in derived:
-                calls.append((item.predicate, (True,) * len(item.args)))
+            if item.predicate in derived:  # asked with its "any value" arguments free
+                calls.append(
+                    (
+                        item.predicate,
+                        tuple(
+                            not isinstance(t, Var) or uses[t.name] > 1 or t.name in bound
+                            for t in item.args
+                        ),
+                    )
+                )
         elif item.predicate in derived:
             calls.append(
                 (
