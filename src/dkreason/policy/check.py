@@ -194,6 +194,7 @@ class Modes:
         for rule in rules:
             self.rules[rule.head.predicate].append(rule)
         self._checked: dict[tuple[int, Mask], tuple[list[Diagnostic], list[Call]]] = {}
+        self._shapes: dict[int, Shape] = {}
         self._asked: dict[Call, tuple[Diagnostic, ...]] = {}
 
     def entry_problems(self) -> list[Diagnostic]:
@@ -243,23 +244,33 @@ class Modes:
     def _rule(self, rule: Rule, mask: Mask) -> tuple[list[Diagnostic], list[Call]]:
         key = (id(rule), mask)
         if key not in self._checked:
-            self._checked[key] = bindings(rule, mask, self.rules)
+            if id(rule) not in self._shapes:
+                self._shapes[id(rule)] = _shape(rule)
+            self._checked[key] = bindings(rule, mask, self.rules, self._shapes[id(rule)])
         return self._checked[key]
 
 
+Shape = tuple[Counter[str], tuple[tuple[tuple[Var, Span], ...], ...]]
+
+
+def _shape(rule: Rule) -> Shape:
+    """A rule's variables, read once: how often each occurs, and each body item's."""
+    items = tuple(tuple(_variables(item)) for item in rule.body)
+    uses = Counter(v.name for found in (tuple(_variables(rule.head)), *items) for v, _ in found)
+    return uses, items
+
+
 def bindings(
-    rule: Rule, mask: Mask, derived: dict[str, list[Rule]]
+    rule: Rule, mask: Mask, derived: dict[str, list[Rule]], shape: Shape | None = None
 ) -> tuple[list[Diagnostic], list[Call]]:
     """A rule asked with the masked head arguments bound, body left to right: the variables it
     needs before anything binds them, and the derived relations it asks (with their masks)."""
+    uses, variables = shape or _shape(rule)
     bound = {t.name for t, b in zip(rule.head.args, mask, strict=True) if b and isinstance(t, Var)}
-    uses = Counter(v.name for item in (rule.head, *rule.body) for v, _ in _variables(item))
     problems: list[Diagnostic] = []
     calls: list[Call] = []
-    for item in rule.body:
-        free = [(v, s) for v, s in _variables(item) if v.name not in bound]
-        if isinstance(item, Literal) and item.negated:  # `_X` there alone: "any value", as `_`
-            free = [(v, s) for v, s in free if not (v.name[0] == "_" and uses[v.name] == 1)]
+    for item, found in zip(rule.body, variables, strict=True):
+        free = [(v, s) for v, s in found if v.name not in bound]
         if isinstance(item, Comparison):
             if item.op == "==" and len(free) == 1 and item.left != item.right:
                 bound.add(free[0][0].name)  # pyDatalog binds it to the other side
@@ -273,7 +284,7 @@ def bindings(
                 )
                 for v, span in free
             ]
-        elif item.negated:
+        elif item.negated:  # a `_X` there alone means any value, as `_` does
             problems += [
                 _error(
                     f"{v.name} in ~{item.predicate}(…) is bound by no positive atom to its "
@@ -282,6 +293,7 @@ def bindings(
                     span,
                 )
                 for v, span in free
+                if not (v.name[0] == "_" and uses[v.name] == 1)
             ]
             if item.predicate in derived:  # asked with its "any value" arguments free
                 calls.append(
@@ -300,7 +312,7 @@ def bindings(
                     tuple(not isinstance(t, Var) or t.name in bound for t in item.args),
                 )
             )
-        bound |= {v.name for v, _ in _variables(item)}
+        bound.update(v.name for v, _ in found)
     spans = rule.head.spans or (rule.head.span,) * len(rule.head.args)
     problems += [
         _error(

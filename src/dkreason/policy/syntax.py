@@ -241,8 +241,11 @@ class _Positions:
 
     def __init__(self, text: str, file: str) -> None:
         self.lines, self.file = text.splitlines(), file
+        self.ascii = text.isascii()  # then a byte is a character
 
     def __call__(self, node: ast.expr | ast.stmt) -> Span:
+        if self.ascii:
+            return Span(self.file, node.lineno, node.col_offset + 1)
         line = self.lines[node.lineno - 1] if node.lineno <= len(self.lines) else ""
         column = len(line.encode()[: node.col_offset].decode(errors="ignore")) + 1
         return Span(self.file, node.lineno, column)
