@@ -11,6 +11,7 @@ import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
+from dkreason.errors import MissingIdError
 from dkreason.explain import render, to_json
 
 from .test_federation import P1, drop_rule
@@ -194,11 +195,12 @@ HAS_ID = """@prefix : <http://d.org/o#> .
 @prefix owl: <http://www.w3.org/2002/07/owl#> .
 @prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
 :hasId a owl:DatatypeProperty .
+:follows a owl:ObjectProperty .
 :UnaryRelation a owl:Class .
 :UAV a owl:Class .
 :Speed rdfs:subClassOf [ a owl:Class ; owl:intersectionOf ( :UnaryRelation
     [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :UAV ] ) ] .
-:alpha a owl:NamedIndividual, :UAV ; :hasId 7 .
+:alpha a owl:NamedIndividual, :UAV ; :hasId 7 ; :follows :uav1 .
 :uav1 a owl:NamedIndividual, :UAV ; :hasId 42 .
 """
 
@@ -217,7 +219,10 @@ def test_d_ids_from_a_data_property_are_one_rule(tmp_path: Path) -> None:
         ("http://d.org/o#alpha", 7),
         ("http://d.org/o#uav1", 42),
     )
-    with pytest.raises(Exception, match="object alpha on d has no id"):
+    assert plain.query("object_property(_P, O, 'follows', Other)").rows == (
+        ("http://d.org/o#alpha", "http://d.org/o#uav1"),
+    )
+    with pytest.raises(MissingIdError, match="object alpha on d has no id"):
         plain.check_formula("Speed[alpha] > 1")
     km = KnowledgeManager.from_config(tmp_path / "d.toml")
     for obj, id_ in (("alpha", 7), ("uav1", 42)):  # hasId, not the digits ending uav1

@@ -13,7 +13,7 @@ from dataclasses import replace
 
 from ..errors import NameError_, Span
 from ..names import NameIndex
-from .syntax import Comparison, Condition, Literal, RuleFile, Term
+from .syntax import Comparison, Condition, Fact, Literal, Rule, RuleFile, Term
 
 
 class Names:
@@ -40,28 +40,33 @@ class Names:
 
 
 def resolve(f: RuleFile, names: Names) -> RuleFile:
-    """The file with every string constant of its rules and facts as the IRI it names."""
+    """The file with every string constant of its rules and facts as the IRI it names (what
+    names nothing stays as it is, the same objects)."""
 
     def term(t: Term, span: Span) -> Term:
         return names.iri(t, span) if isinstance(t, str) and t else t
 
     def terms(args: tuple[Term, ...], spans: tuple[Span, ...], at: Span) -> tuple[Term, ...]:
-        return tuple(term(a, s) for a, s in zip(args, spans or (at,) * len(args), strict=True))
+        new = tuple(term(a, s) for a, s in zip(args, spans or (at,) * len(args), strict=True))
+        return args if new == args else new
 
     def condition(c: Condition) -> Condition:
         if isinstance(c, Comparison):
             left, right = terms((c.left, c.right), c.spans, c.span)
-            return replace(c, left=left, right=right)
+            return c if (left, right) == (c.left, c.right) else replace(c, left=left, right=right)
         return literal(c)
 
     def literal(lit: Literal) -> Literal:
-        return replace(lit, args=terms(lit.args, lit.spans, lit.span))
+        args = terms(lit.args, lit.spans, lit.span)
+        return lit if args is lit.args else replace(lit, args=args)
 
-    rules = tuple(
-        replace(r, head=literal(r.head), body=tuple(condition(c) for c in r.body)) for r in f.rules
-    )
-    facts = tuple(
-        replace(x, row=tuple(term(v, x.span) for v in x.row))  # type: ignore[misc]
-        for x in f.facts
-    )
-    return replace(f, rules=rules, facts=facts)
+    def rule(r: Rule) -> Rule:
+        head, body = literal(r.head), tuple(condition(c) for c in r.body)
+        same = head is r.head and all(a is b for a, b in zip(body, r.body, strict=True))
+        return r if same else replace(r, head=head, body=body)
+
+    def fact(x: Fact) -> Fact:
+        row = terms(x.row, (), x.span)
+        return x if row is x.row else replace(x, row=row)  # type: ignore[arg-type]
+
+    return replace(f, rules=tuple(map(rule, f.rules)), facts=tuple(map(fact, f.facts)))
