@@ -232,7 +232,9 @@ def _members(kb: KnowledgeBase, sorts: tuple[str, ...]) -> list[str]:
 
 def relations(kb: KnowledgeBase) -> list[RelationInfo]:
     """Every declared relation with its rows, in the order the files declare them, then the
-    reader's relevant_topic/4."""
+    reader's relevant_topic/4.  Rows are counted where they are stored (inputs, views) and
+    for what dkreason asks with every argument free (queries, hooks); a relation only rules
+    read is derived when asked, and counting all its rows could cost what no rule asks."""
     engine = kb.engine
     stored = engine.sizes()
     per_formula = given_readers(engine.schema, engine.rules)
@@ -249,7 +251,9 @@ def relations(kb: KnowledgeBase) -> list[RelationInfo]:
             out.append(RelationInfo(relation, None, f"per formula: reads {per_formula[name]}"))
         elif engine.askable(name, [None] * relation.arity):
             out.append(RelationInfo(relation, None, "asked with some arguments bound"))
-        else:
+        elif relation.kind in ("query", "hook"):
             out.append(RelationInfo(relation, len(engine.query(name, *[None] * relation.arity))))
+        else:
+            out.append(RelationInfo(relation, None, "derived when asked"))
     out.append(RelationInfo(READER, None, "asked per feature of the local platform"))
     return out
