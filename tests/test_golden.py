@@ -55,6 +55,7 @@ def test_a_difference_is_a_unified_diff_and_exit_1_until_updated(
         == "msg.spd"
     )
     assert main(["test", str(folder)]) == 0
+    assert not list(folder.glob(".*"))  # nothing left beside the golden files
 
 
 def test_paths_are_relative_to_the_case_wherever_it_runs(
