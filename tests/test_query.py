@@ -91,7 +91,7 @@ def test_a_question_without_variables_is_yes_or_no(capsys: pytest.CaptureFixture
     [
         ("same_as(P, O, uav2)", "uav2 is a variable (variables start with an upper-case"),
         ("same_az(P, O, 'uav2')", "<query>:1:1: undeclared relation same_az/3 (did you mean "),
-        ("same_as(P, O)", "<query>:1:1: same_as has 3 columns (Platform, Object, Other), not 2"),
+        ("same_as(P, O)", "<query>:1:1: same_as has 3 columns (Platform, Object, Other, declared"),
         (
             "sort_match(R, G, I, A, B, C, T, K)",
             "cannot ask sort_match(R, G, I, A, B, C, T, K): C2 is compared in (C2 != '') before "

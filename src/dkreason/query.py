@@ -11,7 +11,6 @@ engine keeps (relevant_topic/10, which is asked only with a formula).
 
 from __future__ import annotations
 
-import difflib
 import itertools
 from dataclasses import dataclass
 
@@ -21,7 +20,7 @@ from .match import match
 from .model import GroundFeature
 from .names import local_name
 from .parse.formula import MAX_EXPANSION
-from .policy.check import Diagnostic, bindings, given_readers
+from .policy.check import Diagnostic, bindings, given_readers, misnamed
 from .policy.resolve import Names
 from .policy.syntax import (
     Comparison,
@@ -122,17 +121,9 @@ def _checked(c: Condition, schema: dict[str, Relation], names: Names) -> Conditi
     resolved = tuple(names.iri(t, span) if isinstance(t, str) and t else t for t in terms)
     if isinstance(c, Comparison):
         return Comparison(c.op, resolved[0], resolved[1], c.span, c.spans)
-    relation = schema.get(c.predicate)
-    if relation is None:
-        near = difflib.get_close_matches(c.predicate, schema, 1)
-        hint = f" (did you mean {near[0]}/{schema[near[0]].arity}?)" if near else ""
-        raise RuleError(f"undeclared relation {c.predicate}/{len(c.args)}{hint}", c.span)
-    if relation.arity != len(c.args):
-        raise RuleError(
-            f"{c.predicate} has {relation.arity} columns ({', '.join(relation.columns)}), "
-            f"not {len(c.args)}",
-            c.span,
-        )
+    message = misnamed(c.predicate, len(c.args), schema)
+    if message is not None:
+        raise RuleError(message, c.span)
     return Literal(c.predicate, resolved, c.negated, c.span, c.spans)
 
 

@@ -110,27 +110,31 @@ def _names(
     ]
     used += [(fact.predicate, len(fact.row), fact.span) for fact in facts]
     used += [(t.relation, -1, t.span) for f in files for t in f.tables]
-    errors = []
-    for name, arity, span in used:
-        relation = relations.get(name)
-        if relation is None:
-            near = difflib.get_close_matches(name, relations, 1)
-            hint = (
-                f" (did you mean {near[0]}/{relations[near[0]].arity}?)"
-                if near
-                else " (declare it with `.decl`)"
-            )
-            shown = f"{name}/{arity}" if arity >= 0 else name
-            errors.append(_error(f"undeclared relation {shown}{hint}", span))
-        elif arity >= 0 and arity != relation.arity:
-            errors.append(
-                _error(
-                    f"{name} has {relation.arity} columns ({', '.join(relation.columns)}, "
-                    f"declared at {relation.span}), not {arity}",
-                    span,
-                )
-            )
-    return errors
+    return [
+        _error(message, span)
+        for name, arity, span in used
+        if (message := misnamed(name, arity, relations)) is not None
+    ]
+
+
+def misnamed(name: str, arity: int, relations: dict[str, Relation]) -> str | None:
+    """Why a relation cannot be named with this arity (-1: any), if it cannot: it is not
+    declared (and the declared name nearest to it), or declared with another arity."""
+    relation = relations.get(name)
+    if relation is None:
+        near = difflib.get_close_matches(name, relations, 1)
+        hint = (
+            f" (did you mean {near[0]}/{relations[near[0]].arity}?)"
+            if near
+            else " (declare it with `.decl`)"
+        )
+        return f"undeclared relation {f'{name}/{arity}' if arity >= 0 else name}{hint}"
+    if arity >= 0 and arity != relation.arity:
+        return (
+            f"{name} has {relation.arity} columns ({', '.join(relation.columns)}, "
+            f"declared at {relation.span}), not {arity}"
+        )
+    return None
 
 
 def _kinds(
