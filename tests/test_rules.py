@@ -13,6 +13,7 @@ from dkreason.cli import main
 from dkreason.datalog import Datalog
 from dkreason.errors import DkError, RuleError
 from dkreason.policy.syntax import parse_rules
+from dkreason.policy.tables import read_rule_file
 
 from .conftest import SCENARIOS
 from .test_federation import P1, P2
@@ -206,8 +207,6 @@ def test_facts_are_told_in_rule_files_and_tables(tmp_path: Path) -> None:
     (tmp_path / "near.csv").write_text('A,B\n"x, y",-2\nb,007\n')
     (tmp_path / "near.facts").write_text("c\t3\n")
     engine = Datalog()
-    from dkreason.policy.tables import read_rule_file
-
     engine.load([read_rule_file(tmp_path / "t.dl", "t.dl")])
     assert sorted(engine.query("near", None, None), key=str) == [
         ("a", 1),
@@ -230,8 +229,6 @@ def test_a_bad_table_is_one_line(tmp_path: Path, table: str | None, says: str) -
     (tmp_path / "t.dl").write_text('.decl near(A, B)\n.input near(filename="near.csv")\n')
     if table is not None:
         (tmp_path / "near.csv").write_text(table)
-    from dkreason.policy.tables import read_rule_file
-
     with pytest.raises(DkError) as raised:
         Datalog().load([read_rule_file(tmp_path / "t.dl", "t.dl")])
     assert str(raised.value).startswith(says)
