@@ -290,6 +290,7 @@ def test_the_readmes_explain_example_is_what_the_command_prints(
                 "always (Altitude[uav2] > 10)",
                 "--feature",
                 "Altitude[uav2]",
+                "--proof",  # the README's block shows the proof's first lines
             ]
         )
         == 0
@@ -435,7 +436,7 @@ def test_a_relation_of_a_policy_s_own_is_not_read_as_the_shipped_one_of_that_nam
     )
     e = KnowledgeManager.from_config(config).explain("always (Speed[uav2] > 1)")
     (why_not,) = e.features[0].why_not
-    assert why_not.reason == "Speed[uav2] rejected: excluded(platform1, Speed) holds"
+    assert why_not.reason == "Speed[uav2] rejected: excluded(platform1, Speed) holds [own.dl:12]"
 
 
 UNDECLARED_ANSWERS = {
@@ -460,9 +461,96 @@ def test_a_policy_answering_with_no_declared_topic_feature_is_one_error_line(
     code = main([command, "--config", str(config), "always (Speed[uav2] > 1)"])
     out = capsys.readouterr()
     assert code == 2
-    (line,) = (out.out + out.err).splitlines()
+    # the checker's warning about a topic no fact names, and the one error line
+    *warnings, line = (out.out + out.err).splitlines()
     topic, k = (part.strip(" '") for part in answer.split(","))
+    assert warnings == (
+        ["warning: odd.dl:1:22: 'nowhere' occurs in no fact"] if topic == "nowhere" else []
+    )
     assert line == (
         f"error: the policy answers Speed[uav2] with feature {k} of topic {topic} on "
         "platform1, which no topic specification there declares with 1 argument"
     )
+
+
+# ---- the answer first; the proof with --proof, each shared subtree once -------------------------
+
+
+def explain_text(capsys: pytest.CaptureFixture[str], *extra: str) -> list[str]:
+    assert SCENARIOS is not None
+    code = main(
+        [
+            "explain",
+            "--config",
+            str(SCENARIOS / "federation.toml"),
+            "always (Altitude[uav2] > 10)",
+            *extra,
+        ]
+    )
+    assert code == 0
+    return capsys.readouterr().out.splitlines()
+
+
+def test_the_answer_comes_first_and_the_proof_with_proof(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    plain = explain_text(capsys)
+    assert plain[0] == "Altitude[uav2]"
+    assert [line for line in plain if line.startswith("  ✔")] == [
+        "  ✔ uastopic5 on platform3 (msg.id = 21)",
+        "  ✔ topic2 on platform1 (msg.id = 2)",
+    ]
+    assert all(line.startswith(("  ✔", "      ")) for line in plain[1:])
+    assert "      proof:" not in plain
+    proved = explain_text(capsys, "--proof")
+    assert [line for line in proved if not line.startswith("        ")] == [
+        *[line for line in plain if "proof:" not in line][:5],
+        "      proof:",
+        *[line for line in plain if "proof:" not in line][5:],
+        "      proof:",
+    ]
+
+
+def test_a_subtree_shown_twice_is_printed_once_and_referred_to(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    lines = explain_text(capsys, "--proof")
+    numbered = {m.group(1): line for line in lines if (m := re.search(r"  #(\d+)$", line))}
+    referred = [m.group(1) for line in lines if (m := re.search(r"\(as #(\d+) above\)$", line))]
+    assert numbered and set(referred) == set(numbered)
+    for number, line in numbered.items():  # the reference names the same fact, printed before
+        fact = line.strip().split("  ")[0]
+        first = lines.index(line)
+        assert all(
+            lines.index(ref) > first
+            for ref in lines
+            if ref.strip() == f"{fact}  (as #{number} above)"
+        )
+
+
+def test_depth_cuts_each_proof_tree(capsys: pytest.CaptureFixture[str]) -> None:
+    lines = explain_text(capsys, "--depth", "2")
+    assert "      proof:" in lines
+    proof = [line for line in lines if line.startswith("        ")]
+    facts = [line for line in proof if not line.strip().startswith("… ")]
+    assert max(len(line) - len(line.lstrip()) for line in facts) == 10  # the root, its children
+    assert any(line.strip().endswith("more below depth 2") for line in proof)
+
+
+def test_rule_files_are_cited_relative_to_the_config_wherever_dkreason_runs(
+    scenario: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    (scenario / "policies").mkdir()
+    (scenario / "policies" / "own.dl").write_text(
+        "veto(Q, 'platform3', T) <= wanted(Q, _F, _O1, _O2, _O3) & topic('platform3', T, _M)\n"
+    )
+    config = scenario / "own.toml"
+    config.write_text('rules = ["policies/own.dl"]\n' + (scenario / "federation.toml").read_text())
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    e = KnowledgeManager.from_config(config).explain(FORMULAS["F1"], topic="uastopic5")
+    (why_not,) = [n for n in e.features[1].why_not if "veto" in n.reason]
+    assert "[policies/own.dl:1]" in why_not.reason
+    (why,) = KnowledgeManager.from_config(config).explain(FORMULAS["F1"]).features[1].why
+    assert str(why.proof.rule.span if why.proof.rule else "") == "rules/matching.dl:95"

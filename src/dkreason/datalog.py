@@ -3,13 +3,13 @@
 pyDatalog keeps one engine per thread and its public `assert_fact`/`ask` re-parse Python
 source on every call (~60 µs a fact, ~1 ms a query).  This wrapper gives each knowledge base its
 own engine, asserts facts and asks queries through `pyEngine` directly (~6 µs a fact), and loads
-rule files with errors that name the file and line.
+rule files (dkreason.policy reads and checks them) as one policy or not at all.
 
-Every relation is declared once, as Soufflé does: `.decl name(Column, …) [input|view|query]`
-on a line of its own.  `input`: facts Python asserts; `view`: depends only on the knowledge
-base, so `materialize()` computes it once and keeps its rows; `query`: Python asks it, so the
-policy must derive it; no kind: derived at query time.  `check_policy()` refuses a rule that
-names an undeclared relation or uses a wrong arity, with file:line and a "did you mean".
+Every relation is declared once, as Soufflé does: `.decl name(Column, …) [kind]` on a line of
+its own (policy/syntax.py lists the kinds).  A `view` depends only on the knowledge base, so
+`materialize()` computes it once and keeps its rows; a `query` is asked by Python, so the
+policy must derive it.  A relation that nothing derives or tells is empty: a rule's negation
+of it always holds and is left out of the engine's clause (an unused hook costs nothing).
 
 pyDatalog finds a lookup's facts by intersecting the index sets of its bound arguments in
 argument order, starting from the first: with the platform bound, that is every fact of the
@@ -19,80 +19,26 @@ finds, not what the relation holds (at scale 100 of thesis chapter 7 that is 4×
 
 from __future__ import annotations
 
-import ast
-import difflib
 import gc
-import os
-import re
+from collections import defaultdict
 from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from .errors import RuleError, Span
-from .inputs.files import read_text
-
-Value = str | int
-Row = tuple[Value, ...]
-
-_BARE_UNDERSCORE = re.compile(r"(?<![\w'\"])_(?![\w])")
-
-
-@dataclass(frozen=True, slots=True)
-class Var:
-    name: str
-
-
-Term = Var | Value
-
-
-@dataclass(frozen=True, slots=True)
-class Literal:
-    predicate: str
-    args: tuple[Term, ...]
-    negated: bool = False
-
-
-@dataclass(frozen=True, slots=True)
-class Comparison:
-    op: str  # < <= > >= == !=
-    left: Term
-    right: Term
-
-
-@dataclass(frozen=True, slots=True)
-class Rule:
-    """A clause as written in a rule file: what explanations replay and cite (file:line)."""
-
-    head: Literal
-    body: tuple[Literal | Comparison, ...]
-    text: str
-    span: Span
-
-
-@dataclass(frozen=True, slots=True)
-class Relation:
-    """A declared relation: what Python and the rules agree on."""
-
-    name: str
-    columns: tuple[str, ...]
-    kind: str  # 'input', 'view', 'query' or '' (derived at query time)
-    span: Span
-
-    @property
-    def arity(self) -> int:
-        return len(self.columns)
-
-    def row(self, values: Sequence[Value]) -> dict[str, Value]:
-        """A row of this relation with its columns named."""
-        return dict(zip(self.columns, values, strict=True))
-
-
-_DECL = re.compile(r"^\.decl\b(.*)$", re.M)
-_DECL_BODY = re.compile(
-    r"\s+([a-z_]\w*)\(\s*(\w+(?:\s*,\s*\w+)*)\s*\)\s*(input|view|query)?"
-    r"\s*(?:#.*)?$"
+from .policy.check import Diagnostic, Known, Modes, check, declared
+from .policy.syntax import (
+    Comparison,
+    Condition,
+    Fact,
+    Literal,
+    Relation,
+    Row,
+    Rule,
+    RuleFile,
+    Term,
+    Value,
+    Var,
 )
 
 
@@ -151,11 +97,17 @@ class Datalog:
 
         pyEngine.relevant_clauses = _lookup
         self._logic = Logic()  # a fresh engine, current in this thread
+        self.files: list[RuleFile] = []
         self.rules: list[Rule] = []
-        self.texts: list[str] = []  # the rule files as read: what derived rows depend on
+        self.texts: list[str] = []  # the rule files as read, and their facts: what rows depend on
         self.schema: dict[str, Relation] = {}
+        self.told: dict[Row, Span] = {}  # (relation, *values) of each fact a file tells → where
+        self.modes = Modes({}, [])
         self._frozen: dict[str, list[object]] = {}  # materialized view → its rules
         self._consts: dict[Value, Any] = {}  # value → its pyEngine.Const
+        self._derived: set[str] = set()  # the relations rules derive or files tell
+        self._clauses: dict[Rule, object] = {}  # each rule's clause in the engine
+        self._pruned: dict[str, set[Rule]] = defaultdict(set)  # empty relation → rules negating it
 
     def _activate(self) -> None:
         from pyDatalog import Logic
@@ -164,65 +116,72 @@ class Datalog:
             Logic(self._logic)
             self._logic = Logic(True)
 
-    def load_file(self, path: Path) -> None:
-        shown = os.path.relpath(path) if not os.path.relpath(path).startswith("..") else path
-        self.load_text(read_text(path), str(shown))
-
-    def load_text(self, text: str, file: str) -> None:
-        for decl in _DECL.finditer(text):
-            self._declare(decl.group(1), Span(file, text.count("\n", 0, decl.start()) + 1))
-        rules = _clauses(_DECL.sub("", text), file)  # blanked, so lines keep their numbers
-        self.texts.append(text)
-        self._activate()
-        for rule in rules:  # straight into the engine: pyParser would parse the text again
-            _assert_rule(rule)
+    def load(self, files: Sequence[RuleFile], known: Known | None = None) -> list[Diagnostic]:
+        """The files' relations, rules and facts, checked as one policy with those loaded
+        before (dkreason.policy.check): all of them, or, on an error, none (the first error is
+        raised and the engine is as it was).  Returns the warnings."""
+        found = check([*self.files, *files], known)
+        errors = [d for d in found if d.severity == "error"]
+        if errors:
+            raise RuleError(errors[0].message, errors[0].span)
+        self.files += files
+        self.schema, _ = declared(self.files)
+        rules = [rule for f in files for rule in f.rules]
         self.rules += rules
+        self.modes = Modes(self.schema, self.rules)
+        facts = [fact for f in files for fact in f.facts]
+        self.texts += [f.text for f in files] + [repr([(x.predicate, x.row) for x in facts])]
+        self._activate()
+        filled = {r.head.predicate for r in rules} | {x.predicate for x in facts}
+        self._derived |= filled
+        for name in filled & self._pruned.keys():  # its negation no longer always holds
+            for rule in self._pruned.pop(name):
+                self._assert(rule)
+        for rule in rules:  # straight into the engine: pyParser would parse the text again
+            self._assert(rule)
+        by_relation: dict[str, list[Fact]] = defaultdict(list)
+        for fact in facts:
+            by_relation[fact.predicate].append(fact)
+            self.told.setdefault((fact.predicate, *fact.row), fact.span)
+        for name, told in by_relation.items():
+            self.assert_rows(name, [fact.row for fact in told])
+        return [d for d in found if d.severity == "warning"]
 
-    def _declare(self, text: str, span: Span) -> None:
-        found = _DECL_BODY.fullmatch(text)
-        if not found:
-            raise RuleError(
-                "expected `.decl name(Column, …)` and optionally input, view or query", span
-            )
-        name, columns, kind = found.group(1), found.group(2), found.group(3) or ""
-        if name in self.schema:
-            raise RuleError(f"{name} is declared twice (first at {self.schema[name].span})", span)
-        self.schema[name] = Relation(name, tuple(c.strip() for c in columns.split(",")), kind, span)
+    def derives(self, name: str) -> bool:
+        """Whether a rule derives the relation or a file tells it facts (what a hook is
+        asked for only then)."""
+        return name in self._derived
+
+    def _empty(self, name: str) -> bool:
+        """Nothing derives or tells the relation, nor can: it is and stays empty."""
+        return self.schema[name].kind not in ("input", "given") and not self.derives(name)
+
+    def _assert(self, rule: Rule) -> None:
+        """The rule into the engine, or in place of its clause there (held aside, if it is a
+        frozen view's): without its negations of relations that are empty."""
+        from pyDatalog import pyEngine
+
+        pruned = [
+            b.predicate
+            for b in rule.body
+            if isinstance(b, Literal) and b.negated and self._empty(b.predicate)
+        ]
+        clause = _clause(rule, pruned)
+        old = self._clauses.get(rule)
+        frozen = self._frozen.get(rule.head.predicate, [])
+        if old is not None and old in frozen:
+            frozen[frozen.index(old)] = clause
+        else:
+            if old is not None:
+                pyEngine.retract(old)
+            pyEngine.assert_(clause)
+        self._clauses[rule] = clause
+        for name in pruned:
+            self._pruned[name].add(rule)
 
     @property
     def views(self) -> dict[str, int]:
         return {r.name: r.arity for r in self.schema.values() if r.kind == "view"}
-
-    def check_policy(self) -> None:
-        """Every relation a rule names is declared, with its arity; every query is derived."""
-        for rule in self.rules:
-            for lit in (rule.head, *(b for b in rule.body if isinstance(b, Literal))):
-                relation = self.schema.get(lit.predicate)
-                if relation is None:
-                    near = difflib.get_close_matches(lit.predicate, self.schema, 1)
-                    hint = (
-                        f" (did you mean {near[0]}/{self.schema[near[0]].arity}?)"
-                        if near
-                        else " (declare it with `.decl`)"
-                    )
-                    raise RuleError(
-                        f"undeclared relation {lit.predicate}/{len(lit.args)}{hint}", rule.span
-                    )
-                if len(lit.args) != relation.arity:
-                    raise RuleError(
-                        f"{lit.predicate} has {relation.arity} columns "
-                        f"({', '.join(relation.columns)}, declared at "
-                        f"{relation.span}), not {len(lit.args)}",
-                        rule.span,
-                    )
-        derived = {rule.head.predicate for rule in self.rules}
-        for relation in self.schema.values():
-            if relation.kind in ("query", "view") and relation.name not in derived:
-                raise RuleError(
-                    f"the rules derive no {relation.name}/{relation.arity}, which "
-                    f"dkreason asks for",
-                    relation.span,
-                )
 
     @contextmanager
     def given(self, inputs: dict[str, list[Row]]) -> Iterator[None]:
@@ -413,6 +372,8 @@ class Datalog:
         if relation is not None and len(args) != relation.arity:
             raise TypeError(f"{predicate} has {relation.arity} columns, asked with {len(args)}")
         self._activate()
+        if relation is not None and f"{predicate}/{relation.arity}" not in self._logic.Db:
+            return []  # declared, and neither derived nor told: empty
         terms = [
             pyEngine.Var(f"V{i}") if a is None else pyEngine.Const(a) for i, a in enumerate(args)
         ]
@@ -420,80 +381,62 @@ class Datalog:
             answer = pyEngine.Literal(predicate, terms).ask()
         return list(answer) if isinstance(answer, list) else []
 
+    def solve(self, body: Sequence[Condition], variables: Sequence[str]) -> list[Row]:
+        """The values of `variables` for which every condition of `body` holds: a question of
+        several conditions, asked through a rule made for it and retracted after (the caller
+        checks that it binds its variables in time)."""
+        from pyDatalog import pyEngine
 
-def _assert_rule(rule: Rule) -> None:
-    """The clause as pyParser would build it: `~name` for negation, the operator as the
+        self._activate()
+        for lit in body:
+            relation = self.schema.get(lit.predicate) if isinstance(lit, Literal) else None
+            if relation is not None and f"{relation.name}/{relation.arity}" not in self._logic.Db:
+                pyEngine.insert(pyEngine.Literal(relation.name, [0] * relation.arity).pred)
+        head = Literal("dkreason_query_", tuple(map(Var, variables)) or (1,))
+        clause = _clause(Rule(head, tuple(body), "", Span("<query>")), ())
+        pyEngine.assert_(clause)
+        try:
+            with gc_paused():
+                answer = _literal(head).ask()
+        finally:
+            pyEngine.retract(clause)
+        rows = list(answer) if isinstance(answer, list) else []
+        return rows if variables else [()] * bool(rows)
+
+    def askable(self, predicate: str, args: Sequence[Value | None]) -> tuple[Diagnostic, ...]:
+        """What goes wrong if `predicate` is asked with these arguments (None = free): the
+        variables its rules would need before anything binds them (none: it may be asked)."""
+        return self.modes.problems(predicate, tuple(a is not None for a in args))
+
+
+def _term(t: Term) -> object:
+    from pyDatalog import pyEngine
+
+    return pyEngine.Var(t.name) if isinstance(t, Var) else pyEngine.Const(t)
+
+
+def _literal(x: Condition) -> Any:
+    """A condition as pyParser would build it: `~name` for negation, the operator as the
     predicate of a comparison."""
     from pyDatalog import pyEngine
 
-    def term(t: Term) -> object:
-        return pyEngine.Var(t.name) if isinstance(t, Var) else pyEngine.Const(t)
-
-    def literal(x: Literal | Comparison) -> object:
-        if isinstance(x, Comparison):
-            return pyEngine.Literal(x.op, [term(x.left), term(x.right)])
-        return pyEngine.Literal(("~" if x.negated else "") + x.predicate, [term(a) for a in x.args])
-
-    pyEngine.assert_(pyEngine.Clause(literal(rule.head), [literal(b) for b in rule.body]))
+    if isinstance(x, Comparison):
+        return pyEngine.Literal(x.op, [_term(x.left), _term(x.right)])
+    return pyEngine.Literal(("~" if x.negated else "") + x.predicate, [_term(a) for a in x.args])
 
 
-def _clauses(text: str, file: str) -> list[Rule]:
-    """Each clause of a rule file with its line; rejects what pyDatalog would misread."""
-    try:
-        tree = ast.parse(text, file)
-    except SyntaxError as exc:
-        raise RuleError(f"not a rule: {exc.msg}", Span(file, exc.lineno or 0)) from None
-    lines = text.splitlines()
-    rules = []
-    for node in tree.body:
-        expr = node.value if isinstance(node, ast.Expr) else None
-        if not (
-            isinstance(expr, ast.Compare)
-            and isinstance(expr.ops[0], ast.LtE)
-            and isinstance(expr.left, ast.Call)
-            and isinstance(expr.left.func, ast.Name)
-        ):
-            raise RuleError("expected a rule `head(...) <= body`", Span(file, node.lineno))
-        source = "\n".join(lines[node.lineno - 1 : (node.end_lineno or node.lineno)])
-        if len(_BARE_UNDERSCORE.findall(source)) > 1:
-            raise RuleError(
-                "bare `_` is one shared variable in pyDatalog; name each "
-                "don't-care variable (_Field, _Arity, …)",
-                Span(file, node.lineno),
-            )
-        span = Span(file, node.lineno)
-        body = tuple(_body(expr.comparators[0], span))
-        rules.append(Rule(_literal(expr.left, span), body, source.strip(), span))
-    return rules
+def _clause(rule: Rule, pruned: Sequence[str]) -> object:
+    """The rule's clause, without its negations of the `pruned` relations; a relation it
+    negates is known to the engine, empty as declared, though nothing tells it yet."""
+    from pyDatalog import Logic, pyEngine
 
-
-_OPS = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
-
-
-def _body(node: ast.expr, span: Span) -> list[Literal | Comparison]:
-    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.BitAnd):
-        return _body(node.left, span) + _body(node.right, span)
-    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Invert):
-        lit = _literal(node.operand, span)
-        return [Literal(lit.predicate, lit.args, negated=True)]
-    if isinstance(node, ast.Compare) and len(node.ops) == 1 and type(node.ops[0]) in _OPS:
-        return [
-            Comparison(
-                _OPS[type(node.ops[0])], _term(node.left, span), _term(node.comparators[0], span)
-            )
-        ]
-    return [_literal(node, span)]
-
-
-def _literal(node: ast.expr, span: Span) -> Literal:
-    if not (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)):
-        raise RuleError("expected a literal `name(args)`", span)
-    return Literal(node.func.id, tuple(_term(a, span) for a in node.args))
-
-
-def _term(node: ast.expr, span: Span) -> Term:
-    if isinstance(node, ast.Name):
-        return Var(node.id)
-    if isinstance(node, ast.Constant) and isinstance(node.value, str | int):
-        return node.value
-    raise RuleError(f"unsupported term {ast.unparse(node)!r}", span)
+    body = [
+        _literal(b)
+        for b in rule.body
+        if not (isinstance(b, Literal) and b.negated and b.predicate in pruned)
+    ]
+    for lit in body:
+        base = getattr(lit.pred, "base_pred", None)
+        if base is not None and base.id not in Logic.tl.logic.Db:
+            pyEngine.insert(base)
+    return pyEngine.Clause(_literal(rule.head), body)

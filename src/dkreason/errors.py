@@ -7,7 +7,7 @@ DkError                    anything the CLI prints as one line and exits 2 on
     ├── NameError_         unknown or ambiguous names (feature, sort, object, topic, platform)
     ├── SortError          wrong arity or an argument of the wrong sort
     ├── MissingIdError     an object without id where a topic filter needs one
-    └── RuleError          a rule file the Datalog engine rejects
+    └── RuleError          a rule file (or a query) the checker refuses
 """
 
 from __future__ import annotations

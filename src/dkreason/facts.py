@@ -12,10 +12,10 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import lru_cache
 
-from .datalog import Row
 from .errors import DkError
 from .model import ArgKind, Ontology
 from .names import local_name
+from .policy.syntax import Row
 
 THING = "http://www.w3.org/2002/07/owl#Thing"
 _TRAILING_DIGITS = re.compile(r"(?<![0-9])([0-9]{1,18})$")  # longer: no id, not a hang
@@ -84,6 +84,8 @@ def ontology_facts(ont: Ontology) -> Facts:
     out["name_digits"] = [
         (p, o, d) for o in sorted(ont.individuals) if (d := name_digits(local_name(o))) is not None
     ]
+    out["data_property"] = [(p, o, prop, v) for o, prop, v in ont.data_values]
+    out["object_property"] = [(p, o, prop, x) for o, prop, x in ont.object_values]
     return out
 
 

@@ -7,13 +7,15 @@ rules against both ontologies they join, so a bad file fails at load time with i
 
 from __future__ import annotations
 
+import difflib
 import gc
 import hashlib
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from functools import cache
 from pathlib import Path
 
-from .datalog import Datalog, Row, gc_paused
+from .datalog import Datalog, gc_paused
 from .errors import DkError, NameError_, ParseError, SortError, Span
 from .facts import (
     STATIC,
@@ -30,8 +32,12 @@ from .facts import (
 from .inputs.files import read_bytes, resolved
 from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
 from .names import Kind, NameIndex, article, local_name
-from .parse.config import SCHEMA, Config, PlatformFiles, read_config, shipped_policy
+from .parse.config import Config, MappingFiles, PlatformFiles, read_config, shipped_policy
 from .parse.sslt import without_spans
+from .policy.check import Diagnostic, Known, check
+from .policy.load import read_policy
+from .policy.resolve import Names
+from .policy.syntax import Row, RuleFile, Value
 
 
 @dataclass
@@ -117,12 +123,14 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
 
 
 def load_mappings(config: Config) -> tuple[Mapping_, ...]:
+    return tuple(read_mapping(m) for m in config.mappings)
+
+
+def read_mapping(files: MappingFiles) -> Mapping_:
+    """A mapping's bridge rules, read from its COWL file."""
     from .parse.cowl import read_bridge_rules
 
-    return tuple(
-        Mapping_(m.source, m.target, str(m.file), read_bridge_rules(m.file))
-        for m in config.mappings
-    )
+    return Mapping_(files.source, files.target, str(files.file), read_bridge_rules(files.file))
 
 
 _CHECK_SLICE = 500
@@ -151,16 +159,20 @@ class KnowledgeBase:
         self.rederived: list[str] = []  # the views the last change computed again
         self.warnings: list[str] = []
         self.engine = Datalog()
-        for path in (SCHEMA, *(shipped_policy() if policy is None else policy)):
-            self.engine.load_file(path)
-        self.engine.check_policy()
+        files = read_policy(
+            shipped_policy() if policy is None else policy,
+            Names([p.names for p in platforms.values()]),
+            config.path.parent if config else None,
+        )
         facts = merge(
             STATIC,
             {"local": [(local,)]},
-            *(self._platform_facts(p) for p in platforms.values()),
+            *(platform_facts(p) for p in platforms.values()),
             self._mapping_facts(),
             {"online": [(p,) for p in platforms if online is None or p in online]},
         )
+        # the rule files' warnings (dkreason.policy.check); an error was raised
+        self.rule_warnings = self.engine.load(files, known(facts, files))
         self._derive(facts)
         self._warn()
 
@@ -194,13 +206,6 @@ class KnowledgeBase:
         )
         if not computed:
             self.engine.restore(views)
-
-    def _platform_facts(self, p: Platform) -> Facts:
-        return merge(
-            {"platform": [(p.name,)]},
-            ontology_facts(p.ontology),
-            *(spec_facts(p.name, s) for s in p.resolved.values()),
-        )
 
     def _mapping_facts(self) -> Facts:
         """Facts of the pending mappings whose platforms are both present, now active."""
@@ -297,7 +302,7 @@ class KnowledgeBase:
             raise DkError(f"platform {p.name} is already known")
         self.platforms[p.name] = p
         try:
-            facts = merge(self._platform_facts(p), self._mapping_facts(), {"online": [(p.name,)]})
+            facts = merge(platform_facts(p), self._mapping_facts(), {"online": [(p.name,)]})
         except DkError:
             del self.platforms[p.name]
             raise
@@ -314,7 +319,7 @@ class KnowledgeBase:
         gone = tuple(m for m in self.mappings if name in (m.source, m.target))
         self._change(
             merge(
-                self._platform_facts(p),
+                platform_facts(p),
                 self._facts_of(gone),
                 {"online": [(name,)] if self.is_online(name) else []},
             ),
@@ -325,6 +330,37 @@ class KnowledgeBase:
         self.pending += gone
         self._warn()
         return p
+
+    def add_mapping(self, m: Mapping_) -> None:
+        """A mapping between two platforms: active at once if both are known (its bridge
+        rules checked against both ontologies; on error nothing changes), else when the
+        second one comes."""
+        if any(
+            (x.source, x.target) == (m.source, m.target) for x in (*self.mappings, *self.pending)
+        ):
+            raise DkError(f"a mapping {m.source}→{m.target} is already known")
+        self.pending += (m,)
+        try:
+            facts = self._mapping_facts()
+        except DkError:
+            self.pending = tuple(x for x in self.pending if x is not m)
+            raise
+        self._change(facts, self.engine.assert_rows)
+        self._warn()
+
+    def remove_mapping(self, source: str, target: str) -> Mapping_:
+        """Forget the mapping from `source` to `target`; its bridge rules no longer count."""
+        for m in self.pending:
+            if (m.source, m.target) == (source, target):
+                self.pending = tuple(x for x in self.pending if x is not m)
+                return m
+        for m in self.mappings:
+            if (m.source, m.target) == (source, target):
+                self._change(self._facts_of((m,)), self.engine.retract_rows)
+                self.mappings = tuple(x for x in self.mappings if x is not m)
+                self._warn()
+                return m
+        raise DkError(f"no mapping {source}→{target}")
 
     def set_online(self, name: str, online: bool) -> None:
         """Whether a known platform's topics are used; only what reads `online` is redone."""
@@ -492,6 +528,59 @@ class KnowledgeBase:
         return m.rules
 
 
+def platform_facts(p: Platform) -> Facts:
+    """What a platform's ontology and specs tell the engine."""
+    return merge(
+        {"platform": [(p.name,)]},
+        ontology_facts(p.ontology),
+        *(spec_facts(p.name, s) for s in p.resolved.values()),
+    )
+
+
+def known(facts: Facts, files: Sequence[RuleFile]) -> Known:
+    """The values facts hold, for the rule files' constants check (computed only if a file
+    of one's own has constants to check): what the engine is told and the files tell, and the
+    nearest to one they do not hold (an IRI: among those with the nearest local name)."""
+
+    @cache
+    def values() -> frozenset[Value]:
+        told = (v for rows in facts.values() for row in rows for v in row)
+        return frozenset(told) | {v for f in files for x in f.facts for v in x.row}
+
+    def near(value: str) -> str | None:
+        strings = [v for v in values() if isinstance(v, str) and v]
+        if "://" not in value:
+            plain = {local_name(v) if "://" in v else v for v in strings}
+            found = difflib.get_close_matches(value, plain, 1)
+            return found[0] if found else None
+        iris = [v for v in strings if "://" in v]
+        close = difflib.get_close_matches(local_name(value), {local_name(v) for v in iris}, 1)
+        named = [v for v in iris if close and local_name(v) == close[0]]
+        found = difflib.get_close_matches(value, named, 1, cutoff=0)
+        return found[0] if found else None
+
+    return Known(lambda value: value in values(), near)
+
+
+def check_config(config: Config, extra: Sequence[Path] = ()) -> list[Diagnostic]:
+    """Every error and warning of the config's policy with `extra` rule files besides, checked
+    against the knowledge its files hold (no rule is run)."""
+    platforms = load_platforms(config)
+    rules = (*config.rules, *(p for p in extra if p not in config.rules))
+    files = read_policy(rules, Names([p.names for p in platforms.values()]), config.path.parent)
+    mappings = load_mappings(config)
+    facts = merge(
+        STATIC,
+        *(platform_facts(p) for p in platforms.values()),
+        {
+            "bridge": [
+                (m.source, r.source, m.target, r.target, r.type) for m in mappings for r in m.rules
+            ]
+        },
+    )
+    return check(files, known(facts, files))
+
+
 def with_object(ont: Ontology, iri: str, sort: str, id_: IdValue | None) -> Ontology:
     """`ont` with one more rdf:type axiom (and the object's id, if given)."""
     return replace(
@@ -516,7 +605,12 @@ def _name_index(ont: Ontology) -> NameIndex:
     return NameIndex(
         ont.platform,
         ont.prefixes,
-        {"feature": ont.features.keys(), "sort": ont.sorts, "object": ont.individuals},
+        {
+            "feature": ont.features.keys(),
+            "sort": ont.sorts,
+            "object": ont.individuals,
+            "property": ont.properties,
+        },
     )
 
 

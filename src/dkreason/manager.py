@@ -7,15 +7,19 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import DkError, NameError_, Span
-from .kb import KnowledgeBase, Platform
+from .kb import KnowledgeBase, Platform, check_config, read_mapping, read_platform
 from .model import StreamRequest, TopicSpec
+from .parse.config import MappingFiles, PlatformFiles, read_config
 from .plan import Parsed, Plan, plan
+from .policy.check import Diagnostic
+from .policy.load import check_files
 from .request import request
 
 if TYPE_CHECKING:
     from .batch import Batch
     from .explain import Explanation
     from .monitor import MonitorRun
+    from .query import Answer, RelationInfo
     from .results import Row
     from .stream.policy import StreamPolicy
     from .stream.sources import Source
@@ -33,6 +37,41 @@ class KnowledgeManager:
     @property
     def local(self) -> str:
         return self.kb.local
+
+    @property
+    def rule_warnings(self) -> list[Diagnostic]:
+        """What the static checker warns about in the policy's rule files (one line each with
+        `str()`); an error stops the load instead."""
+        return self.kb.rule_warnings
+
+    @staticmethod
+    def check_rules(
+        files: Sequence[str | Path] = (),
+        config: str | Path | None = None,
+        replace: bool = False,
+    ) -> list[Diagnostic]:
+        """Every error and warning of a policy, without loading it: the config's policy with
+        `files` besides (its constants checked against the knowledge its files hold), or
+        without a config `files` added to the shipped policy (`replace`: as the whole
+        policy).  What `dkreason rules check` prints."""
+        paths = [Path(f) for f in files]
+        if config is None:
+            return check_files(paths, replace)
+        return check_config(read_config(Path(config)), paths)
+
+    def query(self, question: str) -> Answer:
+        """The answer to a question in the rules' language (`same_as(P, O, 'uav2')`, a
+        conjunction with `&`, or `relevant_topic(Feature, Args, Topic, Filter)`): what
+        `dkreason query` prints."""
+        from .query import ask
+
+        return ask(self.kb, question)
+
+    def relations(self) -> list[RelationInfo]:
+        """Every relation with its columns, kind and rows: `dkreason query --relations`."""
+        from .query import relations
+
+        return relations(self.kb)
 
     def plan(self, formulas: str | Sequence[str | Parsed]) -> Plan:
         """Formulas parsed, checked against the local ontology and expanded, once each."""
@@ -159,8 +198,11 @@ class KnowledgeManager:
 
     # ---- topic specifications ----------------------------------------------------------
 
-    def add_topic(self, spec: str | TopicSpec, platform: str | None = None) -> TopicSpec:
-        """Add a topic (SSL_T text or a TopicSpec), checked against the ontology; persisted."""
+    def add_topic(
+        self, spec: str | TopicSpec, platform: str | None = None, *, save: bool = True
+    ) -> TopicSpec:
+        """Add a topic (SSL_T text or a TopicSpec), checked against the ontology; written to
+        the platform's specs file unless `save=False` (the knowledge alone changes)."""
         p = self.kb.platform(platform or self.local)
         if isinstance(spec, str):
             from .parse.sslt import parse_text
@@ -171,21 +213,68 @@ class KnowledgeManager:
             spec = parsed[0]
         self.kb.add_spec(p.name, spec)
         try:
-            self._persist(p, added=spec)
+            if save:
+                self._persist(p, added=spec)
         except BaseException:
             self.kb.remove_spec(p.name, spec.name)
             raise
         return spec
 
-    def remove_topic(self, name: str, platform: str | None = None) -> TopicSpec:
+    def remove_topic(
+        self, name: str, platform: str | None = None, *, save: bool = True
+    ) -> TopicSpec:
+        """Remove a topic; from the specs file too unless `save=False`."""
         p = self.kb.platform(platform or self.local)
         spec = self.kb.remove_spec(p.name, name)
         try:
-            self._persist(p, removed=name)
+            if save:
+                self._persist(p, removed=name)
         except BaseException:
             self.kb.add_spec(p.name, spec)
             raise
         return spec
+
+    # ---- platforms and mappings: the knowledge edited, no file written ------------------
+
+    def add_platform(
+        self,
+        name: str,
+        ontology: str | Path | Sequence[str | Path],
+        specs: str | Path | None = None,
+        *,
+        reasoning: str = "none",
+        skip_imports: bool = False,
+    ) -> None:
+        """Add a platform from its files, as a config's `[platforms.NAME]` table names them
+        (paths as given; `reasoning="owl-rl"`, `skip_imports` as `imports = "skip"`): its
+        specs checked against its ontology, the mappings waiting for it made active, its
+        topics used at once."""
+        if reasoning not in ("none", "owl-rl"):
+            raise DkError(f'reasoning must be "none" or "owl-rl", not {reasoning!r}')
+        files = (ontology,) if isinstance(ontology, str | Path) else tuple(ontology)
+        platform = PlatformFiles(
+            name,
+            tuple(Path(f) for f in files),
+            Path(specs) if specs is not None else None,
+            skip_imports=skip_imports,
+            reasoning=reasoning,
+        )
+        imports = self.kb.config.imports if self.kb.config else {}
+        self.kb.add_platform(read_platform(platform, imports))
+
+    def remove_platform(self, name: str) -> None:
+        """Forget a platform (not the local one); its mappings wait for it to come back."""
+        self.kb.remove_platform(name)
+
+    def add_mapping(self, source: str, target: str, file: str | Path) -> None:
+        """Add a COWL bridge-rule file between two platforms (as a config's `[[mappings]]`),
+        checked against both ontologies; on error nothing changes."""
+        if not {source, target} <= set(self.kb.platforms) or source == target:
+            raise DkError(f"a mapping joins two known platforms, not {source!r} and {target!r}")
+        self.kb.add_mapping(read_mapping(MappingFiles(source, target, Path(file))))
+
+    def remove_mapping(self, source: str, target: str) -> None:
+        self.kb.remove_mapping(source, target)
 
     def get_topic_specification(self, name: str, platform: str | None = None) -> TopicSpec:
         p = self.kb.platform(platform or self.local)
@@ -210,6 +299,24 @@ class KnowledgeManager:
         iri = p.names.resolve(sort, ("sort",), Span("<sort>"))
         rows = self.kb.engine.query("instance_of", p.name, None, iri)
         return sorted({local_name(str(o)) for _, o, _ in rows})
+
+    def list_sorts(self, platform: str | None = None) -> list[str]:
+        """Local names of a platform's sorts (default: the local platform's)."""
+        from .names import local_name
+
+        return sorted(
+            {local_name(s) for s in self.kb.platform(platform or self.local).ontology.sorts}
+        )
+
+    def list_objects(self, sort: str | None = None, platform: str | None = None) -> list[str]:
+        """Local names of a platform's objects, or of those of `sort` (as `list_sort`)."""
+        from .names import local_name
+
+        if sort is not None:
+            return self.list_sort(sort, platform)
+        return sorted(
+            {local_name(o) for o in self.kb.platform(platform or self.local).ontology.individuals}
+        )
 
     @property
     def platforms(self) -> list[str]:

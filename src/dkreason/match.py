@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .datalog import Value
 from .errors import DkError, MissingIdError, Span
 from .kb import KnowledgeBase
 from .model import GroundFeature
 from .names import local_name
+from .policy.syntax import Value
 
 
 @dataclass(frozen=True, slots=True)
@@ -22,6 +22,7 @@ class Match:
     feature_index: int
     objects: tuple[str, ...]
     ids: tuple[Value, ...]
+    rank: int = 0  # the policy's rank(Q, Platform, Topic, Rank): a request lists smaller first
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,8 +48,14 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
     wanted = wanted_rows(ground)
     if not wanted:
         return [], []
-    relation = kb.engine.schema["match_result"]
-    rows = kb.engine.ask("match_result", {"wanted": wanted}, *[None] * relation.arity)
+    engine = kb.engine
+    relation = engine.schema["match_result"]
+    with engine.given({"wanted": wanted}):
+        rows = engine.query("match_result", *[None] * relation.arity)
+        # the rank hook, asked only of a policy that derives it
+        ranks = (
+            _ranks(engine.query("rank", None, None, None, None)) if engine.derives("rank") else {}
+        )
     matches, rejected = [], []
     for row in rows:
         c = relation.row(row)
@@ -59,7 +66,9 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
         if c["Answer"] == "topic":
             _check_answer(kb, ground[q], platform, what, k)
             ids = tuple(c[f"Filter{i}"] for i in range(1, n + 1))
-            matches.append(Match(q, platform, what, k, objects, ids))
+            matches.append(
+                Match(q, platform, what, k, objects, ids, ranks.get((q, platform, what), 0))
+            )
         elif c["Answer"] == "rejected":
             rejected.append(Rejected(q, platform, what, objects))
         else:
@@ -70,6 +79,19 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
                 Span(kb.platforms[platform].ontology.file),
             )
     return matches, rejected
+
+
+def _ranks(rows: list[tuple[Value, ...]]) -> dict[tuple[Value, ...], int]:
+    """rank(Q, Platform, Topic, Rank) rows: each topic's smallest rank."""
+    out: dict[tuple[Value, ...], int] = {}
+    for q, platform, topic, rank in rows:
+        if type(rank) is not int:
+            raise DkError(
+                f"the policy ranks topic {topic} on {platform} with {rank!r}, not a whole number"
+            )
+        key = (q, platform, topic)
+        out[key] = min(rank, out.get(key, rank))
+    return out
 
 
 def _check_answer(kb: KnowledgeBase, g: GroundFeature, platform: str, topic: str, k: int) -> None:

@@ -93,10 +93,20 @@ class Ontology:
     ids: Mapping[str, IdValue]
     prefixes: Mapping[str, str]
     entailed: Mapping[tuple[str, str], str] = field(default_factory=dict)
+    # every property assertion about an object, as told: (object, property, literal value)
+    # and (object, property, other object); rule files read them (data_property/4,
+    # object_property/4)
+    data_values: tuple[tuple[str, str, IdValue], ...] = ()
+    object_values: tuple[tuple[str, str, str], ...] = ()
 
     @property
     def sorts(self) -> frozenset[str]:
         return self.classes - self.features.keys()
+
+    @property
+    def properties(self) -> frozenset[str]:
+        """The properties its assertions use."""
+        return frozenset(p for _, p, _ in (*self.data_values, *self.object_values))
 
 
 BridgeType = Literal["equiv", "into", "onto", "incompat", "compat", "same"]

@@ -16,7 +16,7 @@ from typing import Literal
 
 from .errors import NameError_, Span
 
-Kind = Literal["feature", "sort", "object"]
+Kind = Literal["feature", "sort", "object", "property"]
 
 
 @lru_cache(maxsize=1 << 16)  # requests name every matched topic's feature and objects
@@ -43,6 +43,14 @@ class NameIndex:
 
     def kinds(self, iri: str) -> frozenset[Kind]:
         return frozenset(self._kinds.get(iri, ()))
+
+    def lookup(self, written: str) -> list[str]:
+        """The IRIs `written` may name here, of any kind: those with that local name, or a
+        prefixed name's expansion (a prefix this platform declares)."""
+        prefix, colon, rest = written.partition(":")
+        if colon:
+            return [self.prefixes[prefix] + rest] if prefix in self.prefixes else []
+        return list(self._by_local.get(written, ()))
 
     def resolve(self, written: str, kinds: tuple[Kind, ...], span: Span) -> str:
         """The IRI `written` names among entities of `kinds`, or a NameError_ saying why not."""

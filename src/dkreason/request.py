@@ -26,11 +26,11 @@ def build_request(
     matches: list[Match],
     rejected: list[Rejected],
 ) -> StreamRequest:
-    per_feature: dict[int, dict[TopicMatch, None]] = defaultdict(dict)  # ordered, no repeats
+    per_feature: dict[int, dict[TopicMatch, int]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
         if topic is not None:
-            per_feature[m.query][topic] = None
+            per_feature[m.query][topic] = min(m.rank, per_feature[m.query].get(topic, m.rank))
     features = tuple(
         FeatureRequest(
             g,
@@ -38,6 +38,7 @@ def build_request(
                 sorted(
                     per_feature[q],
                     key=lambda t: (
+                        per_feature[q][t],  # the policy's rank (0 unless it ranks), then
                         t.platform != kb.local,
                         t.platform,
                         kb.platforms[t.platform].rank[t.topic],

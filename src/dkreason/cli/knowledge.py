@@ -15,6 +15,7 @@ def match(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     km = KnowledgeManager.from_config(args.config)
     loaded = time.perf_counter()
+    render.warnings(km.rule_warnings)
     request = km.check_formula(args.formula)
     if args.stats:
         print(
@@ -34,15 +35,10 @@ def match(args: argparse.Namespace) -> int:
 def explain(args: argparse.Namespace) -> int:
     from .. import explain as why
 
-    result = KnowledgeManager.from_config(args.config).explain(
-        args.formula, args.feature, args.topic
-    )
-    if args.format == "json":
-        print(json.dumps(why.to_json(result), ensure_ascii=False))
-    elif args.format == "dot":
-        print(why.to_dot(result))
-    else:
-        print(why.to_text(result))
+    km = KnowledgeManager.from_config(args.config)
+    render.warnings(km.rule_warnings)
+    result = km.explain(args.formula, args.feature, args.topic)
+    print(why.render(result, args.format, proof=args.proof, depth=args.depth))
     return 0
 
 

@@ -46,6 +46,9 @@ def build(description: str | None) -> a.Parser:
     _sort(sub)
     _batch(sub)
     _results(sub)
+    _rules(sub)
+    _query(sub)
+    _test(sub)
     return parser
 
 
@@ -375,6 +378,14 @@ def _explain(sub: a.Sub) -> None:
     p.add_argument("--feature", help='only this ground feature, e.g. "Altitude[uav2]"')
     p.add_argument("--topic", help="only this topic; explains why it was not chosen if not")
     p.add_argument("--format", choices=("text", "json", "dot"), default="text")
+    p.add_argument(
+        "--proof",
+        action="store_true",
+        help="text: also each proof tree and why-not trace (a shared subtree once)",
+    )
+    p.add_argument(
+        "--depth", type=a.whole, metavar="N", help="text: proof trees to depth N (implies --proof)"
+    )
     p.set_defaults(run="knowledge:explain")
 
 
@@ -415,3 +426,56 @@ def _sort(sub: a.Sub) -> None:
     p.add_argument("--platform")
     p.add_argument("sort")
     p.set_defaults(run="knowledge:sort")
+
+
+def _rules(sub: a.Sub) -> None:
+    p = sub.add_parser("rules", help="check a matching policy's rule files")
+    actions = p.add_subparsers(required=True, metavar="ACTION", parser_class=a.Parser)
+    q = actions.add_parser(
+        "check",
+        help="every error and warning of a policy, one line each (exit 2 on an error)",
+    )
+    a.config(q, required=False)
+    q.add_argument(
+        "--replace",
+        action="store_true",
+        help="without --config: the files are the whole policy, not additions to the shipped one",
+    )
+    q.add_argument(
+        "files",
+        nargs="*",
+        type=Path,
+        metavar="FILE",
+        help="rule files besides the config's policy (none: the config's, or the shipped one)",
+    )
+    q.set_defaults(run="rules:check")
+
+
+def _query(sub: a.Sub) -> None:
+    p = sub.add_parser("query", help="ask the knowledge base a question in the rules' language")
+    a.config(p)
+    p.add_argument("--json", action="store_true", help="the answer's rows as JSON")
+    p.add_argument(
+        "--relations",
+        action="store_true",
+        help="every relation: its columns, kind and rows",
+    )
+    p.add_argument(
+        "question",
+        nargs="?",
+        metavar="QUERY",
+        help="e.g. \"same_as(P, O, 'uav2')\" or \"relevant_topic(F, ('uav1',), T, Filter)\"",
+    )
+    p.set_defaults(run="rules:query")
+
+
+def _test(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "test",
+        help="run the golden test cases of a folder (exit 1 with a diff on a difference)",
+    )
+    p.add_argument("folder", type=Path, metavar="DIR", help="searched for *.json test cases")
+    p.add_argument(
+        "--update", action="store_true", help="rewrite each case's expected output with the actual"
+    )
+    p.set_defaults(run="rules:test")

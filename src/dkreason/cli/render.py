@@ -11,11 +11,16 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from decimal import Decimal
 from fractions import Fraction
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..model import StreamRequest
 from ..monitor import WORDS, Event
+from ..names import local_name
 from ..progress import Verdict
+
+if TYPE_CHECKING:  # the knowledge base's modules load only when a command needs them
+    from ..policy.check import Diagnostic
+    from ..query import Answer, Cell, RelationInfo
 
 
 def exit_status(verdicts: list[bool | None]) -> int:
@@ -121,3 +126,50 @@ def request(request: StreamRequest) -> str:
             )
     lines += [f"Warning: {w}" for w in request.warnings]
     return "\n".join(lines)
+
+
+def warnings(found: list[Diagnostic]) -> None:
+    """The rule files' warnings, on stderr: they do not stop a run."""
+    for d in found:
+        print(f"warning: {d}", file=sys.stderr)
+
+
+def _cell(value: Cell) -> str:
+    if isinstance(value, tuple):
+        return f"({', '.join(map(_cell, value))})"
+    if value == "":
+        return "–"
+    return local_name(value) if isinstance(value, str) and "://" in value else str(value)
+
+
+def _table(header: list[str], rows: list[list[str]]) -> str:
+    widths = [max(len(x) for x in column) for column in zip(header, *rows, strict=True)]
+    return "\n".join(
+        "  ".join(x.ljust(w) for x, w in zip(row, widths, strict=True)).rstrip()
+        for row in (header, *rows)
+    )
+
+
+def answer(a: Answer) -> str:
+    """A query's answer as a table, IRIs by their local names ('' as –); no variable: yes or
+    no."""
+    if not a.columns:
+        return "yes" if a.rows else "no"
+    if not a.rows:
+        return "(no answer)"
+    return _table(list(a.columns), [[_cell(v) for v in row] for row in a.rows])
+
+
+def relations(found: list[RelationInfo]) -> str:
+    """`dkreason query --relations`: each relation with its columns, kind and rows."""
+    return _table(
+        ["relation", "kind", "rows"],
+        [
+            [
+                f"{r.relation.name}({', '.join(r.relation.columns)})",
+                r.relation.kind or "derived",
+                str(r.rows) if r.rows is not None else f"– ({r.note})",
+            ]
+            for r in found
+        ],
+    )

@@ -14,7 +14,7 @@ policy's answer itself.
 """
 
 from .explanation import Explanation, FeatureExplanation, explain
-from .render import to_dot, to_json, to_text
+from .render import render, to_dot, to_json, to_text
 from .replay import Failure, Proof
 from .why import TopicWhy
 from .whynot import TopicWhyNot
@@ -27,6 +27,7 @@ __all__ = [
     "TopicWhy",
     "TopicWhyNot",
     "explain",
+    "render",
     "to_dot",
     "to_json",
     "to_text",

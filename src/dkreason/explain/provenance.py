@@ -6,11 +6,11 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
-from ..datalog import Row, Value
 from ..facts import THING, told_types
 from ..kb import KnowledgeBase
 from ..model import GroundFeature
 from ..names import local_name
+from ..policy.syntax import Row, Rule, Value
 
 Pattern = tuple[Value | None, ...]  # (predicate, *args); None = any value
 
@@ -59,6 +59,12 @@ class Reader:
             for r in m.rules
         }
         self.told: dict[str, set[tuple[str, str]]] = {}  # platform → its objects' told types
+        # the rule files of one's own, whose rules an explanation names in its summary
+        self.own_files = {f.file for f in kb.engine.files if not f.shipped}
+
+    def own(self, rule: Rule | None) -> bool:
+        """A rule of a file of one's own, not of dkreason's."""
+        return rule is not None and rule.span.file in self.own_files
 
     def name(self, value: Value | None) -> str:
         if value is None:
@@ -146,6 +152,9 @@ class Reader:
         """Where a told fact comes from: file:line, or the ontology axiom and its file."""
         pred, *args = fact
         kb, c = self.kb, self.columns(fact)
+        told = kb.engine.told.get(fact)
+        if told is not None:  # a rule file's fact, or a row of its table
+            return str(told)
         if pred == "bridge":
             span = self.bridges.get(tuple(args))  # type: ignore[arg-type]
             return str(span) if span else "bridge rule"

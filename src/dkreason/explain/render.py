@@ -3,10 +3,15 @@
 from __future__ import annotations
 
 import itertools
+import json
+from collections import Counter
 
-from ..datalog import Rule
+from ..errors import DkError
+from ..policy.syntax import Rule
 from .explanation import Explanation
 from .replay import Failure, Proof
+from .why import TopicWhy
+from .whynot import TopicWhyNot
 
 
 def _rule_ref(rule: Rule | None) -> str:
@@ -38,38 +43,60 @@ def failure_json(f: Failure) -> dict[str, object]:
     return out
 
 
-def to_json(e: Explanation) -> dict[str, object]:
+def to_json(e: Explanation, proof: bool = True) -> dict[str, object]:
+    """The explanation as JSON (stable, for tools); without `proof`, the answers and their
+    one-line reasons only (no proof tree, no why-not trace)."""
+
+    def why(w: TopicWhy) -> dict[str, object]:
+        out: dict[str, object] = {
+            "platform": w.platform,
+            "topic": w.topic,
+            "filter": dict(w.filter),
+            "summary": list(w.summary),
+        }
+        if proof:
+            out["proof"] = proof_json(w.proof)
+        return out
+
+    def why_not(n: TopicWhyNot) -> dict[str, object]:
+        out: dict[str, object] = {"platform": n.platform, "topic": n.topic, "reason": n.reason}
+        if proof:
+            out["trace"] = failure_json(n.trace)
+        return out
+
     return {
         "formula": e.formula,
         "features": [
             {
                 "feature": f.feature,
-                "why": [
-                    {
-                        "platform": w.platform,
-                        "topic": w.topic,
-                        "filter": dict(w.filter),
-                        "summary": list(w.summary),
-                        "proof": proof_json(w.proof),
-                    }
-                    for w in f.why
-                ],
-                "why_not": [
-                    {
-                        "platform": n.platform,
-                        "topic": n.topic,
-                        "reason": n.reason,
-                        "trace": failure_json(n.trace),
-                    }
-                    for n in f.why_not
-                ],
+                "why": [why(w) for w in f.why],
+                "why_not": [why_not(n) for n in f.why_not],
             }
             for f in e.features
         ],
     }
 
 
-def to_text(e: Explanation) -> str:
+def render(
+    e: Explanation, format: str = "text", *, proof: bool = False, depth: int | None = None
+) -> str:
+    """The explanation as `dkreason explain --format` prints it: text (the answers and their
+    one-line reasons; with `proof`, or to a `depth`, each proof tree and why-not trace too),
+    JSON (one line, proofs included) or Graphviz dot."""
+    if format == "json":
+        return json.dumps(to_json(e), ensure_ascii=False)
+    if format == "dot":
+        return to_dot(e)
+    if format != "text":
+        raise DkError(f"no explanation format {format!r} (text, json or dot)")
+    return to_text(e, proof or depth is not None, depth)
+
+
+def to_text(e: Explanation, proof: bool = False, depth: int | None = None) -> str:
+    """The answer first: per feature, each topic with its one-line reasons, or why none;
+    with `proof`, each proof tree (to `depth`) and why-not trace, a subtree that occurs again
+    printed once, numbered, and referred to after that."""
+    trees = _Trees([w.proof for f in e.features for w in f.why] if proof else [], depth)
     lines: list[str] = []
     for f in e.features:
         lines.append(f.feature)
@@ -77,25 +104,56 @@ def to_text(e: Explanation) -> str:
             ids = ", ".join(f"{k} = {v}" for k, v in w.filter)
             lines.append(f"  ✔ {w.topic} on {w.platform}" + (f" ({ids})" if ids else ""))
             lines += [f"      {s}" for s in w.summary]
-            lines.append("      proof:")
-            _proof_lines(w.proof, 8, lines)
+            if proof:
+                lines.append("      proof:")
+                trees.lines(w.proof, 8, lines)
         for n in f.why_not:
             lines.append(f"  ✘ {n.topic or 'no topic'} on {n.platform}: {n.reason}")
-            lines.append("      trace:")
-            _failure_lines(n.trace, 8, lines)
+            if proof:
+                lines.append("      trace:")
+                _failure_lines(n.trace, 8, lines, trees)
         if not f.why and not f.why_not:
             lines.append("  (no topic, and no platform to look on)")
     return "\n".join(lines)
 
 
-def _proof_lines(p: Proof, indent: int, out: list[str]) -> None:
-    where = f"  [{_rule_ref(p.rule)}]" if p.rule else f"  ← {p.source}" if p.source else ""
-    out.append(" " * indent + p.text + where)
-    for c in p.children:
-        _proof_lines(c, indent + 2, out)
+class _Trees:
+    """Proof trees as text, to a depth: a derived subtree that occurs more than once among
+    `proofs` is printed the first time, numbered, and referred to by its number after that."""
+
+    def __init__(self, proofs: list[Proof], depth: int | None) -> None:
+        self.depth = depth
+        seen: Counter[Proof] = Counter()
+        todo = [(p, 1) for p in proofs]
+        while todo:
+            p, level = todo.pop()
+            if not p.children or (depth is not None and level > depth):
+                continue
+            seen[p] += 1
+            if seen[p] == 1:
+                todo += [(c, level + 1) for c in p.children]
+        self.repeated = {p for p, n in seen.items() if n > 1}
+        self.numbers: dict[Proof, int] = {}
+
+    def lines(self, p: Proof, indent: int, out: list[str], level: int = 1) -> None:
+        pad = " " * indent
+        if p in self.numbers:
+            out.append(f"{pad}{p.text}  (as #{self.numbers[p]} above)")
+            return
+        where = f"  [{_rule_ref(p.rule)}]" if p.rule else f"  ← {p.source}" if p.source else ""
+        if p in self.repeated:
+            self.numbers[p] = len(self.numbers) + 1
+            where += f"  #{self.numbers[p]}"
+        out.append(f"{pad}{p.text}{where}")
+        if self.depth is not None and level >= self.depth:
+            if p.children:
+                out.append(f"{pad}  … {len(p.children)} more below depth {self.depth}")
+            return
+        for c in p.children:
+            self.lines(c, indent + 2, out, level + 1)
 
 
-def _failure_lines(f: Failure, indent: int, out: list[str]) -> None:
+def _failure_lines(f: Failure, indent: int, out: list[str], trees: _Trees) -> None:
     pad = " " * indent
     rule = f"  [{_rule_ref(f.rule)}]" if f.rule else ""
     verb = "holds" if f.negated else "fails"
@@ -107,10 +165,10 @@ def _failure_lines(f: Failure, indent: int, out: list[str]) -> None:
     )
     out += [f"{pad}  there is: {n}" for n in f.nearby]
     if isinstance(f.because, Failure):
-        _failure_lines(f.because, indent + 2, out)
+        _failure_lines(f.because, indent + 2, out, trees)
     elif isinstance(f.because, Proof):
         out.append(f"{pad}  it {verb} because:")
-        _proof_lines(f.because, indent + 4, out)
+        trees.lines(f.because, indent + 4, out)
 
 
 def to_dot(e: Explanation) -> str:

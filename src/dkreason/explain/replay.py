@@ -10,8 +10,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from ..datalog import Comparison, Literal, Row, Rule, Term, Value, Var
 from ..kb import KnowledgeBase
+from ..policy.syntax import Comparison, Literal, Row, Rule, Term, Value, Var
 from .provenance import Pattern, Reader
 
 Env = dict[str, Value]
@@ -35,10 +35,13 @@ class Proof:
             yield from child.leaves()
 
     def find(self, predicate: str) -> Iterator[Proof]:
-        if self.fact[0] == predicate:
-            yield self
+        return (p for p in self.steps() if p.fact[0] == predicate)
+
+    def steps(self) -> Iterator[Proof]:
+        """Every step of the proof, itself first, depth first."""
+        yield self
         for child in self.children:
-            yield from child.find(predicate)
+            yield from child.steps()
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,11 +70,15 @@ class Replayer:
     # engine access, cached for one explanation
     def rows(self, pattern: Pattern) -> list[Row]:
         """The rows matching `pattern`, in a fixed order (the engine's follows string hashes,
-        which vary per process): the same proof and the same failure every run."""
+        which vary per process): the same proof and the same failure every run.  A pattern
+        the policy's rules cannot be asked with (a variable they need bound is free) has
+        none: an explanation never asks the engine what it cannot answer."""
         if pattern not in self._answers:
             pred, *args = pattern
+            engine = self.kb.engine
+            askable = str(pred) in engine.schema and not engine.askable(str(pred), args)
             self._answers[pattern] = sorted(
-                ((str(pred), *row) for row in self.kb.engine.query(str(pred), *args)),
+                ((str(pred), *row) for row in (engine.query(str(pred), *args) if askable else ())),
                 key=lambda row: [(type(v).__name__, v) for v in row],
             )
         return self._answers[pattern]
@@ -87,7 +94,11 @@ class Replayer:
         for extended in self._solve_one(first, env):
             yield from self.solutions(rest, extended)
 
-    def _solve_one(self, item: Literal | Comparison, env: Env) -> Iterator[Env]:
+    def _solve_one(
+        self, item: Literal | Comparison, env: Env, assume: Row | None = None
+    ) -> Iterator[Env]:
+        """The bindings under which `item` holds; an atom of `assume`'s relation holds for
+        `assume` alone (how a step is refuted for one candidate)."""
         if isinstance(item, Comparison):
             left, right = _value(item.left, env), _value(item.right, env)
             if left is not None and right is not None and _compare(item.op, left, right):
@@ -98,7 +109,11 @@ class Replayer:
             if None not in pattern and not self.holds(pattern):  # type: ignore[arg-type]
                 yield env
             return
-        for row in self.rows(pattern):
+        if assume is not None and assume[0] == item.predicate:
+            rows = [assume] if _unify(item.args, assume[1:], env) is not None else []
+        else:
+            rows = self.rows(pattern)
+        for row in rows:
             extended = _unify(item.args, row[1:], env)
             if extended is not None:
                 yield extended
@@ -162,19 +177,23 @@ class Replayer:
         return tuple(out)
 
     # failures: the clause whose body gets furthest, and the condition it stops at
-    def refute(self, goal: Pattern, depth: int = 12) -> Failure:
+    def refute(self, goal: Pattern, depth: int = 12, assume: Row | None = None) -> Failure:
+        """Why `goal` does not hold (with `assume`, for that one row of the relation its
+        clauses read: one candidate, say)."""
         best: tuple[int, Rule, Env] | None = None
         for rule in self.clauses.get(str(goal[0]), []):
             env = _unify(rule.head.args, goal[1:], {}, partial=True)
             if env is None:
                 continue
-            reached, at = self._furthest(rule.body, env)
+            reached, at = self._furthest(rule.body, env, assume)
             if best is None or reached > best[0]:
                 best = (reached, rule, at)
         text = self.reader.text(goal)
         if best is None:  # a told fact, or no clause can produce it
             return Failure(goal, text, None, None, f"no {text}", nearby=self._nearby(goal))
         reached, rule, env = best
+        if reached == len(rule.body):  # it holds, for values the goal leaves open
+            return Failure(goal, text, rule, None, f"nothing fails: {text} holds")
         item = rule.body[reached]
         if isinstance(item, Comparison):
             cond = f"{_value(item.left, env)} {item.op} {_value(item.right, env)}"
@@ -201,7 +220,9 @@ class Replayer:
             goal, text, rule, condition, self.reader.text(condition), nearby=nearby, because=because
         )
 
-    def _furthest(self, body: tuple[Literal | Comparison, ...], env: Env) -> tuple[int, Env]:
+    def _furthest(
+        self, body: tuple[Literal | Comparison, ...], env: Env, assume: Row | None
+    ) -> tuple[int, Env]:
         best = (0, env)
         stack = [(0, env)]
         seen = 0
@@ -212,7 +233,8 @@ class Replayer:
                 best = (i, current)
             if i == len(body):
                 return best
-            for extended in reversed(list(itertools.islice(self._solve_one(body[i], current), 50))):
+            found = itertools.islice(self._solve_one(body[i], current, assume), 50)
+            for extended in reversed(list(found)):
                 stack.append((i + 1, extended))
         return best
 

@@ -8,9 +8,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from ..datalog import Row, Value
 from ..kb import KnowledgeBase
 from ..match import Match, padded
+from ..policy.syntax import Row, Value
 from ..request import topic_match
 from .provenance import BRIDGE, Reader
 from .replay import MAX_DEPTH, Proof, Replayer
@@ -30,9 +30,18 @@ class TopicWhy:
 def topic_why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
     proof = _proof(replay, m)
     entry = topic_match(kb, m)
-    return TopicWhy(
-        m.platform, m.topic, entry.filter if entry else (), _summary(replay.reader, proof), proof
-    )
+    summary = _summary(replay.reader, proof) + _ranked(replay, m)
+    return TopicWhy(m.platform, m.topic, entry.filter if entry else (), summary, proof)
+
+
+def _ranked(replay: Replayer, m: Match) -> tuple[str, ...]:
+    """The policy's rank of a topic it ranks, and the rule that ranks it."""
+    if not m.rank:
+        return ()
+    proof = replay.prove(("rank", m.query, m.platform, m.topic, m.rank))
+    where = f" [{proof.rule.span}]" if proof is not None and proof.rule else ""
+    text = proof.text if proof is not None else f"rank {m.rank}"
+    return (f"rank {m.rank}: {text}{where}",)
 
 
 # A match no clause replays (a derivation deeper than a replay goes, say) is shown as the
@@ -124,7 +133,12 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
         for leaf in proof.leaves()
         if leaf.fact[0] == "topic_feature"
     )
-    return tuple(lines) + tuple(dict.fromkeys(carried))
+    own = (
+        f"rule: {node.text} [{node.rule.span}]"
+        for node in proof.steps()
+        if node.rule is not None and reader.own(node.rule)
+    )
+    return tuple(lines) + tuple(dict.fromkeys(carried)) + tuple(dict.fromkeys(own))
 
 
 def _chain(reader: Reader, node: Proof, start: str, end: str, kinds: tuple[str, ...]) -> str:

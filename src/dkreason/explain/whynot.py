@@ -8,10 +8,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from ..datalog import Row
 from ..kb import KnowledgeBase
+from ..policy.syntax import Row
 from .provenance import Pattern
-from .replay import Failure, Replayer
+from .replay import Failure, Proof, Replayer
 
 
 @dataclass(frozen=True, slots=True)
@@ -54,17 +54,36 @@ def topic_why_not(
             failure = replay.refute(sound)
             reason = f"{mapped} rejected: {_reason(kb, replay, failure)}"
         else:
-            steps: tuple[Pattern, ...] = (
-                ("matched_topic", q, platform, topic, None, *objects),
-                ("relevant_topic", q, platform, topic, None, *objects, None, None, None),
-                ("match_result", q, "topic", platform, topic, None, *objects, None, None, None),
-            )
-            failure = replay.refute(next((s for s in steps if not replay.rows(s)), steps[-1]))
+            failure = _unmatched(replay, sound, topic)
             reason = f"{_reason(kb, replay, failure)}; {key} maps to {mapped}" + (
                 f" on {platform}" if platform != kb.local else ""
             )
         out.append(TopicWhyNot(platform, topic, reason, failure))
     return out
+
+
+def _unmatched(replay: Replayer, sound: Row, topic: str | None) -> Failure:
+    """The first step after a sound candidate that does not hold for it: a topic matched to
+    it (one whose K-th feature is the candidate's, as the schema says matched_topic's K is),
+    that topic relevant, the policy's answer naming it."""
+    _, q, platform, g, *objects = sound
+    matched: Pattern = ("matched_topic", q, platform, topic, None, *objects)
+    mine = [
+        (t, k)
+        for _, _, _, t, k, *_ in replay.rows(matched)
+        if replay.rows(("topic_feature", platform, t, k, g, None))
+    ]
+    if not mine:
+        return replay.refute(matched, assume=sound)
+    later: list[Pattern] = [
+        ("relevant_topic", q, platform, t, k, *objects, None, None, None) for t, k in mine
+    ]
+    if any(replay.rows(s) for s in later):
+        later = [
+            ("match_result", q, "topic", platform, t, k, *objects, None, None, None)
+            for t, k in mine
+        ]
+    return replay.refute(next((s for s in later if not replay.rows(s)), later[0]))
 
 
 def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
@@ -81,7 +100,9 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
     if failure.negated:
         if pred == "excluded" and c:
             return f"an incompat bridge rule excludes {name(c['Feature'])} here"
-        return f"{failure.condition_text} holds"
+        because = failure.because
+        rule = because.rule if isinstance(because, Proof) else None
+        return f"{failure.condition_text} holds" + (f" [{rule.span}]" if rule else "")
     misfit = _misfit(kb, c) if pred == "fits" and c["Entity"] else None
     if misfit:
         return misfit

@@ -388,6 +388,7 @@ def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
                 value if isinstance(value, int) and not isinstance(value, bool) else str(lit)
             )
 
+    told = _property_values(graph, individuals)
     return Ontology(
         platform=platform,
         file=file,
@@ -412,7 +413,61 @@ def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
         same_as=tuple(sorted(same)),
         ids=ids,
         prefixes={p: str(ns) for p, ns in graph.namespaces() if p},
+        data_values=tuple(
+            sorted(
+                (
+                    (str(s), p, _plain(o))
+                    for s, pairs in told.items()
+                    for p, o in pairs
+                    if isinstance(o, Literal)
+                ),
+                key=str,
+            )
+        ),
+        object_values=tuple(
+            sorted(
+                (str(s), p, str(o))
+                for s, pairs in told.items()
+                for p, o in pairs
+                if not isinstance(o, Literal) and o in individuals
+            )
+        ),
     )
+
+
+_BUILT_IN = (
+    "http://www.w3.org/1999/02/22-rdf-syntax-ns#",
+    "http://www.w3.org/2000/01/rdf-schema#",
+    "http://www.w3.org/2002/07/owl#",
+)
+
+
+def _property_values(graph: Any, individuals: set[Any]) -> dict[Any, list[tuple[str, Any]]]:
+    """Each object's property assertions as told: (property IRI, literal or named object);
+    RDF, RDFS and OWL's own vocabulary and annotation properties are not properties of it."""
+    from rdflib import Literal, URIRef
+    from rdflib.namespace import OWL, RDF
+
+    annotations = set(graph.subjects(RDF.type, OWL.AnnotationProperty))
+    out: dict[Any, list[tuple[str, Any]]] = {}
+    for ind in individuals:
+        pairs = [
+            (str(p), o)
+            for p, o in graph.predicate_objects(ind)
+            if isinstance(p, URIRef)
+            and not str(p).startswith(_BUILT_IN)
+            and p not in annotations
+            and isinstance(o, Literal | URIRef)
+        ]
+        if pairs:
+            out[ind] = pairs
+    return out
+
+
+def _plain(lit: Any) -> IdValue:
+    """A literal as a fact holds it: a whole number as a number, anything else as written."""
+    value = lit.toPython()
+    return value if isinstance(value, int) and not isinstance(value, bool) else str(lit)
 
 
 def _rdf_error(exc: Exception, file: str) -> DkError:
