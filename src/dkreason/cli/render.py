@@ -7,10 +7,9 @@ from __future__ import annotations
 import datetime
 import json
 import sys
+from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from decimal import Decimal
-from fractions import Fraction
 from typing import Any
 
 from ..model import StreamRequest
@@ -18,9 +17,10 @@ from ..monitor import WORDS, Event
 from ..progress import Verdict
 
 
-def exit_status(verdicts: list[bool | None]) -> int:
-    """0: every formula held; 1: one was violated; 3: none violated, one left unknown."""
-    if False in verdicts:
+def exit_status(verdicts: list[bool | None], failed_constraint: bool = False) -> int:
+    """0: every formula held; 1: one was violated (or, `failed_constraint`, a stream
+    constraint was, with --fail-on-constraint); 3: none violated, one left unknown."""
+    if False in verdicts or failed_constraint:
         return 1
     return 0 if all(verdicts) else 3
 
@@ -31,16 +31,14 @@ def shout(verdict: bool | None) -> str:
     return word.upper() if verdict is False else word
 
 
-def event(event: Event, as_json: bool, start: Fraction | None = None) -> None:
-    """A verdict or violation; with the recording's first time (s), times also as `t+…`
-    since then (and, on an epoch clock, as ISO 8601 UTC)."""
+def event(event: Event, as_json: bool) -> None:
+    """A verdict or violation; times as `t+…` from the start of the recording (and, on an
+    epoch clock, as ISO 8601 UTC)."""
     out = event.to_json()
     if as_json:
-        if start is not None and out.get("time") is not None:
-            out["t"] = _since(out["time"], start)
         print(json.dumps(out, ensure_ascii=False, default=str), flush=True)
         return
-    when = _when(out.get("time"), start)
+    when = _when(out.get("time"), event.t)
     if isinstance(event, Verdict):
         print(
             f"{'at end' if event.at_end else f'at {when}'}: {shout(event.verdict)}  "
@@ -55,9 +53,9 @@ def event(event: Event, as_json: bool, start: Fraction | None = None) -> None:
         )
 
 
-def _when(time: Any, start: Fraction | None) -> str:
-    if time is None or not start:  # a clock that starts at 0 needs no second reading
-        return f"{time} s"
+def _when(time: Any, t: Any) -> str:
+    if time is None or t is None or t == time:  # a clock that starts at 0 needs no second
+        return f"{time} s"  # reading
     stamp = f"{time} s"
     if time > 10**9:  # an epoch clock: the date says more than a ten-digit number
         stamp = (
@@ -65,27 +63,31 @@ def _when(time: Any, start: Fraction | None) -> str:
             .isoformat(timespec="milliseconds")
             .replace("+00:00", "Z")
         )
-    return f"t+{_since(time, start)} s ({stamp})"
+    return f"t+{t} s ({stamp})"
 
 
-def _since(time: float, start: Fraction) -> float:
-    """Seconds from `start` to `time` (s, as printed), exact to the nanosecond."""
-    return float(Decimal(repr(time)) - Decimal(start.numerator) / Decimal(start.denominator))
-
-
-def summary(verdicts: list[Verdict], violations: int) -> None:
+def summary(verdicts: list[Verdict], violations: Counter[str]) -> None:
+    """The verdicts as a table (times as `t`, from the start of the recording), and the
+    stream constraint violations counted per kind."""
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
     table = Table(title="dkreason monitor", title_justify="left")
-    for column in ("formula", "verdict", "time (s)", "at end"):
+    for column in ("formula", "verdict", "t (s)", "at end"):
         table.add_column(column)
     for v in verdicts:
-        table.add_row(escape(v.formula), WORDS[v.verdict], str(v.time), "yes" if v.at_end else "no")
+        when = v.time if v.t is None else v.t
+        table.add_row(escape(v.formula), WORDS[v.verdict], str(when), "yes" if v.at_end else "no")
     console = Console(width=120)
     console.print(table)
-    console.print(f"{violations} stream constraint violation(s)")
+    console.print(constraint_counts(violations))
+
+
+def constraint_counts(violations: Counter[str]) -> str:
+    """The stream constraint violations per kind, most first, in one line."""
+    counts = ", ".join(f"{n} {kind}" for kind, n in violations.most_common())
+    return f"stream constraint violations: {counts or 'none'}"
 
 
 @contextmanager

@@ -145,6 +145,11 @@ class Recordings:
         held = self._holder(topic)
         return None if held is None else held[0].field_kind(held[1], field)
 
+    def first_record(self) -> int | None:
+        """The earliest of the recordings' starts known (each is known once it is read)."""
+        starts = [s for r in self.parts if (s := r.source.first_record()) is not None]
+        return min(starts, default=None)
+
     def last_record(self) -> int | None:
         ends = [r.source.last_record() for r in self.parts]
         return None if None in ends else max(e for e in ends if e is not None)
