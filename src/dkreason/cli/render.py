@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from ..model import StreamRequest
+from ..model import StreamRequest, ros_name
 from ..monitor import WORDS, Event
 from ..progress import Verdict
 
@@ -104,7 +104,9 @@ def progress_bar(total: int | None, enabled: bool) -> Iterator[Callable[[int], N
 
 
 def request(request: StreamRequest) -> str:
-    """Thesis listings 6.2–6.4 and 6.8–6.10, plus where remote topics come from."""
+    """Thesis listings 6.2–6.4 and 6.8–6.10, plus where remote topics come from; a topic of a
+    platform with a namespace by the ROS name it resolves to (`/turtle1/pose`)."""
+    namespaces = dict(request.namespaces)
     lines = []
     for f in request.features:
         lines += [
@@ -118,8 +120,10 @@ def request(request: StreamRequest) -> str:
                 if t.platform == request.local
                 else f" (platform {t.platform}, as {t.as_feature}[{', '.join(t.as_args)}])"
             )
+            namespace = namespaces.get(t.platform)
+            name = t.topic if namespace is None else ros_name(t.topic, namespace)
             lines.append(
-                f"  Topic: {t.topic}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
+                f"  Topic: {name}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
             )
     lines += [f"Warning: {w}" for w in request.warnings]
     return "\n".join(lines)

@@ -220,7 +220,9 @@ class StreamProcessor:
         namespaces = dict(request.namespaces)
         for q, f in enumerate(request.features):
             for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
-                names = recording_names(m, request.local, namespaces.get(m.platform))
+                names = recording_names(
+                    m, request.local, namespaces.get(m.platform), request.shared_names
+                )
                 present = [n for n in names if n in types] if types else names
                 if types and not present:
                     self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(str(f.feature.key))
