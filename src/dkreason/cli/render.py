@@ -18,8 +18,8 @@ from ..progress import Verdict
 
 
 def exit_status(verdicts: list[bool | None], failed_constraint: bool = False) -> int:
-    """0: every formula held; 1: one was violated (or, `failed_constraint`, a stream
-    constraint was, with --fail-on-constraint); 3: none violated, one left unknown."""
+    """0: every formula held; 1: one was violated, or `failed_constraint` (a stream
+    constraint was, under --fail-on-constraint); 3: none violated, one left unknown."""
     if False in verdicts or failed_constraint:
         return 1
     return 0 if all(verdicts) else 3
@@ -54,8 +54,9 @@ def event(event: Event, as_json: bool) -> None:
 
 
 def _when(time: Any, t: Any) -> str:
-    if time is None or t is None or t == time:  # a clock that starts at 0 needs no second
-        return f"{time} s"  # reading
+    """`t+…` with the time on the recording's clock; one reading where they are the same."""
+    if time is None or t is None or t == time:
+        return f"{time} s"
     stamp = f"{time} s"
     if time > 10**9:  # an epoch clock: the date says more than a ten-digit number
         stamp = (
@@ -77,8 +78,7 @@ def summary(verdicts: list[Verdict], violations: Counter[str]) -> None:
     for column in ("formula", "verdict", "t (s)", "at end"):
         table.add_column(column)
     for v in verdicts:
-        when = v.time if v.t is None else v.t
-        table.add_row(escape(v.formula), WORDS[v.verdict], str(when), "yes" if v.at_end else "no")
+        table.add_row(escape(v.formula), WORDS[v.verdict], str(v.t), "yes" if v.at_end else "no")
     console = Console(width=120)
     console.print(table)
     console.print(constraint_counts(violations))
