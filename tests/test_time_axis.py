@@ -16,6 +16,7 @@ import pytest
 
 from dkreason.cli import main
 from dkreason.stream.recording import Row, write_recording
+from dkreason.stream.units import since
 
 from .conftest import REPO
 
@@ -97,6 +98,17 @@ def test_t_is_exact_to_the_nanosecond_never_a_floats_error(run: Any) -> None:
     code, out, _ = run("--json", "always (X[me] > 0)")
     (verdict,) = lines(out)
     assert code == 1 and verdict["t"] == 2
+
+
+def test_t_reads_as_people_read_it() -> None:
+    """Whole seconds without a fraction; a header stamped before the recording's first record
+    is before its start, `t-…` (it read `t+-1.13e-07 s`)."""
+    assert [since(t) for t in (22, 1.0, 0.279999952, -0.02)] == [
+        "t+22 s",
+        "t+1 s",
+        "t+0.279999952 s",
+        "t-0.02 s",
+    ]
 
 
 def test_end_bounds_what_is_judged_without_a_violation_per_later_message(run: Any) -> None:

@@ -9,7 +9,7 @@ from pathlib import Path
 from .monitor import WORDS, Event, MonitorRun
 from .progress import Verdict
 from .stream.processor import Violation
-from .stream.units import NS
+from .stream.units import NS, since
 
 
 def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
@@ -77,7 +77,7 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
             for ax in axes[:, 0]:
                 ax.axvline(float(e.t), color=color, ls="--", lw=1.2)
             word = WORDS[e.verdict]
-            lines.append(f"{word} at t+{e.t} s: {e.formula}")
+            lines.append(f"{word} at {since(e.t)}: {e.formula}")
     unknown = [e for e in events if isinstance(e, Verdict) and e.verdict is None]
     lines += [f"unknown at end: {e.formula}" for e in unknown]
     axes[-1, 0].set_xlabel("t (s from the start of the recording)")

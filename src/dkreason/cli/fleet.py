@@ -12,6 +12,7 @@ from contextlib import contextmanager
 
 from ..manager import KnowledgeManager
 from ..results import Results, Row
+from ..stream.units import since
 from . import render
 from .options import formulas, policy
 
@@ -93,7 +94,7 @@ def _summary(db: Results, batch_id: str, formula: str | None, verdict: str | Non
     console.print(render.constraint_counts(db.violations(batch_id)))
     shown = db.rows(batch_id, formula, verdict or "violated")
     for row in shown:
-        when = "" if row.t is None else f" at t+{row.t:g} s"
+        when = "" if row.t is None else f" at {since(row.t)}"
         console.print(
             f"{render.shout(False) if row.verdict == 'violated' else row.verdict}{when}: "
             f"{escape(row.run)}: {escape(row.formula)}"

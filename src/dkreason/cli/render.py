@@ -15,6 +15,7 @@ from typing import Any
 from ..model import StreamRequest, ros_name
 from ..monitor import WORDS, Event
 from ..progress import Verdict
+from ..stream.units import since
 
 
 def exit_status(verdicts: list[bool | None], failed_constraint: bool = False) -> int:
@@ -64,7 +65,7 @@ def _when(time: Any, t: Any) -> str:
             .isoformat(timespec="milliseconds")
             .replace("+00:00", "Z")
         )
-    return f"t+{t} s ({stamp})"
+    return f"{since(t)} ({stamp})"
 
 
 def summary(verdicts: list[Verdict], violations: Counter[str]) -> None:

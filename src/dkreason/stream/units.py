@@ -27,3 +27,9 @@ def to_ns(seconds: Any, what: str = "time") -> int:
 def seconds(ns: int) -> float | int:
     """Nanoseconds as the seconds people read (an int when whole)."""
     return ns // NS if ns % NS == 0 else ns / NS
+
+
+def since(t: float | int) -> str:
+    """A time from the start of the recording (`t`, s) as people read it: `t+12.3 s`, or
+    `t-0.02 s` for a header stamped before the recording's first record."""
+    return f"t{int(t) if t == int(t) else t:+} s"
