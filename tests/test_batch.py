@@ -87,9 +87,10 @@ def test_a_batch_gives_each_run_the_verdicts_of_monitor_and_errors_do_not_stop_i
         alone = _monitor(capsys, fleet / "runs" / f"{name}.jsonl", FAST)
         row = by_run[f"runs/{name}.jsonl"]
         word = {True: "held", False: "violated", None: "undecided"}[alone["verdict"]]
-        assert (row["verdict"], row["time"], row["witness"]) == (
+        assert (row["verdict"], row["time"], row["t"], row["witness"]) == (
             word,
             alone["time"],
+            alone["t"],
             alone["witness"],
         )
         assert row["error"] is None and row["messages"] > 0
@@ -118,6 +119,33 @@ def test_a_batch_gives_each_run_the_verdicts_of_monitor_and_errors_do_not_stop_i
         assert con.execute(f"SELECT count(*) FROM '{fleet / 'out.parquet'}'").fetchone() == (5,)
     assert main(["results", "--db", str(db), "--batch", "nope"]) == 2
     assert "no batch 'nope'" in capsys.readouterr().err
+
+
+def test_constraint_violations_are_counted_per_kind_and_fail_the_batch_when_asked(
+    fleet: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One message a second where --period 0.5 expects two: every interval is a violation
+    (2 in calm, 1 in slow), counted once a run; exit 1 only with --fail-on-constraint."""
+    argv = [
+        "batch",
+        "--config",
+        str(FEDERATION),
+        "--jobs",
+        "1",
+        "--db",
+        str(fleet / "results.duckdb"),
+        "--period",
+        "0.5",
+        "--formula",
+        FAST,
+        "--formula",
+        "always (Speed[car1] >= 0)",
+        str(fleet / "runs" / "calm.jsonl"),
+        str(fleet / "runs" / "slow.jsonl"),
+    ]
+    assert main(argv) == 0
+    assert "stream constraint violations: 3 sample_period" in capsys.readouterr().out
+    assert main([*argv, "--fail-on-constraint"]) == 1
 
 
 def test_a_folder_is_searched_and_a_ros2_bag_folder_is_one_run(

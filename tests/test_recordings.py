@@ -714,15 +714,18 @@ def test_times_on_an_epoch_clock_read_relative_and_as_dates(
     ]
     assert main(["monitor", "--json", *args]) == 1
     (verdict,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert verdict["time"] == 1780000000.3 and verdict["t"] == 0.3
+    # t from the recording's start, its first record (20 ms after the first stamp), to the
+    # stamp written as the float 1780000000.3 (1780000000.299999952 s)
+    assert verdict["time"] == 1780000000.3 and verdict["t"] == 0.279999952
     assert main(["monitor", *args]) == 1
-    assert "at t+0.3 s (2026-05-28T20:26:40.300Z): VIOLATED" in capsys.readouterr().out
+    assert "at t+0.279999952 s (2026-05-28T20:26:40.300Z): VIOLATED" in capsys.readouterr().out
 
 
-def test_start_and_end_may_count_from_the_recordings_first_sample(
+def test_start_and_end_may_count_from_the_recordings_start(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    """On an epoch clock `--start 50` would drop everything; `+0.25` means 0.25 s in."""
+    """On an epoch clock `--start 50` would drop everything; `+0.25` means 0.25 s after the
+    recording's start (its first record, 20 ms after the first stamp)."""
     rec = stamped_bag(tmp_path / "real.mcap", 1_780_000_000.0, 1_780_000_000 * S)
     args = [
         "--config",
@@ -736,7 +739,7 @@ def test_start_and_end_may_count_from_the_recordings_first_sample(
     (verdict,) = [
         json.loads(line) for line in capsys.readouterr().out.splitlines() if '"verdict"' in line
     ]
-    assert verdict["time"] == 1780000001 and verdict["t"] == 1
+    assert verdict["time"] == 1780000001 and verdict["t"] == 0.98
     assert main(["monitor", "--start", "+0.25", "--end", "2", *args]) == 2
     assert "both relative (+SECONDS) or both absolute" in capsys.readouterr().err
 

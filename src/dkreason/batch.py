@@ -21,7 +21,6 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -81,7 +80,6 @@ class Outcome:
     error before deciding it), with what the row of each needs."""
 
     verdicts: tuple[tuple[str, Verdict | None], ...]
-    start: Fraction | None
     violations: tuple[tuple[str, int], ...]
     messages: int
     seconds: float
@@ -151,7 +149,7 @@ def monitor_run(job: Job, run: Run) -> Outcome:
     began = time.perf_counter()
     decided: dict[str, Verdict] = {}
     violations: Counter[str] = Counter()
-    start, messages, error = None, 0, None
+    messages, error = 0, None
     deadline = None if job.timeout is None else began + job.timeout
 
     def tick(_: int) -> None:
@@ -176,14 +174,13 @@ def monitor_run(job: Job, run: Run) -> Outcome:
                     violations[event.constraint] += 1
         except DkError as exc:
             error = one_line(str(exc))
-        start, messages = monitored.start, monitored.messages
+        messages = monitored.messages
     except DkError as exc:
         error = one_line(str(exc))
     except Exception as exc:  # a reader's own failure: this run's error, not the batch's
         error = one_line(f"{type(exc).__name__}: {exc}")
     return Outcome(
         tuple((f.text, decided.get(f.text)) for f in job.plan.formulas),
-        start,
         tuple(sorted(violations.items())),
         messages,
         time.perf_counter() - began,
@@ -196,11 +193,7 @@ def rows(batch_id: str, run: Run, digest: str, outcome: Outcome) -> list[Row]:
     out = []
     for formula, v in outcome.verdicts:
         time_ = None if v is None or v.time is None else float(v.time)
-        since = (
-            None
-            if v is None or v.time is None or outcome.start is None
-            else float(Fraction(v.time) - outcome.start)
-        )
+        since = None if v is None or v.t is None else float(v.t)
         out.append(
             Row(
                 batch_id,
@@ -224,7 +217,7 @@ def rows(batch_id: str, run: Run, digest: str, outcome: Outcome) -> list[Row]:
 
 def died(batch_id: str, run: Run, digest: str, job: Job, why: str) -> list[Row]:
     """The rows of a run whose worker died, twice."""
-    outcome = Outcome(tuple((f.text, None) for f in job.plan.formulas), None, (), 0, 0.0, why)
+    outcome = Outcome(tuple((f.text, None) for f in job.plan.formulas), (), 0, 0.0, why)
     return rows(batch_id, run, digest, outcome)
 
 

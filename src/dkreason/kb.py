@@ -437,6 +437,16 @@ class KnowledgeBase:
             how(pred, rows)
         self.engine.materialize()
 
+    def shared_names(self) -> frozenset[str]:
+        """Spec topic names (without a leading slash) that more than one platform's specs
+        use: a recording's bare name binds to a remote platform only when it is not one."""
+        seen: set[str] = set()
+        shared: set[str] = set()
+        for p in self.platforms.values():
+            for name in {n.lstrip("/") for n in p.specs}:
+                (shared if name in seen else seen).add(name)
+        return frozenset(shared)
+
     def platform(self, name: str) -> Platform:
         if name not in self.platforms:
             raise DkError(f"unknown platform {name!r} (known: {', '.join(self.platforms)})")

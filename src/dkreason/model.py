@@ -190,6 +190,12 @@ class GroundFeature:
 # ---- the stream request (thesis 5.6: state stream → features → topics → arguments) ---------
 
 
+def ros_name(topic: str, namespace: str | None) -> str:
+    """A spec topic's ROS graph name, as ROS resolves it: an absolute name stands for itself, a
+    relative one lies under the platform's namespace (`/` without one)."""
+    return topic if topic.startswith("/") else (namespace or "/").rstrip("/") + "/" + topic
+
+
 @dataclass(frozen=True, slots=True)
 class TopicMatch:
     """A topic to merge for a feature: where to read the value, which messages to keep."""
@@ -202,14 +208,12 @@ class TopicMatch:
     as_feature: str
     as_args: tuple[str, ...]
 
-    def to_json(self, local: str) -> dict[str, object]:
-        out: dict[str, object] = {
-            "platform": self.platform,
-            "topic": self.topic,
-            "msgtype": self.msgtype,
-            "field": self.field,
-            "filter": dict(self.filter),
-        }
+    def to_json(self, local: str, namespace: str | None = None) -> dict[str, object]:
+        """`namespace`: the platform's, which gives the topic its ROS name (`ros_name`)."""
+        out: dict[str, object] = {"platform": self.platform, "topic": self.topic}
+        if namespace is not None:
+            out["ros_name"] = ros_name(self.topic, namespace)
+        out |= {"msgtype": self.msgtype, "field": self.field, "filter": dict(self.filter)}
         if self.platform != local:
             out["as"] = {"feature": self.as_feature, "args": list(self.as_args)}
         return out
@@ -230,15 +234,19 @@ class StreamRequest:
     features: tuple[FeatureRequest, ...]
     warnings: tuple[str, ...] = ()
     namespaces: tuple[tuple[str, str], ...] = ()  # platform → ROS namespace, where set
+    # spec topic names (without a leading slash) that several platforms' specs use: such a
+    # name is never read bare (`T`, `/T`) for a remote platform (stream/binding.py)
+    shared_names: frozenset[str] = frozenset()
 
     def to_json(self) -> dict[str, Any]:
+        namespaces = dict(self.namespaces)
         out: dict[str, Any] = {
             "formula": self.formula,
             "features": [
                 {
                     "feature": f.feature.name,
                     "args": list(f.feature.args),
-                    "topics": [t.to_json(self.local) for t in f.topics],
+                    "topics": [t.to_json(self.local, namespaces.get(t.platform)) for t in f.topics],
                 }
                 for f in self.features
             ],

@@ -129,8 +129,9 @@ class Monitor:
                 decided = [*decided, *out]
         if decided:
             self.decided += len(decided)
+            origin = self.processor.origin if self.processor is not None else None
             self.pending.extend(
-                in_seconds(v) for v in sorted(decided, key=lambda v: self.order[v.formula])
+                in_seconds(v, origin) for v in sorted(decided, key=lambda v: self.order[v.formula])
             )
 
     def _due(self, fresh: tuple[FeatureKey, ...] | None) -> Iterable[_Group]:
@@ -162,8 +163,9 @@ class Monitor:
         assert self.processor is not None
         self.processor.finish(end)
         settled = [v for g in self.groups.values() for v in g.progressor.finish()]
+        origin = self.processor.origin
         self.pending.extend(
-            in_seconds(v) for v in sorted(settled, key=lambda v: self.order[v.formula])
+            in_seconds(v, origin) for v in sorted(settled, key=lambda v: self.order[v.formula])
         )
         for f in self.waiting:  # never judged: some feature never had a value
             missing = ", ".join(
@@ -247,9 +249,11 @@ class MonitorRun:
 
     @property
     def start(self) -> Fraction | None:
-        """The earliest valid time seen so far, exact seconds (`t+` counts from it)."""
-        first = self.processor.first
-        return None if first is None else Fraction(first, NS)
+        """The start of the recording(s), exact seconds: its first record, of any topic, as
+        `dkreason info` shows it, where every event's `t` counts from (None until known: a
+        JSON lines or pushed source before its first record)."""
+        origin = self.processor.origin
+        return None if origin is None else Fraction(origin, NS)
 
     @property
     def states(self) -> list[tuple[int, dict[FeatureKey, Any]]]:
@@ -289,9 +293,15 @@ def _article(kind: str, ros_type: str) -> str:
     return f"a{'n' if ros_type[0] in 'aeiou' else ''} {ros_type}"
 
 
-def in_seconds(v: Verdict) -> Verdict:
-    """The progressor runs in nanoseconds; people read seconds."""
+def in_seconds(v: Verdict, origin: int | None) -> Verdict:
+    """The progressor runs in nanoseconds; people read seconds, on the recording's clock
+    (`time`) and from its start (`t`, exact: the difference is taken in nanoseconds)."""
     unknown = tuple(
         dataclasses.replace(u, start=seconds(u.start), end=seconds(u.end)) for u in v.unknown
     )
-    return dataclasses.replace(v, time=None if v.time is None else seconds(v.time), unknown=unknown)
+    return dataclasses.replace(
+        v,
+        time=None if v.time is None else seconds(v.time),
+        t=None if v.time is None or origin is None else seconds(v.time - origin),
+        unknown=unknown,
+    )

@@ -3,18 +3,20 @@ imports a plotting library."""
 
 from __future__ import annotations
 
+from fractions import Fraction
 from pathlib import Path
 
 from .monitor import WORDS, Event, MonitorRun
 from .progress import Verdict
 from .stream.processor import Violation
-from .stream.units import seconds
+from .stream.units import NS, since
 
 
 def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
     """Each feature over time (unobserved spans shaded), verdicts as vertical lines, stream
-    constraint violations as orange ticks; written atomically, as PNG, SVG or PDF by the
-    file's suffix."""
+    constraint violations as orange ticks, on the time axis of every other output (`t`, s from
+    the start of the recording); written atomically, as PNG, SVG or PDF by the file's
+    suffix."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -28,7 +30,8 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
         squeeze=False,
         figsize=(10, 1.5 * max(len(keys), 1) + 1.6),
     )
-    times = [float(seconds(t)) for t, _ in run.states]
+    origin = run.start or Fraction(0)
+    times = [float(Fraction(t, NS) - origin) for t, _ in run.states]
     for ax, key in zip(axes[:, 0], keys, strict=False):
         values = [state.get(key) for _, state in run.states]
         ys = [float(v) if v is not None else float("nan") for v in values]
@@ -48,7 +51,11 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
                     label="unobserved",
                 )
                 start = None
-        ticks = [float(e.time) for e in events if isinstance(e, Violation) and e.feature == key]
+        ticks = [
+            float(e.t)
+            for e in events
+            if isinstance(e, Violation) and e.feature == key and e.t is not None
+        ]
         if ticks:
             ax.plot(
                 ticks,
@@ -65,15 +72,15 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
             ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=7)
     lines = []
     for e in events:
-        if isinstance(e, Verdict) and e.verdict is not None:
+        if isinstance(e, Verdict) and e.verdict is not None and e.t is not None:
             color = "tab:green" if e.verdict else "tab:red"
             for ax in axes[:, 0]:
-                ax.axvline(float(e.time), color=color, ls="--", lw=1.2)
+                ax.axvline(float(e.t), color=color, ls="--", lw=1.2)
             word = WORDS[e.verdict]
-            lines.append(f"{word} at {e.time} s: {e.formula}")
+            lines.append(f"{word} at {since(e.t)}: {e.formula}")
     unknown = [e for e in events if isinstance(e, Verdict) and e.verdict is None]
     lines += [f"unknown at end: {e.formula}" for e in unknown]
-    axes[-1, 0].set_xlabel("time (s)")
+    axes[-1, 0].set_xlabel("t (s from the start of the recording)")
     fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)
     fig.tight_layout(rect=(0, 0, 1, 0.97 - 0.02 * len(lines)))
     tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")  # the format follows the suffix

@@ -55,7 +55,14 @@ def build_request(
         for p in (kb.config.platforms if kb.config else ())
         if p.namespace is not None
     )
-    return StreamRequest(formula, kb.local, features, tuple(dict.fromkeys(warnings)), namespaces)
+    return StreamRequest(
+        formula,
+        kb.local,
+        features,
+        tuple(dict.fromkeys(warnings)),
+        namespaces,
+        kb.shared_names(),
+    )
 
 
 def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:

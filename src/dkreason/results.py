@@ -8,7 +8,7 @@ one refuses a newer file with one line):
   (JSON), so a batch is resumed only with what it started with;
 - `verdicts`: `batch_id`, `run` (as given), `recording_digest` (names, sizes and modification
   times of the run's files), `formula`, `verdict` (`held`, `violated`, `undecided`, `error`),
-  `t` (s from the recording's first sample), `time` (s on the recording's clock), `witness`,
+  `t` (s from the start of the recording(s)), `time` (s on the recording's clock), `witness`,
   `instances` (JSON), `robustness`, `violations` (JSON: stream-constraint counts by kind),
   `messages` (read on the relevant topics), `seconds` (wall), `error` (one line).
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import datetime
 import json
+from collections import Counter
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields
@@ -228,6 +229,17 @@ class Results:
             [batch_id],
         ).fetchall():
             out.setdefault(str(formula), dict.fromkeys(VERDICTS, 0))[str(verdict)] = int(n)
+        return out
+
+    def violations(self, batch_id: str) -> Counter[str]:
+        """Stream constraint violations per kind, over the batch's runs (each counted once,
+        not once a formula)."""
+        out: Counter[str] = Counter()
+        for (found,) in self.db.execute(
+            "SELECT any_value(violations) FROM verdicts WHERE batch_id = ? GROUP BY run",
+            [batch_id],
+        ).fetchall():
+            out.update(json.loads(found or "{}"))
         return out
 
     def diff(self, before: str, after: str) -> list[Change]:

@@ -15,6 +15,7 @@ from typing import Any, Literal, NoReturn
 from ..errors import DkError, one_line
 from ..inputs.numbers import duration
 from ..stream import TYPESTORES
+from ..stream.policy import time_bound
 
 
 class Parser(argparse.ArgumentParser):
@@ -42,9 +43,14 @@ def seconds_or_inf(text: str) -> Fraction | Literal["inf"]:
     return "inf" if text in ("inf", "oo") else seconds(text)
 
 
-def bound(text: str) -> tuple[Fraction, bool]:
-    """A start or end time: seconds on the recording's clock, or +SECONDS after its start."""
-    return (seconds(text[1:]), True) if text.startswith("+") else (seconds(text), False)
+def bound(text: str) -> str:
+    """A start or end time as StreamPolicy reads it (checked here, meant there): +SECONDS
+    after the recording's start, seconds on its clock, or an ISO 8601 time."""
+    try:
+        time_bound(text, "time")
+    except DkError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
 
 
 def finite(text: str) -> float:

@@ -12,6 +12,7 @@ from contextlib import contextmanager
 
 from ..manager import KnowledgeManager
 from ..results import Results, Row
+from ..stream.units import since
 from . import render
 from .options import formulas, policy
 
@@ -43,10 +44,11 @@ def batch(args: argparse.Namespace) -> int:
             on_start=on_start,
             on_run=each,
         )
-    if not args.json:
-        with Results(args.db) as results:
+    with Results(args.db) as results:
+        if not args.json:
             _summary(results, done.batch_id, None)
-    return done.status
+        failed = args.fail_on_constraint and bool(results.violations(done.batch_id))
+    return 1 if failed else done.status
 
 
 def results(args: argparse.Namespace) -> int:
@@ -89,9 +91,10 @@ def _summary(db: Results, batch_id: str, formula: str | None, verdict: str | Non
                 escape(text), *(str(c[v]) for v in ("held", "violated", "undecided", "error"))
             )
     console.print(table)
+    console.print(render.constraint_counts(db.violations(batch_id)))
     shown = db.rows(batch_id, formula, verdict or "violated")
     for row in shown:
-        when = "" if row.t is None else f" at t+{row.t:g} s"
+        when = "" if row.t is None else f" at {since(row.t)}"
         console.print(
             f"{render.shout(False) if row.verdict == 'violated' else row.verdict}{when}: "
             f"{escape(row.run)}: {escape(row.formula)}"

@@ -8,7 +8,7 @@ import json
 import logging
 import signal
 import sys
-from fractions import Fraction
+from collections import Counter
 from typing import Any
 
 from ..errors import DkError
@@ -27,7 +27,6 @@ from ..stream.binding import remaps
 from ..stream.policy import StreamPolicy
 from ..stream.sources import open_source
 from ..stream.typestore import load_typestore, msg_types
-from ..stream.units import NS
 from . import args as a
 from . import render
 from .options import formulas as read_formulas
@@ -47,7 +46,6 @@ def monitor_live(args: argparse.Namespace, policy: StreamPolicy) -> int:
         return _report(
             args,
             monitor.run(args.until, args.duration),
-            lambda: monitor.processor,
             session,
             [f.text for f in monitor.formulas],
             ros2=False,
@@ -98,7 +96,6 @@ def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
         return _report(
             args,
             monitor.run(args.until, args.duration, args.wait),
-            lambda: monitor.processor,
             session,
             [f.text for f in monitor.monitor.plan.formulas],
             ros2=True,
@@ -121,7 +118,6 @@ def _reading(monitor: Monitor | None, key: Any) -> list[str]:
 def _report(
     args: argparse.Namespace,
     events: Any,
-    processor: Any,
     session: Any,
     formulas: list[str],
     ros2: bool,
@@ -135,7 +131,8 @@ def _report(
         if args.publish_verdicts
         else None
     )
-    verdicts, violations = [], 0
+    verdicts: list[Verdict] = []
+    violations: Counter[str] = Counter()
     try:
         for event in events:
             if announce is not None:
@@ -149,16 +146,16 @@ def _report(
             if isinstance(event, Verdict):
                 verdicts.append(event)
             else:
-                violations += 1
-            shown = processor()
-            first = shown.first if shown else None
-            render.event(event, args.json, None if first is None else Fraction(first, NS))
+                violations[event.constraint] += 1
+            render.event(event, args.json)
     finally:
         if announce is not None:
             announce.close()
     if not args.json:
         render.summary(verdicts, violations)
-    return render.exit_status([v.verdict for v in verdicts])
+    return render.exit_status(
+        [v.verdict for v in verdicts], args.fail_on_constraint and bool(violations)
+    )
 
 
 def serve(args: argparse.Namespace) -> int:

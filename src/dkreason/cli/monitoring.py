@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections import Counter
 from typing import Any
 
 from ..errors import DkError
@@ -71,12 +72,13 @@ def monitor(args: argparse.Namespace) -> int:
         try:
             for event in run.events(tick):
                 events.append(event)
-                render.event(event, args.json, run.start)
+                render.event(event, args.json)
         except DkError as exc:
             error = exc
     verdicts = [e for e in events if isinstance(e, Verdict)]
+    violations = Counter(e.constraint for e in events if not isinstance(e, Verdict))
     if not args.json:
-        render.summary(verdicts, len(events) - len(verdicts))
+        render.summary(verdicts, violations)
     if args.plot is not None and run.states:
         from ..plot import plot
 
@@ -85,7 +87,9 @@ def monitor(args: argparse.Namespace) -> int:
             print(f"plot written to {args.plot}")
     if error is not None:
         raise error
-    return render.exit_status([v.verdict for v in verdicts])
+    return render.exit_status(
+        [v.verdict for v in verdicts], args.fail_on_constraint and bool(violations)
+    )
 
 
 def progress(args: argparse.Namespace) -> int:

@@ -22,25 +22,17 @@ def formulas(args: argparse.Namespace) -> list[str]:
 def policy(args: argparse.Namespace) -> StreamPolicy:
     """The stream policy the options give; an option not given keeps StreamPolicy's default,
     the one the API has."""
-    relative = {given[1] for given in (args.start, args.end) if given is not None}
-    if len(relative) > 1:
-        raise DkError("--start and --end must be both relative (+SECONDS) or both absolute")
     given: dict[str, Any] = {
         "sample_period": args.period,
         "sample_period_deviation": args.deviation,
         "approximation": args.approximation,
         "max_age": args.max_age,
         "delay_before_approximation": args.delay,
-        "start_time": None if args.start is None else args.start[0],
-        "end_time": None if args.end is None else args.end[0],
+        "start_time": args.start,
+        "end_time": args.end,
         "max_delay": args.max_delay,
     }
     chosen = {k: v for k, v in given.items() if v is not None}
     if chosen.get("max_age") == "inf":
         chosen["max_age"] = None
-    return StreamPolicy(
-        **chosen,
-        ordered_on_valid_time=args.ordered,
-        unique_valid_time=args.unique,
-        span_from_first=relative == {True},
-    )
+    return StreamPolicy(**chosen, ordered_on_valid_time=args.ordered, unique_valid_time=args.unique)

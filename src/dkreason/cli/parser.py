@@ -13,8 +13,8 @@ from ..stream.policy import APPROXIMATIONS, DEFAULT
 from . import args as a
 
 EXIT_STATUS = (
-    "exit status: 0 every formula held, 1 one was violated, 2 bad input (one line "
-    "on stderr), 3 one stayed undecided"
+    "exit status: 0 every formula held, 1 one was violated (or, with --fail-on-constraint, "
+    "a stream constraint was), 2 bad input (one line on stderr), 3 one stayed undecided"
 )
 
 
@@ -118,6 +118,11 @@ def _monitor(sub: a.Sub) -> None:
         "--plot",
         type=Path,
         help="draw features, verdicts and violations (.png, .svg or .pdf, as the name says)",
+    )
+    out.add_argument(
+        "--fail-on-constraint",
+        action="store_true",
+        help="exit 1 when a stream constraint was violated, as when a formula was",
     )
 
     _recordings(p)
@@ -242,14 +247,15 @@ def _policy(p: argparse.ArgumentParser) -> None:
     pol.add_argument(
         "--start",
         type=a.bound,
-        metavar="[+]TIME",
-        help="judge from this time on (s on the recording's clock; +TIME: after its first sample)",
+        metavar="TIME",
+        help="judge from this time on: +SECONDS after the recording's start (where t+ "
+        "counts from), s on its clock, or ISO 8601 (2014-03-31T19:24:50Z)",
     )
     pol.add_argument(
         "--end",
         type=a.bound,
-        metavar="[+]TIME",
-        help="ignore samples after this time (+TIME: after the first sample)",
+        metavar="TIME",
+        help="judge up to this time, the end of the data (as --start); later messages are not read",
     )
     pol.add_argument("--max-delay", type=a.seconds, help="largest allowed sample delay (s)")
     pol.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
@@ -262,7 +268,8 @@ def _batch(sub: a.Sub) -> None:
         help="monitor many runs (recordings, folders, @LIST files) into a results database",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="exit status: 0 every formula held on every run, 1 one was violated on some "
-        "run, 3 a run was undecided or failed, 2 bad input to the batch\n\nexample:\n"
+        "run (or, with --fail-on-constraint, a stream constraint was), 3 a run was undecided "
+        "or failed, 2 bad input to the batch\n\nexample:\n"
         "  dkreason batch --config examples/federation.toml --formula "
         "'always (Speed[car1] < 90)' runs/",
     )
@@ -316,6 +323,11 @@ def _batch(sub: a.Sub) -> None:
         "--timeout", type=a.positive, help="seconds of monitoring a run may take on its worker"
     )
     run.add_argument("--json", action="store_true", help="each row as a JSON line")
+    run.add_argument(
+        "--fail-on-constraint",
+        action="store_true",
+        help="exit 1 when a stream constraint was violated on some run, as when a formula was",
+    )
     _recordings(p)
     _policy(p)
     p.set_defaults(run="fleet:batch")

@@ -7,25 +7,26 @@ from __future__ import annotations
 import datetime
 import json
 import sys
+from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from decimal import Decimal
-from fractions import Fraction
 from typing import TYPE_CHECKING, Any
 
-from ..model import StreamRequest
+from ..model import StreamRequest, ros_name
 from ..monitor import WORDS, Event
 from ..names import local_name
 from ..progress import Verdict
+from ..stream.units import since
 
 if TYPE_CHECKING:  # the knowledge base's modules load only when a command needs them
     from ..policy.check import Diagnostic
     from ..query import Answer, Cell, RelationInfo
 
 
-def exit_status(verdicts: list[bool | None]) -> int:
-    """0: every formula held; 1: one was violated; 3: none violated, one left unknown."""
-    if False in verdicts:
+def exit_status(verdicts: list[bool | None], failed_constraint: bool = False) -> int:
+    """0: every formula held; 1: one was violated, or `failed_constraint` (a stream
+    constraint was, under --fail-on-constraint); 3: none violated, one left unknown."""
+    if False in verdicts or failed_constraint:
         return 1
     return 0 if all(verdicts) else 3
 
@@ -36,16 +37,14 @@ def shout(verdict: bool | None) -> str:
     return word.upper() if verdict is False else word
 
 
-def event(event: Event, as_json: bool, start: Fraction | None = None) -> None:
-    """A verdict or violation; with the recording's first time (s), times also as `t+…`
-    since then (and, on an epoch clock, as ISO 8601 UTC)."""
+def event(event: Event, as_json: bool) -> None:
+    """A verdict or violation; times as `t+…` from the start of the recording (and, on an
+    epoch clock, as ISO 8601 UTC)."""
     out = event.to_json()
     if as_json:
-        if start is not None and out.get("time") is not None:
-            out["t"] = _since(out["time"], start)
         print(json.dumps(out, ensure_ascii=False, default=str), flush=True)
         return
-    when = _when(out.get("time"), start)
+    when = _when(out.get("time"), event.t)
     if isinstance(event, Verdict):
         print(
             f"{'at end' if event.at_end else f'at {when}'}: {shout(event.verdict)}  "
@@ -60,8 +59,9 @@ def event(event: Event, as_json: bool, start: Fraction | None = None) -> None:
         )
 
 
-def _when(time: Any, start: Fraction | None) -> str:
-    if time is None or not start:  # a clock that starts at 0 needs no second reading
+def _when(time: Any, t: Any) -> str:
+    """`t+…` with the time on the recording's clock; one reading where they are the same."""
+    if time is None or t is None or t == time:
         return f"{time} s"
     stamp = f"{time} s"
     if time > 10**9:  # an epoch clock: the date says more than a ten-digit number
@@ -70,27 +70,30 @@ def _when(time: Any, start: Fraction | None) -> str:
             .isoformat(timespec="milliseconds")
             .replace("+00:00", "Z")
         )
-    return f"t+{_since(time, start)} s ({stamp})"
+    return f"{since(t)} ({stamp})"
 
 
-def _since(time: float, start: Fraction) -> float:
-    """Seconds from `start` to `time` (s, as printed), exact to the nanosecond."""
-    return float(Decimal(repr(time)) - Decimal(start.numerator) / Decimal(start.denominator))
-
-
-def summary(verdicts: list[Verdict], violations: int) -> None:
+def summary(verdicts: list[Verdict], violations: Counter[str]) -> None:
+    """The verdicts as a table (times as `t`, from the start of the recording), and the
+    stream constraint violations counted per kind."""
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
     table = Table(title="dkreason monitor", title_justify="left")
-    for column in ("formula", "verdict", "time (s)", "at end"):
+    for column in ("formula", "verdict", "t (s)", "at end"):
         table.add_column(column)
     for v in verdicts:
-        table.add_row(escape(v.formula), WORDS[v.verdict], str(v.time), "yes" if v.at_end else "no")
+        table.add_row(escape(v.formula), WORDS[v.verdict], str(v.t), "yes" if v.at_end else "no")
     console = Console(width=120)
     console.print(table)
-    console.print(f"{violations} stream constraint violation(s)")
+    console.print(constraint_counts(violations))
+
+
+def constraint_counts(violations: Counter[str]) -> str:
+    """The stream constraint violations per kind, most first, in one line."""
+    counts = ", ".join(f"{n} {kind}" for kind, n in violations.most_common())
+    return f"stream constraint violations: {counts or 'none'}"
 
 
 @contextmanager
@@ -107,7 +110,9 @@ def progress_bar(total: int | None, enabled: bool) -> Iterator[Callable[[int], N
 
 
 def request(request: StreamRequest) -> str:
-    """Thesis listings 6.2–6.4 and 6.8–6.10, plus where remote topics come from."""
+    """Thesis listings 6.2–6.4 and 6.8–6.10, plus where remote topics come from; a topic of a
+    platform with a namespace by the ROS name it resolves to (`/turtle1/pose`)."""
+    namespaces = dict(request.namespaces)
     lines = []
     for f in request.features:
         lines += [
@@ -121,8 +126,10 @@ def request(request: StreamRequest) -> str:
                 if t.platform == request.local
                 else f" (platform {t.platform}, as {t.as_feature}[{', '.join(t.as_args)}])"
             )
+            namespace = namespaces.get(t.platform)
+            name = t.topic if namespace is None else ros_name(t.topic, namespace)
             lines.append(
-                f"  Topic: {t.topic}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
+                f"  Topic: {name}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
             )
     lines += [f"Warning: {w}" for w in request.warnings]
     return "\n".join(lines)

@@ -104,6 +104,9 @@ class LiveSource:
     def check_field(self, topic: str, field: str) -> str | None:
         return None
 
+    def first_record(self) -> int | None:
+        return None  # the stream processor starts the time axis at the first sample put
+
     def last_record(self) -> int | None:
         return None
 

@@ -131,7 +131,9 @@ class Ros2Monitor:
         self.wants: dict[str, list[tuple[FeatureKey, TopicMatch]]] = {}
         for f in request.features:
             for m in f.topics:
-                for name in recording_names(m, request.local, namespaces.get(m.platform)):
+                for name in recording_names(
+                    m, request.local, namespaces.get(m.platform), request.shared_names
+                ):
                     self.wants.setdefault(name, []).append((f.feature.key, m))
         self.inbox = Inbox(QUEUED)
         self.dropped = 0  # samples the queue had no room for within PUT_WAIT (zenoh threads)

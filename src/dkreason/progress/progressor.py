@@ -58,7 +58,8 @@ class Verdict:
     """The value of a formula at the first state, with the state that decided it.
 
     `at_end` is True when `finish()` settled it; `verdict` is None only then, when the data
-    left it unknown (`unknown` says which features and when)."""
+    left it unknown (`unknown` says which features and when).  A monitor over a recording
+    also gives `t`, the time in seconds from the recording's start."""
 
     formula: str
     verdict: bool | None
@@ -66,12 +67,14 @@ class Verdict:
     at_end: bool
     witness: str | None = None
     unknown: tuple[UnknownSpan, ...] = field(default=())
+    t: float | int | None = None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
             "formula": self.formula,
             "verdict": self.verdict,
             "time": _json_time(self.time),
+            **({} if self.t is None else {"t": self.t}),
             "at_end": self.at_end,
             "witness": self.witness,
         }

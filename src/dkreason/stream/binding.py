@@ -3,10 +3,11 @@
 A spec topic's name is a ROS graph name.  On a platform with a `namespace` (config) a relative
 name resolves under it as ROS resolves it (`imu/data` on `/robot1` is `/robot1/imu/data`); an
 absolute name stands for itself.  A platform without a namespace keeps the thesis' layout: a
-relative name `T` of platform P is `/P/T`, and on the local platform also `/T`.  A recording
-name without its leading slash is the same name.  A recording given as `PLATFORM=PATH` binds
-only to that platform's specs, by the names that robot records (its topics are presented as
-`PLATFORM:/name`).
+relative name `T` of platform P is `/P/T`, and also the bare `/T` on the local platform, or on
+any platform when no other platform's spec uses the name T (a federation recorded under its
+topics' own names: `carstopic1`, `uastopic5`).  A recording name without its leading slash is
+the same name.  A recording given as `PLATFORM=PATH` binds only to that platform's specs, by the
+names that robot records (its topics are presented as `PLATFORM:/name`).
 """
 
 from __future__ import annotations
@@ -16,25 +17,29 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DkError
-from ..model import TopicMatch
+from ..model import TopicMatch, ros_name
 from .sources import Message, Source, Wanted, open_source
 
 CLOCKS = ("auto", "header", "record")
 
 
-def recording_names(m: TopicMatch, local: str, namespace: str | None) -> list[str]:
+def recording_names(
+    m: TopicMatch, local: str, namespace: str | None, shared: Collection[str] = ()
+) -> list[str]:
     """The recording topic names that may carry `m`, best first: first as a recording given
-    for m's platform (`PLATFORM=PATH`) names it, then as any recording does."""
+    for m's platform (`PLATFORM=PATH`) names it, then as any recording does.  `shared`: the
+    spec topic names several platforms use (`StreamRequest.shared_names`)."""
     t = m.topic
-    own = t if t.startswith("/") else (namespace or "/").rstrip("/") + "/" + t
+    own = ros_name(t, namespace)
     if t.startswith("/") or namespace is not None:
-        shared = [own]
-    else:  # the thesis' layout: /P/T, and /T on the local platform
-        shared = [f"/{m.platform}/{t}", *([f"/{t}"] if m.platform == local else [])]
+        anywhere = [own]
+    else:  # the thesis' layout: /P/T; the bare /T on the local platform, or if unshared
+        bare = m.platform == local or t not in shared
+        anywhere = [f"/{m.platform}/{t}", *([own] if bare else [])]
     return [
         f"{m.platform}:{own}",
         f"{m.platform}:{own[1:]}",
-        *(n for full in shared for n in (full, full[1:])),
+        *(n for full in anywhere for n in (full, full[1:])),
     ]
 
 
@@ -144,6 +149,11 @@ class Recordings:
     def field_kind(self, topic: str, field: str) -> tuple[str, str] | None:
         held = self._holder(topic)
         return None if held is None else held[0].field_kind(held[1], field)
+
+    def first_record(self) -> int | None:
+        """The earliest of the recordings' starts known (each is known once it is read)."""
+        starts = [s for r in self.parts if (s := r.source.first_record()) is not None]
+        return min(starts, default=None)
 
     def last_record(self) -> int | None:
         ends = [r.source.last_record() for r in self.parts]

@@ -76,6 +76,7 @@ class SequentialSource:
         given = msg_types(msg_files)
         self.store = load_typestore(given, kind == "ros1", typestore)
         self.channels: dict[Any, tuple[str, str]] = {}  # id → topic, msgtype
+        self.first: int | None = None  # the first message's record time, once read
         self._known: set[str] = set(given)  # --msg replaces the recording's definition
         try:
             for item in _READERS[kind](path):
@@ -101,6 +102,9 @@ class SequentialSource:
 
     def types(self) -> dict[str, str]:
         return dict(self.channels.values())
+
+    def first_record(self) -> int | None:
+        return self.first
 
     def last_record(self) -> int | None:
         return None
@@ -137,6 +141,8 @@ class SequentialSource:
                     self._learn(item)
                     continue
                 _, channel, t_ns, raw = item
+                if self.first is None:
+                    self.first = t_ns
                 topic, msgtype = self.channels.get(channel, ("", ""))
                 if topic not in wanted:
                     continue

@@ -112,13 +112,13 @@ def bindings(kb: Any, recordings: Recordings) -> list[Binding]:
     """Every spec topic of every platform, and the recording topic that carries it."""
     types = recordings.types()
     namespaces = {p.name: p.namespace for p in (kb.config.platforms if kb.config else ())}
+    shared = kb.shared_names()
     out = []
     for name, platform in kb.platforms.items():
         for spec in platform.specs.values():
             m = TopicMatch(name, spec.name, spec.msgtype, "", (), "", ())
-            found = next(
-                (n for n in recording_names(m, kb.local, namespaces.get(name)) if n in types), None
-            )
+            names = recording_names(m, kb.local, namespaces.get(name), shared)
+            found = next((n for n in names if n in types), None)
             out.append(
                 Binding(
                     name, spec.name, spec.msgtype, found, None if found is None else types[found]

@@ -2,11 +2,16 @@
 approximation), checked when it is made and defined once for the CLI and the API alike.
 
 Durations and times are seconds: numbers (exact as written: 0.1 is 1/10) or text with a unit
-(`"500ms"`, `"2 min"`), the same as `dkreason monitor` takes them.
+(`"500ms"`, `"2 min"`), the same as `dkreason monitor` takes them.  The start and end times
+bound what is judged: seconds on the recording's clock, an ISO 8601 time
+(`"2014-03-31T19:24:50Z"`), or `"+SECONDS"` after the start of the recording (its first record,
+of any topic, where `t` counts from).
 """
 
 from __future__ import annotations
 
+import datetime
+import re
 from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
@@ -34,7 +39,7 @@ class StreamPolicy:
     max_delay: Fraction | None
     ordered_on_valid_time: bool
     unique_valid_time: bool
-    span_from_first: bool  # start_time and end_time count from the first sample
+    span_from_start: bool  # start_time and end_time count from the start of the recording
 
     def __init__(
         self,
@@ -49,7 +54,7 @@ class StreamPolicy:
         max_delay: Seconds | None = None,
         ordered_on_valid_time: bool = False,
         unique_valid_time: bool = False,
-        span_from_first: bool = False,
+        span_from_start: bool = False,
     ) -> None:
         if approximation not in APPROXIMATIONS:
             raise DkError(
@@ -59,18 +64,31 @@ class StreamPolicy:
         period = _optional(sample_period, "sample_period")
         if period == 0:
             raise DkError("StreamPolicy sample_period must be positive, not 0")
-        start = _time(start_time, "start_time")
-        end = _time(end_time, "end_time")
-        if start is not None and end is not None and end < start:
-            raise DkError(f"StreamPolicy end_time {end} is before start_time {start}")
         flags = {
             "ordered_on_valid_time": ordered_on_valid_time,
             "unique_valid_time": unique_valid_time,
-            "span_from_first": span_from_first,
+            "span_from_start": span_from_start,
         }
         for name, flag in flags.items():
             if not isinstance(flag, bool):
                 raise DkError(f"StreamPolicy {name} must be True or False, not {flag!r}")
+        raw = {"start_time": start_time, "end_time": end_time}
+        bounds = {
+            name: time_bound(value, f"StreamPolicy {name}")
+            for name, value in raw.items()
+            if value is not None
+        }
+        kinds = {kind for _, kind in bounds.values()}
+        if "iso" in kinds if span_from_start else "relative" in kinds and len(kinds) > 1:
+            shown = ", ".join(f"{name} {raw[name]!r}" for name in bounds)
+            raise DkError(
+                f"StreamPolicy {shown}: must be both relative (+SECONDS) or both absolute "
+                "(an ISO 8601 time is absolute)"
+            )
+        flags["span_from_start"] = span_from_start or "relative" in kinds
+        start, end = (bounds[name][0] if name in bounds else None for name in raw)
+        if start is not None and end is not None and end < start:
+            raise DkError(f"StreamPolicy end_time {end} is before start_time {start}")
         fields = {
             "sample_period": period,
             "sample_period_deviation": duration(
@@ -94,14 +112,34 @@ def _optional(value: Seconds | None, name: str) -> Fraction | None:
     return None if value is None else duration(value, f"StreamPolicy {name}")
 
 
-def _time(value: Seconds | None, name: str) -> Fraction | None:
-    """A time on the stream's clock (or from its first sample): it may be negative."""
-    if value is None:
-        return None
-    if isinstance(value, str):
-        sign = -1 if value.strip().startswith("-") else 1
-        return sign * duration(value.strip().lstrip("-"), f"StreamPolicy {name}")
-    return exact(value, f"StreamPolicy {name}")
+BoundKind = Literal["absolute", "relative", "iso"]
+_ISO = re.compile(r"(\d{4}-\d\d-\d\d[T ]\d\d:\d\d(?::\d\d(\.\d+)?)?)(Z|[+-]\d\d:?\d\d)?", re.I)
+_EPOCH = datetime.datetime(1970, 1, 1, tzinfo=datetime.UTC)
+
+
+def time_bound(value: Seconds, what: str) -> tuple[Fraction, BoundKind]:
+    """A start or end time, exact: seconds on the stream's clock (they may be negative), an
+    ISO 8601 time with its zone (as epoch seconds, to the digit written), or `+SECONDS` after
+    the start of the recording."""
+    if not isinstance(value, str):
+        return exact(value, what), "absolute"
+    text = value.strip()
+    if text.startswith("+"):
+        return duration(text[1:], what), "relative"
+    iso = _ISO.fullmatch(text)
+    if iso is None:
+        sign = -1 if text.startswith("-") else 1
+        return sign * duration(text.lstrip("-"), what), "absolute"
+    moment, fraction, zone = iso.groups()
+    if zone is None:
+        raise DkError(f"{what} {text!r} has no time zone: add Z for UTC, or an offset like +02:00")
+    whole = moment.removesuffix(fraction or "")
+    try:
+        when = datetime.datetime.fromisoformat(whole + ("+00:00" if zone in "zZ" else zone))
+    except ValueError as exc:
+        raise DkError(f"{what} {text!r} is not an ISO 8601 time ({exc})") from None
+    seconds = (when - _EPOCH) // datetime.timedelta(seconds=1)
+    return seconds + Fraction("0" + (fraction or "")), "iso"
 
 
 DEFAULT = StreamPolicy()

@@ -16,10 +16,19 @@ stale between samples shows as unknown), each once the recording has passed its 
 Approximation "recent" takes the most recent sample up to `max_age` old (older: unknown, null);
 "none" takes only a sample at the state's own time (± `sample_period_deviation`).
 
-Constraints (thesis listing 5.2): start/end time, sample period and deviation, max delay,
-order and uniqueness of valid times.  Each broken one is reported as a `Violation`; samples
-outside start/end are dropped, the others still used where they can be.  A sample arriving after
-the states of its valid time were made is reported as late.
+Window.  A start and end time bound what is judged: messages valid outside them are skipped
+(silently: they are not the data asked about), and once the recording passes the end (plus the
+delay) nothing more is read: the end of the window is the end of the data.  Bounds counted from
+the start of the recording (`+SECONDS`) are placed on the time axis at the first message.
+
+Time axis.  `t` counts from the start of the recording as `dkreason info` shows it, its first
+record of any topic (`Source.first_record`; live, the first message put), whatever features
+are read.
+
+Constraints (thesis listing 5.2): sample period and deviation, max delay, order and uniqueness
+of valid times.  Each broken one is reported as a `Violation`; the samples are still used where
+they can be.  A sample arriving after the states of its valid time were made is reported as
+late.
 """
 
 from __future__ import annotations
@@ -32,6 +41,7 @@ from collections.abc import Callable, Iterable, Iterator, Sized
 from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
+from itertools import chain
 from operator import itemgetter
 from typing import Any
 
@@ -56,15 +66,13 @@ class Violation:
     feature: FeatureKey
     topic: str
     detail: str
+    t: float | int | None = None  # s from the start of the recording, exact
 
     def to_json(self) -> dict[str, Any]:
-        return {
-            "violation": self.constraint,
-            "time": self.time,
-            "feature": str(self.feature),
-            "topic": self.topic,
-            "detail": self.detail,
-        }
+        out: dict[str, Any] = {"violation": self.constraint, "time": self.time}
+        if self.t is not None:
+            out["t"] = self.t
+        return out | {"feature": str(self.feature), "topic": self.topic, "detail": self.detail}
 
 
 def _ns(value: Fraction | None) -> int | None:
@@ -134,6 +142,7 @@ class StreamProcessor:
         or boolean)."""
         self.texts = texts
         self.policy = policy
+        self.source = source
         self.on_state, self.on_violation = on_state, on_violation
         self.period = _ns(policy.sample_period)
         self.deviation = _ns_given(policy.sample_period_deviation)
@@ -142,7 +151,11 @@ class StreamProcessor:
         self.expiring = self.max_age is not None and policy.approximation == "recent"
         self.stale_after = 0 if self.max_age is None else self.max_age + 1  # past its valid time
         self.delay = _ns_given(policy.delay_before_approximation)
+        # the window: placed on the time axis at the first message (`_place`)
         self.start, self.end = _ns(policy.start_time), _ns(policy.end_time)
+        self.windowed = self.start is not None or self.end is not None
+        self.placed = False
+        self.first_taken: int | None = None  # the first message's available time (live)
         self.max_delay = _ns(policy.max_delay)
         if self.period is not None and self.period <= 0:
             raise DkError("the sample period must be positive")
@@ -165,20 +178,15 @@ class StreamProcessor:
         self.due: list[int] = []
         self.queued: list[bool] = []
         self.max_valid = -1
-        self._anchored = False  # span_from_first: the span was placed at the first sample
-        self.earliest: float = _INF  # the earliest valid time seen (ns; `first`)
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
-        self.guarded = (
-            self.start is not None or self.end is not None or self.max_delay is not None
-        )  # any check every sample must pass
-        self.strict = self.guarded or self.checks or self.period is not None
+        self.strict = self.max_delay is not None or self.checks or self.period is not None
         self.recent = policy.approximation == "recent"
         # on every change with the recent approximation, a state reads only what changed
         self.incremental = self.period is None and self.recent
         self.redo: set[int] = set()  # features a late sample reached since the last state
         self.made: float = -_INF  # time of the last state made (ns)
-        self.next_state: int | None = self.start  # next periodic state time
+        self.next_state: int | None = None if policy.span_from_start else self.start
         self.last_seen: int | None = None
         self.read = 0  # messages replayed on the relevant topics
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
@@ -192,16 +200,18 @@ class StreamProcessor:
         self._route(request, source)
 
     @property
-    def first(self) -> int | None:
-        """The earliest valid time seen (ns), None before any: "t+" counts from it."""
-        return None if self.earliest == _INF else int(self.earliest)
+    def origin(self) -> int | None:
+        """Where the time axis starts (ns): the recording's first record, of any topic (live:
+        the first message put); None before it is known."""
+        known = self.source.first_record()
+        return self.first_taken if known is None else known
 
     def reroute(self, request: StreamRequest, source: Source) -> None:
         """New topics for the same features (a live federation changed): what each feature
         has seen so far stays."""
         if [f.feature.key for f in request.features] != self.keys:
             raise DkError("a new route must keep the features of the stream request")
-        self.groups, self.wanted = {}, {}
+        self.groups, self.wanted, self.source = {}, {}, source
         self._route(request, source)
 
     # ---- set-up: which recording topic feeds which feature, checked before replay -------
@@ -213,7 +223,9 @@ class StreamProcessor:
         namespaces = dict(request.namespaces)
         for q, f in enumerate(request.features):
             for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
-                names = recording_names(m, request.local, namespaces.get(m.platform))
+                names = recording_names(
+                    m, request.local, namespaces.get(m.platform), request.shared_names
+                )
                 present = [n for n in names if n in types] if types else names
                 if types and not present:
                     self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(str(f.feature.key))
@@ -266,12 +278,67 @@ class StreamProcessor:
         """Messages in recording order (each with the values `wanted` names): their samples,
         and the states they make due.  Yields the count of messages so far after one that
         left `watch` (the caller's pending events) not empty, and after every 4096th."""
-        return self._take(messages, watch)
+        return self._take(self._windowed(messages) if self.windowed else messages, watch)
 
     def put(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
         """A message, without making states: a live source says when time has passed."""
-        for _ in self._take(((topic, available, valid, values),), None):
+        if self.first_taken is None:
+            self.first_taken = available
+        message: Iterable[Message] = ((topic, available, valid, values),)
+        for _ in self._take(self._windowed(message) if self.windowed else message, None):
             pass
+
+    def _windowed(self, messages: Iterable[Message]) -> Iterator[Message]:
+        """The messages valid within the window, until the recording passes its end by the
+        delay (no state in the window is left to make then).  The first message is read now,
+        to place the window before any is taken."""
+        it = iter(messages)
+        head = next(it, None)
+        if head is None:
+            return it
+        if not self.placed:
+            self._place(head[1])
+        return self._within(chain((head,), it))
+
+    def _within(self, messages: Iterator[Message]) -> Iterator[Message]:
+        start = -_INF if self.start is None else self.start
+        end = _INF if self.end is None else self.end
+        stop, taken = end + self.delay, False
+        for message in messages:
+            if message[1] > stop:
+                if not taken and self.read == 0:
+                    self._nothing_judged()
+                return
+            if start <= message[2] <= end:
+                taken = True
+                yield message
+
+    def _nothing_judged(self) -> None:
+        """The recording passed the end of the window before any message fell in it: a
+        window that ends before the recording starts is an error, not a run that judges
+        nothing (on an epoch clock `--end 10` is in 1970)."""
+        origin = self.origin
+        if self.end is not None and origin is not None and self.end < origin:
+            end = seconds(self.end)
+            raise DkError(
+                f"the end time {end} s is before the recording starts (at {seconds(origin)} s): "
+                f"nothing would be judged; +{end} is {end} s after its start"
+            )
+
+    def _place(self, available: int) -> None:
+        """The window on the time axis, at the first message (`available`; by then every
+        recording has been read from): bounds counted from the start of the recording move
+        there."""
+        self.placed = True
+        origin = self.origin
+        if origin is None:
+            origin = self.first_taken = available
+        if self.policy.span_from_start:
+            self.start = None if self.start is None else origin + self.start
+            self.end = None if self.end is None else origin + self.end
+            if self.period is not None:
+                self.next_state = self.start
+                self.quiet_until = self._next_due()
 
     def _take(self, messages: Iterable[Message], watch: Sized | None) -> Iterator[int]:
         """The replay's hot path, written out in one loop with the processor's state in
@@ -293,7 +360,7 @@ class StreamProcessor:
             self.strict,
         )
         periodic = self.period is not None
-        earliest, max_valid, quiet = self.earliest, self.max_valid, self.quiet_until
+        max_valid, quiet = self.max_valid, self.quiet_until
         made = self.made
         n, seen = 0, None
         try:
@@ -314,13 +381,8 @@ class StreamProcessor:
                                 value = None
                         elif cls is not int and cls is not bool:
                             value = self._odd(route, valid, value)
-                        if valid < earliest:
-                            earliest = self.earliest = valid
                         if strict:
-                            kept = self._constrain(route, available, valid)
-                            quiet = self.quiet_until  # a span placed at the first sample
-                            if not kept:
-                                continue
+                            self._constrain(route, available, valid)
                         if valid > max_valid:
                             max_valid = self.max_valid = valid
                         q = route.q
@@ -404,7 +466,10 @@ class StreamProcessor:
 
     def finish(self, end: int | None = None) -> None:
         """End of stream at `end` (the recording's last record time, of any topic: a value
-        that went stale before it is unknown, however few topics were asked for)."""
+        that went stale before it is unknown, however few topics were asked for), or at the
+        end of the window if that comes first."""
+        if end is not None and self.end is not None and self.placed:
+            end = min(end, self.end)
         if end is not None and self.last_seen is not None:
             self.max_valid = max(self.max_valid, end)
             self.last_seen = max(self.last_seen, end)
@@ -412,8 +477,16 @@ class StreamProcessor:
             self._emit(self.last_seen, final=True)
 
     def _violation(self, kind: str, available: int, route: _Route, detail: str) -> None:
+        origin = self.origin
         self.on_violation(
-            Violation(kind, seconds(available), self.keys[route.q], route.stream, detail)
+            Violation(
+                kind,
+                seconds(available),
+                self.keys[route.q],
+                route.stream,
+                detail,
+                None if origin is None else seconds(available - origin),
+            )
         )
 
     def _expires(self, q: int, valid: int) -> None:
@@ -428,36 +501,8 @@ class StreamProcessor:
             heapq.heappush(self.expiries, (due[q], q, False))
             self.quiet_until = min(self.quiet_until, due[q] + self.delay)
 
-    def _constrain(self, route: _Route, available: int, valid: int) -> bool:
-        """The constraints on a sample (`strict`: a policy sets one); False drops it."""
-        if self.guarded and not self._guards(route, available, valid):
-            return False
-        last = route.last
-        if last is not None and (valid <= last and self.checks or self.period is not None):
-            self._check(route, available, valid, last)
-        if last is None or valid > last:
-            route.last = valid
-        return True
-
-    def _guards(self, route: _Route, available: int, valid: int) -> bool:
-        """Start/end time and maximum delay; False drops the sample."""
-        if self.policy.span_from_first and not self._anchored:  # the span counts from the
-            self._anchored = True  # first sample
-            self.start = None if self.start is None else valid + self.start
-            self.end = None if self.end is None else valid + self.end
-            if self.period is not None:
-                self.next_state = self.start
-                self.quiet_until = self._next_due()
-        if (self.start is not None and valid < self.start) or (
-            self.end is not None and valid > self.end
-        ):
-            self._violation(
-                "start_end_time",
-                available,
-                route,
-                f"valid time {seconds(valid)} s is outside the requested span",
-            )
-            return False
+    def _constrain(self, route: _Route, available: int, valid: int) -> None:
+        """The constraints on a sample (`strict`: a policy sets one)."""
         if self.max_delay is not None and available - valid > self.max_delay:
             self._violation(
                 "max_delay",
@@ -465,7 +510,11 @@ class StreamProcessor:
                 route,
                 f"delay {seconds(available - valid)} s exceeds {seconds(self.max_delay)} s",
             )
-        return True
+        last = route.last
+        if last is not None and (valid <= last and self.checks or self.period is not None):
+            self._check(route, available, valid, last)
+        if last is None or valid > last:
+            route.last = valid
 
     def _check(self, route: _Route, available: int, valid: int, last: int) -> None:
         if valid < last and self.policy.ordered_on_valid_time:

@@ -58,6 +58,12 @@ class Source(Protocol):
         """Messages on `topics` (None: all), when the source knows."""
         ...
 
+    def first_record(self) -> int | None:
+        """The record time (ns) of the recording's first message, of any topic, as `dkreason
+        info` shows it, once known (None: not yet, or never): the start of the time axis,
+        whatever was asked of the recording."""
+        ...
+
     def last_record(self) -> int | None:
         """The record time (ns) of the recording's last message, of any topic, once it has
         been read (None: not known): where the stream ends, whatever was asked of it."""
@@ -97,6 +103,7 @@ class RosbagSource:
         except Exception as exc:  # rosbags raises several kinds for unreadable files
             raise DkError(f"{path}: not a readable ROS recording ({why(exc)})") from None
         self.connections = [c for c in self.reader.connections if _ros(c)]
+        self.first = int(self.reader.start_time) if self.connections else None
         foreign = sorted(
             {
                 f"{c.topic} ({getattr(c.ext, 'serialization_format', '?')})"
@@ -143,6 +150,9 @@ class RosbagSource:
             if msgtype is None
             else fields.kind(self.reader.typestore.fielddefs, msgtype, field)
         )
+
+    def first_record(self) -> int | None:
+        return self.first
 
     def last_record(self) -> int | None:
         return int(self.reader.end_time) - 1 if self.connections else None
@@ -344,6 +354,7 @@ class JsonlSource:
     def __init__(self, path: Path) -> None:
         """`-` reads standard input (a live feed)."""
         self.name, self.path = ("<stdin>" if str(path) == "-" else str(path)), path
+        self.first: int | None = None  # the first record time read, of any topic
         self.last: int | None = None  # the latest record time read, of any topic
         if str(path) != "-":
             files.regular(path)
@@ -363,9 +374,14 @@ class JsonlSource:
     def messages(self, wanted: Wanted) -> Iterator[Message]:
         read = dict_reader(self.name, wanted)
         for topic, available, valid, msg in self.records():
+            if self.first is None:
+                self.first = available
             self.last = available if self.last is None else max(self.last, available)
             if topic in wanted:
                 yield topic, available, valid, read(topic, valid, msg)
+
+    def first_record(self) -> int | None:
+        return self.first
 
     def last_record(self) -> int | None:
         return self.last
@@ -427,6 +443,7 @@ class PushSource:
 
     def __init__(self) -> None:
         self._queue: queue.Queue[Any] = queue.Queue()
+        self.first: int | None = None  # the first sample's available time (ns), once taken
 
     def push(self, topic: str, time: Any, msg: Any, available: Any = None) -> None:
         """One sample; a bad time raises here and ends the monitor with the same error."""
@@ -457,6 +474,9 @@ class PushSource:
     def count(self, topics: set[str] | None) -> int | None:
         return None
 
+    def first_record(self) -> int | None:
+        return self.first
+
     def last_record(self) -> int | None:
         return None
 
@@ -466,6 +486,8 @@ class PushSource:
             if isinstance(item, DkError):
                 raise item
             topic, available, valid, msg = item
+            if self.first is None:
+                self.first = available
             if topic in wanted:
                 yield topic, available, valid, read(topic, valid, msg)
 

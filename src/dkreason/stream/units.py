@@ -33,3 +33,9 @@ def seconds_text(ns: int) -> str:
     """Nanoseconds as exact decimal seconds, for a message (`12.5`, `-0.000000001`)."""
     sign, ns = ("-", -ns) if ns < 0 else ("", ns)
     return f"{sign}{ns // NS}.{ns % NS:09d}".rstrip("0").rstrip(".")
+
+
+def since(t: float | int) -> str:
+    """A time from the start of the recording (`t`, s) as people read it: `t+12.3 s`, or
+    `t-0.02 s` for a header stamped before the recording's first record."""
+    return f"t{int(t) if t == int(t) else t:+} s"
