@@ -212,6 +212,23 @@ def chunk_headers(draw: st.DrawFn, rows_: tuple[Row, ...]) -> Chunk:
     return Chunk(rows_, named, declared, crc, data if cut is None else data[:cut])
 
 
+def readable_rows(chunk: Chunk) -> tuple[Row, ...] | None:
+    """The rows a reader must give from the chunk and go on: all of them when its header is
+    true, or the ones its bytes hold when nothing betrays a cut (an uncompressed chunk cut at a
+    record boundary, with no size or CRC that disagrees: an empty chunk is a valid chunk);
+    None when the chunk must end the reading."""
+    if true_header(chunk):
+        return chunk.rows
+    if chunk.compression != "" or chunk.data is None:
+        return None
+    if chunk.declared not in (None, len(chunk.data)):
+        return None
+    if chunk.crc not in (None, 0, zlib.crc32(chunk.data)):
+        return None
+    kept = [k for k in range(len(chunk.rows)) if records(chunk.rows[:k]) == chunk.data]
+    return chunk.rows[: kept[0]] if kept else None
+
+
 def true_header(chunk: Chunk) -> bool:
     """Whether the chunk's header tells the truth about its bytes (it must then read whole)."""
     raw = records(chunk.rows)
