@@ -722,7 +722,8 @@ def test_times_on_an_epoch_clock_read_relative_and_as_dates(
 def test_start_and_end_may_count_from_the_recordings_first_sample(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    """On an epoch clock `--start 50` would drop everything; `+0.25` means 0.25 s in."""
+    """On an epoch clock `--start 50` would drop everything; `+0.25` means 0.25 s in (where
+    the formula is judged from: X, sampled at 10 Hz, has no value there yet)."""
     rec = stamped_bag(tmp_path / "real.mcap", 1_780_000_000.0, 1_780_000_000 * S)
     args = [
         "--config",
@@ -730,7 +731,7 @@ def test_start_and_end_may_count_from_the_recordings_first_sample(
         "--source",
         str(rec),
         "--json",
-        "always (X[me] > 0)",
+        "always (observed(X[me]) -> X[me] > 0)",
     ]
     assert main(["monitor", "--start", "+0.25", "--end", "+1", *args]) == 0
     (verdict,) = [

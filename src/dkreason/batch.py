@@ -170,7 +170,7 @@ def monitor_run(job: Job, run: Run) -> Outcome:
         monitored = MonitorRun(Monitor(job.plan, lambda _: job.request, job.policy), source)
         try:
             for event in monitored.events(tick):
-                if isinstance(event, Verdict):
+                if isinstance(event, Verdict):  # an update names more instances settled
                     decided[event.formula] = event
                 else:
                     violations[event.constraint] += 1
@@ -196,11 +196,7 @@ def rows(batch_id: str, run: Run, digest: str, outcome: Outcome) -> list[Row]:
     out = []
     for formula, v in outcome.verdicts:
         time_ = None if v is None or v.time is None else float(v.time)
-        since = (
-            None
-            if v is None or v.time is None or outcome.start is None
-            else float(Fraction(v.time) - outcome.start)
-        )
+        since = None if v is None else _since(v.time, outcome.start)
         out.append(
             Row(
                 batch_id,
@@ -211,7 +207,7 @@ def rows(batch_id: str, run: Run, digest: str, outcome: Outcome) -> list[Row]:
                 since,
                 time_,
                 None if v is None else v.witness,
-                None,
+                None if v is None else _instances(v, outcome.start),
                 None,
                 json.dumps(dict(outcome.violations)),
                 outcome.messages,
@@ -220,6 +216,22 @@ def rows(batch_id: str, run: Run, digest: str, outcome: Outcome) -> list[Row]:
             )
         )
     return out
+
+
+def _since(time: Any, start: Fraction | None) -> float | None:
+    """Seconds from the run's start (`t`)."""
+    return None if time is None or start is None else float(Fraction(time) - start)
+
+
+def _instances(v: Verdict, start: Fraction | None) -> str | None:
+    """A quantified formula's instances (JSON), as `monitor --json` gives them."""
+    if v.instances is None:
+        return None
+    said = [i.to_json() for i in v.instances]
+    for row, i in zip(said, v.instances, strict=True):
+        if (t := _since(i.time, start)) is not None:
+            row["t"] = t
+    return json.dumps(said, ensure_ascii=False)
 
 
 def died(batch_id: str, run: Run, digest: str, job: Job, why: str) -> list[Row]:

@@ -34,6 +34,7 @@ def policy(args: argparse.Namespace) -> StreamPolicy:
         "start_time": None if args.start is None else args.start[0],
         "end_time": None if args.end is None else args.end[0],
         "max_delay": args.max_delay,
+        "end_of_data": args.end_of_data,
     }
     chosen = {k: v for k, v in given.items() if v is not None}
     if chosen.get("max_age") == "inf":
