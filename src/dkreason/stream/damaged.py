@@ -203,13 +203,15 @@ def check_magic(kind: Kind, path: Path) -> None:
         )
 
 
+_SMALL = 1 << 20  # a read this small is not held to the limit (read per record otherwise)
+
+
 def _take(data: BinaryIO, n: int, size: int) -> bytes:
     """n bytes of `data` (a stream of `size` bytes; fewer at its end), never asking it for
-    more than it holds (a file's read allocates what it is asked for first), nor for more
-    than one input may hold."""
+    more than it holds (a file's read allocates what it is asked for first), nor, past
+    _SMALL, for more than one input may hold."""
     n = min(n, size - data.tell())
-    limit = max_input()
-    if n > limit:
+    if n > _SMALL and n > (limit := max_input()):
         raise _Cut(
             f"a record of more than the {limit:,} bytes one input may hold "
             f"(raise DKREASON_MAX_INPUT to read it)"
