@@ -103,6 +103,19 @@ def config(p: argparse.ArgumentParser, required: bool = True) -> None:
     )
 
 
+def formulas_file(p: Options) -> None:
+    """-f FILE, for the commands that monitor."""
+    p.add_argument(
+        "-f",
+        "--formulas-file",
+        type=Path,
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="formulas, one per line (# comments); repeatable",
+    )
+
+
 def definitions(p: Options) -> None:
     p.add_argument(
         "--msg",

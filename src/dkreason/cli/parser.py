@@ -91,15 +91,7 @@ def _monitor(sub: a.Sub) -> None:
         "(Speed[c] > 60 -> eventually[0, 300] Speed[c] <= 60)'",
     )
     a.config(p)
-    p.add_argument(
-        "-f",
-        "--formulas-file",
-        type=Path,
-        action="append",
-        default=[],
-        metavar="FILE",
-        help="formulas, one per line (# comments); repeatable",
-    )
+    a.formulas_file(p)
     p.add_argument("formulas", nargs="*", metavar="FORMULA")
     p.set_defaults(run="monitoring:monitor")
 
@@ -274,15 +266,7 @@ def _batch(sub: a.Sub) -> None:
         "'always (Speed[car1] < 90)' runs/",
     )
     a.config(p)
-    p.add_argument(
-        "-f",
-        "--formulas-file",
-        type=Path,
-        action="append",
-        default=[],
-        metavar="FILE",
-        help="formulas, one per line (# comments); repeatable",
-    )
+    a.formulas_file(p)
     p.add_argument(
         "--formula",
         dest="formulas",
