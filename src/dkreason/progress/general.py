@@ -4,7 +4,6 @@ same state (compile.py, nodes.py), ticked once a state.  An `Engine` (engine.py)
 from __future__ import annotations
 
 from collections.abc import Mapping
-from fractions import Fraction
 from typing import Any
 
 from ..model import FeatureKey
@@ -13,7 +12,7 @@ from .compile import Graph
 from .engine import Report, Unknown
 from .nodes import PENDING, Node, order
 from .state import features
-from .witness import Time, Why, settled
+from .witness import Clock, Time, Why, settled
 
 
 class Root:
@@ -38,7 +37,7 @@ class Root:
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
         self.ended.append(self)
         if why is not None and why.text != self.node.text:
-            why = settled(self.node.text, self.first, value, why, self.graph.ctx.unit)
+            why = settled(self.node.text, self.first, value, why, self.graph.ctx.clock)
         self.report(value, why)
 
 
@@ -46,8 +45,8 @@ class General:
     """The parts of any shape; `unknown` hears which features their undecided parts read
     were unknown at each state."""
 
-    def __init__(self, unit: Fraction | int, unknown: Unknown) -> None:
-        self.unit, self.unknown = unit, unknown
+    def __init__(self, clock: Clock, unknown: Unknown) -> None:
+        self.clock, self.unknown = clock, unknown
         self.graphs: list[Graph] = []  # those with an undecided part
         self.roots: list[Root] = []  # the undecided parts
         self.unstarted: list[Root] = []
@@ -56,7 +55,7 @@ class General:
 
     def add(self, part: Formula, report: Report) -> bool:
         if not self.graphs or self.graphs[-1].ctx.pos >= 0:
-            self.graphs.append(Graph(self.unit))
+            self.graphs.append(Graph(self.clock))
         graph = self.graphs[-1]
         root = Root(graph.node(part), graph, features(part), report, self.ended)
         self.roots.append(root)
@@ -84,8 +83,9 @@ class General:
         if self.ended:
             self._forget()
 
-    def finish(self) -> None:
+    def finish(self, cut: Time | None) -> None:
         for graph in self.graphs:
+            graph.ctx.cut = cut
             for node in sorted(graph.cache.values(), key=order):
                 node.finish()
         self._forget()
