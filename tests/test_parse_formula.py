@@ -144,8 +144,9 @@ def texts(draw: st.DrawFn, depth: int = 3) -> str:
         return draw(
             st.one_of(
                 st.sampled_from(["P", "true", "false", 'S[a] == "o\\"k"', "observed(X[a])"]),
-                st.tuples(exprs(2), st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), exprs(2))
-                .map(" ".join),
+                st.tuples(
+                    exprs(2), st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), exprs(2)
+                ).map(" ".join),
             )
         )
     kind = draw(st.sampled_from(["not", "prefix", "binary", "until", "quant"]))

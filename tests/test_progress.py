@@ -426,15 +426,25 @@ batches = st.lists(
 
 
 def engine_run(
-    engine: str, batch: list[str], trace: Trace, end_of_data: str, end: int
+    engine: str,
+    batch: list[str],
+    trace: Trace,
+    end_of_data: str = "open",
+    end: int = 0,
+    passes: list[bool] | None = None,
 ) -> list[tuple[int | None, Any]]:
-    """Every verdict of a batch judged together, with the index of the state that gave it."""
+    """Every verdict of a batch judged together, with the index of the state that gave it;
+    with `passes`, the stream also passes the middle of the k-th gap between states (after
+    the last state: half a second after it) without a state when passes[k]."""
     p = Progressor(engine=engine, end_of_data=end_of_data)
     for f in batch:
         p.add(f)
     out: list[tuple[int | None, Any]] = []
     for k, (t, values) in enumerate(trace):
         out += [(k, v) for v in p.step(t, values)]
+        if passes and k < len(passes) and passes[k]:
+            gap = trace[k + 1][0] - t if k + 1 < len(trace) else Fraction(1)
+            out += [(k, v) for v in p.advance(t + gap / 2)]
     return out + [(None, v) for v in p.finish(trace[-1][0] + end)]
 
 
@@ -444,16 +454,49 @@ def engine_run(
     traces(),
     st.sampled_from(["open", "finite"]),
     st.sampled_from([0, 0, 1, 3]),
+    st.lists(st.booleans(), max_size=7),
 )
 def test_both_engines_give_the_same_verdict_time_and_witness(
-    batch: list[str], trace: Trace, end_of_data: str, end: int
+    batch: list[str], trace: Trace, end_of_data: str, end: int, passes: list[bool]
 ) -> None:
-    """What the fused monitors decide, the general engine decides at the same state with the
-    same witness (and the same unknown spans, and the same window left open where the data
-    ends, at or after the last state), alone or beside other formulas."""
-    assert engine_run("auto", batch, trace, end_of_data, end) == engine_run(
-        "general", batch, trace, end_of_data, end
+    """What the fused monitors decide, the general engine decides at the same state (or
+    the same time the stream passed without a state) with the same witness (and the same
+    unknown spans, and the same window left open where the data ends, at or after the last
+    state), alone or beside other formulas."""
+    assert engine_run("auto", batch, trace, end_of_data, end, passes) == engine_run(
+        "general", batch, trace, end_of_data, end, passes
     )
+
+
+@SETTINGS
+@given(formulas(), traces(), st.lists(st.booleans(), max_size=7))
+def test_a_stream_passing_a_window_without_a_state_decides_it_and_the_same_way(
+    formula: str, trace: Trace, passes: list[bool]
+) -> None:
+    """Time passing without a state closes the windows that ended by then: the verdict is
+    the one the states give, decided no later than without it."""
+    (verdict,) = [v for _, v in engine_run("auto", [formula], trace, passes=passes)]
+    assert verdict.verdict == holds(parse_formula(formula), trace, 0)
+    (alone,) = [(k, v) for k, v in engine_run("auto", [formula], trace)]
+    if alone[0] is not None:
+        k = next(k for k, v in engine_run("auto", [formula], trace, passes=passes))
+        assert k is not None and k <= alone[0]
+
+
+def test_a_window_closes_when_the_stream_passes_its_end() -> None:
+    """A response's window [1, 3] ends between the states at 2 and 5: the stream passing 4
+    without one decides it, there."""
+    for engine in ("auto", "general"):
+        p = Progressor(engine=engine)
+        p.add("always (P -> eventually[0, 2] Q)")
+        assert p.step(1, {"P": True, "Q": False}) == p.step(2, {"P": False, "Q": False}) == []
+        assert p.deadline() == 3
+        (v,) = p.advance(4)
+        assert (v.verdict, v.time, v.witness) == (
+            False,
+            4,
+            "violated at 4: P held at 1, but Q never held within [1, 3]",
+        )
 
 
 def test_the_general_engine_can_be_forced() -> None:

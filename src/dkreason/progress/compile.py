@@ -8,6 +8,7 @@ node quotes the subformula it was made for (`unparse`), as written, not as compi
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from fractions import Fraction
 from typing import Any
@@ -64,8 +65,8 @@ def scaled(f: Formula, factor: Fraction) -> Formula:
 class Graph:
     """One shared node graph for formulas that start at the same state."""
 
-    def __init__(self, clock: Clock) -> None:
-        self.ctx = Ctx(clock)
+    def __init__(self, clock: Clock, timer: Callable[[Time], None] | None = None) -> None:
+        self.ctx = Ctx(clock, timer)
         self.cache: dict[Formula, Node] = {}
 
     def node(self, f: Formula) -> Node:

@@ -26,6 +26,10 @@ when unknown, a reason holding the cut window (witness.cut_of) if the end of the
 Unknown = Callable[[Iterable[FeatureKey], int, Any], None]
 """These features were unknown at the state at this position (and time, as given)."""
 
+Timer = Callable[[Time], None]
+"""A window will have ended by this time: with no state before it, `advance` to it decides
+something (told when a position starts waiting where none did; later ones end later)."""
+
 
 class Engine(Protocol):
     """What the progressor asks of a progression engine."""
@@ -37,6 +41,15 @@ class Engine(Protocol):
 
     def step(self, pos: int, t: Time, values: Mapping[FeatureKey, Any], given: Any) -> None:
         """One state: its position, exact time, every feature's value, the time as given."""
+        ...
+
+    def advance(self, t: Time) -> None:
+        """No state until after t (the stream passed it): the parts whose windows ended by
+        then report, as a state after t would make them (what it reads left aside)."""
+        ...
+
+    def deadline(self) -> Time | None:
+        """The earliest end of a window a part waits on (None: none)."""
         ...
 
     def finish(self, cut: Time | None) -> None:

@@ -44,7 +44,7 @@ from ..parse.formula import (
     unparse,
 )
 from .compile import exact
-from .engine import Held, Report, Stepper, Unknown
+from .engine import Held, Report, Stepper, Timer, Unknown
 from .state import boolean_keys, evaluate, features, is_state, key, python, reads
 from .witness import Clock, Time, Why, but, settled, state_was, window_closed, window_cut
 
@@ -133,10 +133,11 @@ class Member:
 class Group:
     """Responses with the same trigger, target and window start: one queue of waiting
     positions [time, weak] (weak: a failure there is unknown, not false), members sorted by
-    window end; `unknown_upto` members (a prefix) have seen a weak window close."""
+    window end; `unknown_upto` members (a prefix) have seen a weak window close.  `timer` is
+    told when the first waiting position's earliest window ends (engine.Timer)."""
 
-    def __init__(self, lo: Time) -> None:
-        self.lo = lo
+    def __init__(self, lo: Time, timer: Timer | None = None) -> None:
+        self.lo, self.timer = lo, timer
         self.members: list[Member] = []
         self.pending: deque[list[Any]] = deque()
         self.n_weak = 0
@@ -205,6 +206,8 @@ class Group:
                 while pending and t - pending[0][0] >= widest:
                     pending.popleft()
         if a and not (b and lo == 0) and members:
+            if not pending:
+                self._waits(t)
             pending.append([t, False])
             if members[0].hi == 0:
                 failed = self._expire(t, closing=True) or failed
@@ -232,6 +235,8 @@ class Group:
             while pending and t - pending[0][0] >= widest:  # closed for every member
                 self.n_weak -= pending.popleft()[1]
         if a is not False and not (lo == 0 and b is True) and self.members:
+            if not pending:
+                self._waits(t)
             pending.append([t, a is None or (lo == 0 and b is None)])
             self.n_weak += pending[-1][1]
             if self.members[0].hi == 0:
@@ -239,6 +244,20 @@ class Group:
                 while pending and self.members and t - pending[0][0] >= self.members[-1].hi:
                     self.n_weak -= pending.popleft()[1]
         return failed
+
+    def _waits(self, t: Time) -> None:
+        hi = self.members[0].shape.hi
+        if self.timer is not None and hi is not None:
+            self.timer(t + hi)
+
+    def advance(self, t: Time) -> bool:
+        """No state until after t: members whose window over a waiting position ended by
+        then fail (turn unknown).  Returns whether one failed."""
+        return bool(self.pending) and self._expire(t, closing=True)
+
+    def deadline(self) -> Time | None:
+        hi = self.members[0].shape.hi if self.members else None
+        return None if not self.pending or hi is None else self.pending[0][0] + hi
 
     def finish(self, cut: Time | None) -> None:
         """End of stream: for each member, the waiting positions in order until one decides
@@ -339,8 +358,8 @@ class FusedSet:
     (engine.py), and more: while every part a progressor has is fused, `fast` gives its
     whole step for one state, generated."""
 
-    def __init__(self, clock: Clock, unknown: Unknown) -> None:
-        self.clock, self.unknown = clock, unknown
+    def __init__(self, clock: Clock, unknown: Unknown, timer: Timer | None = None) -> None:
+        self.clock, self.unknown, self.timer = clock, unknown, timer
         self.members: list[Member] = []
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
         # the generated step for the current members (None: generate it at the next state),
@@ -356,7 +375,7 @@ class FusedSet:
         self.members.append(m)
         if s.kind == "response":
             assert s.b is not None
-            self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo)).add(m)
+            self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo, self.timer)).add(m)
         self.changed()
         return True
 
@@ -374,6 +393,17 @@ class FusedSet:
             self.run, self.make = _generate(self) if self.members else (_never, None)
         if self.run(t, values, pos, given):
             self.changed()
+
+    def advance(self, t: Time) -> None:
+        decided = False
+        for g in self.groups.values():
+            decided = g.advance(t) or decided
+        if decided:
+            self.changed()
+
+    def deadline(self) -> Time | None:
+        ends = [end for g in self.groups.values() if (end := g.deadline()) is not None]
+        return min(ends, default=None)
 
     def finish(self, cut: Time | None) -> None:
         for g in self.groups.values():

@@ -9,7 +9,7 @@ from typing import Any
 from ..model import FeatureKey
 from ..parse.formula import Formula
 from .compile import Graph
-from .engine import Report, Unknown
+from .engine import Report, Timer, Unknown
 from .nodes import PENDING, Node, order
 from .state import features
 from .witness import Clock, Time, Why, settled
@@ -43,10 +43,10 @@ class Root:
 
 class General:
     """The parts of any shape; `unknown` hears which features their undecided parts read
-    were unknown at each state."""
+    were unknown at each state, `timer` when a window will have ended."""
 
-    def __init__(self, clock: Clock, unknown: Unknown) -> None:
-        self.clock, self.unknown = clock, unknown
+    def __init__(self, clock: Clock, unknown: Unknown, timer: Timer | None = None) -> None:
+        self.clock, self.unknown, self.timer = clock, unknown, timer
         self.graphs: list[Graph] = []  # those with an undecided part
         self.roots: list[Root] = []  # the undecided parts
         self.unstarted: list[Root] = []
@@ -55,7 +55,7 @@ class General:
 
     def add(self, part: Formula, report: Report) -> bool:
         if not self.graphs or self.graphs[-1].ctx.pos >= 0:
-            self.graphs.append(Graph(self.clock))
+            self.graphs.append(Graph(self.clock, self.timer))
         graph = self.graphs[-1]
         root = Root(graph.node(part), graph, features(part), report, self.ended)
         self.roots.append(root)
@@ -82,6 +82,22 @@ class General:
         self.unstarted = []
         if self.ended:
             self._forget()
+
+    def advance(self, t: Time) -> None:
+        for graph in self.graphs:
+            for node in sorted(graph.ctx.ticking, key=order):
+                node.advance(t)
+        if self.ended:
+            self._forget()
+
+    def deadline(self) -> Time | None:
+        ends = [
+            end
+            for graph in self.graphs
+            for node in graph.ctx.ticking
+            if (end := node.deadline()) is not None
+        ]
+        return min(ends, default=None)
 
     def finish(self, cut: Time | None) -> None:
         for graph in self.graphs:

@@ -11,6 +11,11 @@ Every node has a `level` (leaves 0): each state ticks the nodes with open work i
 and `finish` settles the end of the stream the same way, children before parents.  A decided
 value comes with its reason, phrased by witness.py; a value returned at once is explained on
 demand (`explain`), at the same state.
+
+Between states, `advance(t)` says the stream passed t without a state: a window that ended by
+then closes (no state can fall in it any more).  A future operator with a bounded window
+says, through the graph's `timer`, by when that may be worth asking: when its first waiting
+position comes (it waits for nothing earlier, and later ones only end later).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from __future__ import annotations
 import bisect
 import operator
 from collections import deque
+from collections.abc import Callable
 from typing import Any, Protocol
 
 from ..model import FeatureKey
@@ -53,9 +59,10 @@ class Waiter(Protocol):
 class Ctx:
     """What every node of one graph sees: the current position, time and state; at the end,
     `cut`: the end of the data, past which a bounded window stays undecided (None: every
-    window closes at the last state, by the finite-trace semantics)."""
+    window closes at the last state, by the finite-trace semantics); `timer`, told the time by
+    which a waiting position's window ends (engine.Timer)."""
 
-    def __init__(self, clock: Clock) -> None:
+    def __init__(self, clock: Clock, timer: Callable[[Time], None] | None = None) -> None:
         self.pos = -1
         self.now: Time = 0
         self.values: dict[FeatureKey, Any] = {}
@@ -63,6 +70,12 @@ class Ctx:
         self.clock = clock
         self.ticking: set[Node] = set()
         self.cut: Time | None = None
+        self.timer = timer
+
+    def waits(self, t: Time, hi: Time | None) -> None:
+        """A first position waits from t, its window ending at t + hi."""
+        if self.timer is not None and hi is not None:
+            self.timer(t + hi)
 
     def cuts(self, ti: Time, hi: Time | None) -> bool:
         """At the end: whether the window of the position at ti, to ti + hi, reaches past the
@@ -90,6 +103,13 @@ class Node:
 
     def tick(self) -> None:
         pass
+
+    def advance(self, t: Time) -> None:
+        """No state until after t: what that decides (future operators)."""
+
+    def deadline(self) -> Time | None:
+        """The earliest end of a waiting position's window (None: none waits for one)."""
+        return None
 
     def finish(self) -> None:
         pass
@@ -254,6 +274,8 @@ class WindowNode(Node):
             if self.hi == 0 and v is not PENDING:
                 return v
             unknown = v is None
+        if not self.entries:
+            self.ctx.waits(t, self.hi)
         self.times.append(t)
         self.entries.append([i, t, unknown])
         self.ctx.ticking.add(self)
@@ -301,7 +323,15 @@ class WindowNode(Node):
         clock = self.ctx.clock
         return window_closed(self.text, self.child.text, ti, self.lo, self.hi, value, clock)
 
-    def _close(self, at_end: bool = False) -> None:
+    def advance(self, t: Time) -> None:
+        self._close(passed=t)
+
+    def deadline(self) -> Time | None:
+        return self.times[0] + self.hi if self.times and self.hi is not None else None
+
+    def _close(self, at_end: bool = False, passed: Time | None = None) -> None:
+        """Settle the waiting positions whose windows closed: at the current state, by
+        `passed` (no state until after it), or at the end."""
         ctx = self.ctx
         now, pos = ctx.now, ctx.pos
         oldest_open = min(self.child_open.values()) if self.child_open else None
@@ -309,7 +339,11 @@ class WindowNode(Node):
             i, ti, unknown = self.entries[0]
             hi = None if self.hi is None else ti + self.hi
             if not at_end:
-                if hi is None or hi > now or (hi == now and self.asked != pos):
+                if hi is None or (
+                    hi > passed
+                    if passed is not None
+                    else hi > now or (hi == now and self.asked != pos)
+                ):
                     break
                 if oldest_open is not None and oldest_open <= hi:
                     break
@@ -345,9 +379,27 @@ class NextNode(Node):
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         if i not in self.waiters:
+            if not self.waiting:
+                self.ctx.waits(t, self.hi)
             self.waiting.append((i, t))
             self.ctx.ticking.add(self)
         return self._wait(i, waiter, key)
+
+    def advance(self, t: Time) -> None:
+        """The next state comes after t: later than the window of a position whose window
+        ended by then."""
+        if self.hi is None:
+            return
+        late = [(i, ti) for i, ti in self.waiting if t - ti >= self.hi]
+        if late:
+            self.waiting = [w for w in self.waiting if w not in late]
+            for i, ti in late:
+                self._resolve(i, False, next_late(self.text, ti, None, self.ctx.clock))
+
+    def deadline(self) -> Time | None:
+        if self.hi is None or not self.waiting:
+            return None
+        return min(ti for _, ti in self.waiting) + self.hi
 
     def tick(self) -> None:
         now, pos = self.ctx.now, self.ctx.pos
@@ -411,13 +463,23 @@ class UntilNode(Node):
         if value is not PENDING:
             self._trim()
             return value
+        if not self.entries:
+            self.ctx.waits(t, self.hi)
         self.entries.append((i, t))
         self.ctx.ticking.add(self)
         return self._wait(i, waiter, key)
 
-    def _evaluate(self, i: int, ti: Time, at_end: bool) -> Any:
+    def advance(self, t: Time) -> None:
+        self._settle(at_end=False, passed=t)
+
+    def deadline(self) -> Time | None:
+        return self.entries[0][1] + self.hi if self.entries and self.hi is not None else None
+
+    def _evaluate(self, i: int, ti: Time, at_end: bool, passed: Time | None = None) -> Any:
         """Kleene value at i with pending and not-yet-seen positions read as unknown: final if
-        True or False, PENDING if unknown while anything it read may still change."""
+        True or False, PENDING if unknown while anything it read may still change (no state
+        comes before `passed`, when given)."""
+        now = self.ctx.now if passed is None else passed
         result: Any = False
         phi: Any = True
         open_ = False
@@ -428,7 +490,7 @@ class UntilNode(Node):
                 if at_end:  # past the data: unknown if the window reaches there
                     if self.ctx.cuts(ti, self.hi):
                         result = kleene("or", result, kleene("and", None, phi))
-                elif j <= self.ctx.pos or self.hi is None or self.ctx.now < ti + self.hi:
+                elif j <= self.ctx.pos or self.hi is None or now < ti + self.hi:
                     open_ = True
                     result = kleene("or", result, kleene("and", None, phi))
                 break
@@ -452,10 +514,10 @@ class UntilNode(Node):
         self._record(self.ctx.pos, self.ctx.now)
         self._settle(at_end=False)
 
-    def _settle(self, at_end: bool) -> None:
+    def _settle(self, at_end: bool, passed: Time | None = None) -> None:
         ctx, still = self.ctx, []
         for i, ti in self.entries:
-            value = self._evaluate(i, ti, at_end)
+            value = self._evaluate(i, ti, at_end, passed)
             if value is PENDING:
                 still.append((i, ti))
             elif at_end and value is None and ctx.cuts(ti, self.hi):

@@ -34,8 +34,9 @@ from ..errors import DkError
 from ..inputs.numbers import exact
 from ..model import FeatureKey
 from ..parse.formula import Connective, Formula, feature_key, parse_formula, quantifiers
+from ..stream.policy import END_OF_DATA
 from .compile import scaled
-from .engine import Engine, Held, Report, Stepper
+from .engine import Engine, Held, Report, Stepper, Timer
 from .fused import FusedSet
 from .general import General
 from .state import features, is_state
@@ -43,9 +44,6 @@ from .verdict import UnknownSpan, Verdict
 from .witness import Clock, Time, Why, cut_of, refuted, undecided
 
 ENGINES = ("auto", "general")
-END_OF_DATA = ("open", "finite")
-"""At the end of the data, a bounded window reaching past it stays open (undecided), or
-closes as on a finite trace."""
 
 
 def exact_time(t: Any) -> Time:
@@ -128,7 +126,9 @@ class Progressor:
     engine (the same verdicts, times and witnesses, more slowly).  `end_of_data`: "open"
     leaves a bounded window that the end of the data cuts off undecided, "finite" closes it
     (module docstring).  `origin`: when given, witnesses say times as `t+…` seconds from the
-    stream time it returns (the run's start)."""
+    stream time it returns (the run's start).  `timer`: told by when a window will have ended
+    (in the stream's times), so a caller that sees the stream pass it without a state of these
+    formulas can `advance` to it."""
 
     def __init__(
         self,
@@ -136,6 +136,7 @@ class Progressor:
         engine: str = "auto",
         end_of_data: str = "open",
         origin: Callable[[], Time | None] | None = None,
+        timer: Timer | None = None,
     ) -> None:
         if engine not in ENGINES:
             raise DkError(f"unknown engine {engine!r} ({' or '.join(ENGINES)})")
@@ -143,8 +144,8 @@ class Progressor:
             raise DkError(f"unknown end of data {end_of_data!r} ({' or '.join(END_OF_DATA)})")
         self.unit, self.end_of_data = unit, end_of_data
         self.clock = Clock(unit, origin)
-        self.fused = FusedSet(self.clock, self.note_unknown)
-        self.general = General(self.clock, self.note_unknown)
+        self.fused = FusedSet(self.clock, self.note_unknown, timer)
+        self.general = General(self.clock, self.note_unknown, timer)
         self.engines: tuple[Engine, ...] = (
             (self.fused, self.general) if engine == "auto" else (self.general,)
         )
@@ -236,6 +237,27 @@ class Progressor:
         self.stepper, self.held = self.step_state, None
         return self._decided(at_end=False)
 
+    def advance(self, time: Any) -> list[Verdict]:
+        """The stream passed `time` (after the last state) without a state of these formulas:
+        the windows that ended by then close.  Returns the verdicts that decides, at `time`;
+        the next state must come after it."""
+        t = time if type(time) is int else exact_time(time)
+        if not t > self.stepped[0]:
+            raise DkError(
+                f"time {time} is not after the previous state's time {self.stepped[1]} "
+                f"(times must increase strictly)"
+            )
+        self.stepped = (t, time)
+        self._general()
+        for engine in self.engines:
+            engine.advance(t)
+        return self._decided(at_end=False, time=time) if self.decided else []
+
+    def deadline(self) -> Time | None:
+        """By when a window a formula waits on ends (None: none waits for one)."""
+        ends = [end for e in self.engines if (end := e.deadline()) is not None]
+        return min(ends, default=None)
+
     def finish(self, end: Any = None) -> list[Verdict]:
         """End of stream: settle every undecided formula.  `end`: where the data ends, at or
         after the last state (a recording may go on without sampling what these formulas
@@ -259,7 +281,9 @@ class Progressor:
             self.pos, self.last_input = self.held()
         self.stepper, self.held = self.step_state, None
 
-    def _decided(self, at_end: bool) -> list[Verdict]:
+    def _decided(self, at_end: bool, time: Any = None) -> list[Verdict]:
+        """The decided formulas' verdicts, at the current state (or `time`, advanced to)."""
+        time = self.last_input if time is None else time
         out = []
         order = {id(m): n for n, m in enumerate(self.formulas)}
         ready = sorted(self.decided, key=lambda m: order[id(m)])
@@ -272,16 +296,14 @@ class Progressor:
             witness = pending = None
             unknown: tuple[UnknownSpan, ...] = ()
             if m.value is False and m.why is not None:
-                witness = refuted(m.why, self.last_input, self.clock)
+                witness = refuted(m.why, time, self.clock)
             elif m.value is None:
                 unknown = tuple(
                     UnknownSpan(k, s[0], s[1]) for k in m.keys for s in self.unknown.get(k, ())
                 )
                 pending = None if m.cut is None else m.cut[1].render()
                 witness = undecided(unknown, m.started, self.clock, pending)
-            out.append(
-                Verdict(m.text, m.value, self.last_input, at_end, witness, unknown, pending=pending)
-            )
+            out.append(Verdict(m.text, m.value, time, at_end, witness, unknown, pending=pending))
         return out
 
     def note_unknown(self, keys: Iterable[FeatureKey], pos: int, given: Any) -> None:
@@ -294,4 +316,4 @@ class Progressor:
                 spans.append([given, given, pos])
 
 
-__all__ = ["END_OF_DATA", "ENGINES", "Progressor"]
+__all__ = ["ENGINES", "Progressor"]
