@@ -37,7 +37,8 @@ class InstanceVerdict:
     """One instance of a quantified formula: its variables' objects (local names) and its own
     verdict, decided from the first state at which every feature it reads has a value (or
     from the start time).  `status` says it in a word: held, violated, unknown (the data left
-    it open), never observed (no state had its features), or open (not decided yet)."""
+    it open), never observed (no state had its features), or open (not decided yet).  `t`:
+    its time from the recording's start, as a verdict's."""
 
     bindings: tuple[tuple[str, str], ...]
     verdict: bool | None
@@ -46,6 +47,7 @@ class InstanceVerdict:
     status: str
     witness: str | None = None
     pending: str | None = None
+    t: float | int | None = None
 
     @property
     def name(self) -> str:
@@ -58,6 +60,7 @@ class InstanceVerdict:
             "verdict": self.verdict,
             "status": self.status,
             "time": json_time(self.time),
+            **({} if self.t is None else {"t": self.t}),
             "witness": self.witness,
         }
         if self.pending is not None:
