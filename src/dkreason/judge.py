@@ -20,7 +20,7 @@ from .expand import Binder
 from .model import FeatureKey
 from .plan import Bindings, FormulaPlan, fold
 from .progress import InstanceVerdict, UnknownSpan, Verdict
-from .progress.witness import SHOWN
+from .progress.witness import SHOWN, UNDECIDED
 from .stream.units import seconds
 
 PENDING: Any = "pending"  # an instance not settled yet: may still be anything
@@ -154,8 +154,7 @@ def _join(op: str, parts: list[Any]) -> Any:
 
 def _reason(witness: str | None) -> str:
     """What an unknown instance's witness says after its lead."""
-    text = witness or "unknown"
-    return text.split(": ", 1)[1] if text.startswith("the data left it undecided: ") else text
+    return (witness or "unknown").removeprefix(UNDECIDED)
 
 
 # ---- unknown spans as people read them ------------------------------------------------------

@@ -15,6 +15,7 @@ import heapq
 import itertools
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from fractions import Fraction
+from operator import itemgetter
 from typing import Any
 
 from .errors import DkError
@@ -54,9 +55,11 @@ class Monitor:
 
     Each instance of a formula (judge.py) is judged on its own state stream: from the first
     state at which every feature it reads has a value (a recording's warm-up is not
-    "unknown", and one silent object blinds no other; with a start time, from the first state
-    on, its atoms over features without a value unknown there), at the instants its own
-    features are sampled or change.  Instances over the same features share one progressor."""
+    "unknown", and one silent object blinds no other; with a start time, from the state made
+    at it, its atoms over features without a value unknown there), at the instants its own
+    features are sampled or change, and when the stream of its formula's features passes the
+    end of a window it waits on.  Formulas over the same features share one progressor (and
+    the instances of one quantified formula do)."""
 
     def __init__(
         self,
@@ -195,16 +198,14 @@ class Monitor:
             if u in self.waiting and all(values[k] is not None for k in self.waiting[u].keys)
         ]
         if ready:
+            read = {k for u in ready for k in self.waiting[u].keys}
             self._begin(ready)
-            for k in {k for u in ready for k in self.judged_keys(u)}:
+            for k in read:
                 left = [u for u in self.waits_on[k] if u in self.waiting]
                 if left:
                     self.waits_on[k] = left
                 else:
                     del self.waits_on[k]
-
-    def judged_keys(self, unit: Unit) -> tuple[FeatureKey, ...]:
-        return self.plan.formulas[unit[0]].instances[unit[1]].keys
 
     def _on_state(
         self, time: int, values: dict[FeatureKey, Any], fresh: tuple[FeatureKey, ...] | None = None
@@ -281,7 +282,8 @@ class Monitor:
         for n in sorted(batches) if not at_end else range(len(self.judged)):
             judged = self.judged[n]
             if n in batches or judged.said is None:
-                self.pending.extend(judged.settle(sorted(batches.get(n, ())), now, at_end))
+                batch = sorted(batches.get(n, ()), key=itemgetter(0))
+                self.pending.extend(judged.settle(batch, now, at_end))
 
     def _seconds(self, v: Verdict, last: int | None) -> Verdict:
         """A progressor's verdict in seconds, on the recording's clock (`time`) and from its
@@ -364,12 +366,9 @@ class Monitor:
             for g in self.groups.values()
             for v in g.progressor.finish(horizon)
         ]
-        for (
-            n,
-            i,
-        ), instance in self.waiting.items():  # never judged: some feature never had a value
-            name = f"{n}:{i}"
-            self.units[name] = (n, i)
+        for unit, instance in self.waiting.items():  # some feature never had a value
+            name = f"{unit[0]}:{unit[1]}"
+            self.units[name] = unit
             missing = ", ".join(str(k) for k in instance.keys if self.processor.newest(k) is None)
             settled.append(
                 (

@@ -21,6 +21,7 @@ from .verdict import UnknownSpan
 
 Time = int | Fraction
 SHOWN = 10  # spans a witness names; the rest are counted
+UNDECIDED = "the data left it undecided: "  # how an unknown verdict's witness begins
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,9 +178,7 @@ def undecided(
         said[SHOWN:] = [f"and {len(said) - SHOWN} more"]
     if pending is not None:
         said.append(pending)
-    return "the data left it undecided: " + (
-        "; ".join(said) if said else "no state was seen" if not started else ""
-    )
+    return UNDECIDED + ("; ".join(said) if said else "no state was seen" if not started else "")
 
 
 def _unknown(span: UnknownSpan, clock: Clock) -> str:
