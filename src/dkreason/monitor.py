@@ -22,6 +22,7 @@ from .errors import DkError
 from .expand import Instance
 from .judge import Judged, span_seconds, spans
 from .model import FeatureKey, StreamRequest
+from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
 from .progress.state import USE, feature_uses
@@ -58,8 +59,8 @@ class Monitor:
     "unknown", and one silent object blinds no other; with a start time, from the state made
     at it, its atoms over features without a value unknown there), at the instants its own
     features are sampled or change, and when the stream of its formula's features passes the
-    end of a window it waits on.  Formulas over the same features share one progressor (and
-    the instances of one quantified formula do)."""
+    end of a window it waits on.  Formulas over the same features share one progressor (the
+    instances of a quantified formula with bounded windows, only among themselves)."""
 
     def __init__(
         self,
@@ -137,7 +138,10 @@ class Monitor:
                 self.waits_on.setdefault(k, []).append((n, i))
 
     def _time(self, n: int, formula: FormulaPlan) -> None:
-        if formula.prefix:
+        """A quantified formula that waits on bounded windows gets timers; any other shares
+        groups with the formulas over the same features (nothing but its own states decides
+        it)."""
+        if formula.prefix and any(deadlines(i.tree) for i in formula.instances[:1]):
             self.timers.setdefault(n, [])
             for k in formula.keys:
                 if n not in self.timed.setdefault(k, []):

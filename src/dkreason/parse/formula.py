@@ -434,6 +434,21 @@ def quantifiers(formula: Formula) -> Iterator[Quant]:
         yield from quantifiers(child)
 
 
+def deadlines(formula: Formula) -> bool:
+    """Whether the formula waits on a bounded window of the future (`eventually[0, 5]`,
+    `always[0, 5]`, `next[0, 5]`, `until[0, 5]`): time passing alone may decide it."""
+    todo: list[Any] = [formula]
+    while todo:
+        n = todo.pop()
+        future = (isinstance(n, Temporal) and n.op in ("eventually", "always", "next")) or (
+            isinstance(n, Until) and n.op == "until"
+        )
+        if future and n.interval.hi is not None:
+            return True
+        todo += children(n)
+    return False
+
+
 # ---- formulas as text: each with the parentheses it needs, so a witness quotes it exactly ----
 
 # how tightly each construct binds, loosest first, as mtl.lark nests them
