@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import queue
+import re
 import shutil
 import socket
 import subprocess
@@ -12,6 +13,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
@@ -145,11 +147,25 @@ def wait_for(
 
 
 def untimed(verdict: dict[str, Any]) -> dict[str, Any]:
-    """A verdict (and its instances) without `t`, which counts from the first sample a monitor
-    saw (a live one and one of the recording may see different first samples)."""
-    out = {k: v for k, v in verdict.items() if k != "t"}
+    """A verdict (and its instances) on the recording's clock only: without `t`, and its
+    witnesses' `t+…` times as times on that clock.  `t` counts from the first message a
+    monitor saw, and a live one and one of the recording may see different first messages."""
+    timed = verdict.get("time") is not None and verdict.get("t") is not None
+    origin = Decimal(str(verdict["time"])) - Decimal(str(verdict["t"])) if timed else Decimal(0)
+
+    def clocked(said: dict[str, Any]) -> dict[str, Any]:
+        out = {k: v for k, v in said.items() if k != "t"}
+        if isinstance(out.get("witness"), str):
+            out["witness"] = re.sub(
+                r"t([+-][0-9.]+)",
+                lambda m: format((Decimal(m.group(1)) + origin).normalize(), "f"),
+                out["witness"],
+            )
+        return out
+
+    out = clocked(verdict)
     if "instances" in out:
-        out["instances"] = [{k: v for k, v in i.items() if k != "t"} for i in out["instances"]]
+        out["instances"] = [clocked(i) for i in out["instances"]]
     return out
 
 

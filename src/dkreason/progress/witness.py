@@ -34,7 +34,8 @@ class Clock:
     origin: Callable[[], Time | None] | None = None
 
     def time(self, t: Any) -> str:
-        """A time: `t+0.02` from the origin, else as the stream has it (`oo`: none)."""
+        """A time: `t+0.02` from the origin (`t-0.02` before it), else as the stream has it
+        (`oo`: none)."""
         if t is None:
             return "oo"
         origin = None if self.origin is None else self.origin()
@@ -42,7 +43,8 @@ class Clock:
             return str(t)  # as the caller gave it
         if origin is None:
             return decimal(t * self.unit)
-        return "t+" + decimal((t - origin) * self.unit)
+        since = Fraction(t - origin) * self.unit  # negative for a stamp before the start
+        return f"t{'-' if since < 0 else '+'}{decimal(abs(since))}"
 
     def at(self, t: Any) -> str:
         """A time after "at": `t+0.02 s` from the origin."""
