@@ -80,7 +80,7 @@ class Monitor:
         self.readers: dict[FeatureKey, list[_Group]] = {}
         self.always: list[_Group] = []
         # the due groups' progressors by the features a state freshly sampled (`_due`)
-        self.steps: dict[tuple[FeatureKey, ...] | None, tuple[list[Progressor], list[int]]] = {}
+        self.steps: dict[tuple[FeatureKey, ...] | None, list[Progressor]] = {}
         self.rearm: list[_Group] = []  # advanced: asked by when their next window ends
         # A quantified formula's instances are judged on their own features' states, yet the
         # stream passing a window's end without one (a state of another instance) closes it:
@@ -226,17 +226,12 @@ class Monitor:
                     self.pending.extend(judged.settle((), self._when(time)))
         elif self.waiting:
             self._ready(values, fresh)
-        cached = self.steps.get(fresh)
-        if cached is None:
+        steps = self.steps.get(fresh)
+        if steps is None:
             if len(self.steps) >= 1024:  # many features sampled in many combinations
                 self.steps.clear()
-            cached = self.steps[fresh] = self._steps(fresh)
-        steps, timed = cached
-        decided: Sequence[Verdict] = ()
-        for n in timed:
-            heap = self.timers[n]
-            if heap and heap[0][0] <= time:
-                decided = [*decided, *self._advance(heap, time, steps)]
+            steps = self.steps[fresh] = [g.progressor for g in self._due(fresh)]
+        decided: Sequence[Verdict] = self._timers(fresh, time, steps) if self.timers else ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
             if out:
@@ -250,14 +245,20 @@ class Monitor:
         if decided:
             self._settled([(v, None) for v in decided], self._when(time), at_end=False)
 
-    def _steps(self, fresh: tuple[FeatureKey, ...] | None) -> tuple[list[Progressor], list[int]]:
-        """A state's due progressors, and the quantified formulas it is a state of."""
-        timed = (
-            list(self.timers)
-            if fresh is None
-            else sorted({n for k in fresh for n in self.timed.get(k, ())})
+    def _timers(
+        self, fresh: tuple[FeatureKey, ...] | None, time: int, due: list[Progressor]
+    ) -> list[Verdict]:
+        """At a state of quantified formulas' features: their groups whose windows ended by
+        then, advanced (`_advance`)."""
+        formulas = (
+            self.timers if fresh is None else {n for k in fresh for n in self.timed.get(k, ())}
         )
-        return [g.progressor for g in self._due(fresh)], timed
+        out: list[Verdict] = []
+        for n in sorted(formulas):
+            heap = self.timers[n]
+            if heap and heap[0][0] <= time:
+                out += self._advance(heap, time, due)
+        return out
 
     def _due(self, fresh: tuple[FeatureKey, ...] | None) -> Iterable[_Group]:
         """The groups whose own state this is, in the order they began."""
