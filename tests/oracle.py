@@ -1,8 +1,10 @@
 """A deliberately simple offline evaluator of the MTL semantics (issue 5, item 2), for tests.
 
-Kleene three-valued, point-based, closed intervals, judged at position 0.  `prefix=True`
-treats the trace as a prefix of an unknown continuation (positions after it unknown), which
-is the three-valued prefix evaluation the engine must be at least as early as.
+Kleene three-valued, point-based, closed intervals, judged at position 0.  At the end of the
+trace, a bounded future window reaching past its last state is open (its unseen part unknown)
+and an unbounded one closes (finite-trace semantics); `finite=True` closes every window.
+`prefix=True` treats the trace as a prefix of an unknown continuation (positions after it
+unknown), which is the three-valued prefix evaluation the engine must be at least as early as.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from dkreason.parse.formula import (
     Interval,
     Not,
     Num,
+    Observed,
     Ref,
     Temporal,
     Unary,
@@ -69,13 +72,15 @@ def inside(d: Fraction, interval: Interval) -> bool:
     return interval.lo <= d and (interval.hi is None or d <= interval.hi)
 
 
-def holds(f: Formula, tr: Trace, i: int, prefix: bool = False) -> bool | None:
+def holds(f: Formula, tr: Trace, i: int, prefix: bool = False, finite: bool = False) -> bool | None:
     t = tr[i][0]
     if isinstance(f, BoolConst):
         return f.value
     if isinstance(f, Atom):
         value: bool | None = tr[i][1][key(f.feature)]
         return value
+    if isinstance(f, Observed):
+        return tr[i][1][key(f.feature)] is not None
     if isinstance(f, Compare):
         a, b = num(f.left, tr[i][1]), num(f.right, tr[i][1])
         if a is None or b is None:
@@ -84,9 +89,9 @@ def holds(f: Formula, tr: Trace, i: int, prefix: bool = False) -> bool | None:
             {"<": a < b, "<=": a <= b, ">": a > b, ">=": a >= b, "==": a == b, "!=": a != b}[f.op]
         )
     if isinstance(f, Not):
-        return k_not(holds(f.arg, tr, i, prefix))
+        return k_not(holds(f.arg, tr, i, prefix, finite))
     if isinstance(f, Connective):
-        a, b = holds(f.left, tr, i, prefix), holds(f.right, tr, i, prefix)
+        a, b = holds(f.left, tr, i, prefix, finite), holds(f.right, tr, i, prefix, finite)
         return {
             "and": k_and(a, b),
             "or": k_or(a, b),
@@ -96,37 +101,41 @@ def holds(f: Formula, tr: Trace, i: int, prefix: bool = False) -> bool | None:
     assert isinstance(f, Temporal | Until), f
     out: bool | None
     phi: bool | None
-    future_open = prefix and (f.interval.hi is None or tr[-1][0] < t + f.interval.hi)
+    hi = f.interval.hi
+    past_the_end = hi is not None and tr[-1][0] < t + hi
+    future_open = (prefix and (hi is None or past_the_end)) or (
+        not prefix and not finite and past_the_end
+    )
     if isinstance(f, Temporal) and f.op in ("eventually", "always"):
         out = f.op == "always"
         for j in range(i, len(tr)):
             if inside(tr[j][0] - t, f.interval):
-                v = holds(f.arg, tr, j, prefix)
+                v = holds(f.arg, tr, j, prefix, finite)
                 out = k_and(out, v) if f.op == "always" else k_or(out, v)
         return (k_and if f.op == "always" else k_or)(out, None) if future_open else out
     if isinstance(f, Temporal) and f.op == "next":
         if i + 1 < len(tr):
             gap = tr[i + 1][0] - t
-            return holds(f.arg, tr, i + 1, prefix) if inside(gap, f.interval) else False
-        return None if prefix else False
+            return holds(f.arg, tr, i + 1, prefix, finite) if inside(gap, f.interval) else False
+        return None if prefix or future_open else False
     if isinstance(f, Temporal) and f.op in ("once", "historically"):
         out = f.op == "historically"
         for j in range(i + 1):
             if inside(t - tr[j][0], f.interval):
-                v = holds(f.arg, tr, j, prefix)
+                v = holds(f.arg, tr, j, prefix, finite)
                 out = k_and(out, v) if f.op == "historically" else k_or(out, v)
         return out
     if isinstance(f, Temporal) and f.op == "previous":
         if i == 0 or not inside(t - tr[i - 1][0], f.interval):
             return False
-        return holds(f.arg, tr, i - 1, prefix)
+        return holds(f.arg, tr, i - 1, prefix, finite)
     if isinstance(f, Until) and f.op == "until":
         out = False
         phi = True
         for j in range(i, len(tr)):
             if inside(tr[j][0] - t, f.interval):
-                out = k_or(out, k_and(holds(f.right, tr, j, prefix), phi))
-            phi = k_and(phi, holds(f.left, tr, j, prefix))
+                out = k_or(out, k_and(holds(f.right, tr, j, prefix, finite), phi))
+            phi = k_and(phi, holds(f.left, tr, j, prefix, finite))
         return k_or(out, k_and(None, phi)) if future_open else out
     if isinstance(f, Until) and f.op == "since":
         out = False
@@ -134,7 +143,7 @@ def holds(f: Formula, tr: Trace, i: int, prefix: bool = False) -> bool | None:
             if inside(t - tr[j][0], f.interval):
                 phi = True
                 for k in range(j + 1, i + 1):
-                    phi = k_and(phi, holds(f.left, tr, k, prefix))
-                out = k_or(out, k_and(holds(f.right, tr, j, prefix), phi))
+                    phi = k_and(phi, holds(f.left, tr, k, prefix, finite))
+                out = k_or(out, k_and(holds(f.right, tr, j, prefix, finite), phi))
         return out
     raise TypeError(f)

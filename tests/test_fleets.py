@@ -84,11 +84,18 @@ def test_each_robot_is_judged_on_its_own_data(
         "forall r in Robot: always (X[r] < 9.5)",
         "always (X[turtle2] < 9.5)",
     )
-    every, turtle2 = [json.loads(line) for line in out.splitlines()]
+    every, update, turtle2 = [json.loads(line) for line in out.splitlines()]
     assert code == 1
     assert every["verdict"] is False and every["t"] == 19.9
     assert "X[turtle1] = 9.50189971923828" in every["witness"]
     assert turtle2["verdict"] is True
+    # the robots judged one by one: turtle1 violated, turtle2 held (said once it settled)
+    assert update["update"] and [
+        (i["bindings"]["r"], i["status"]) for i in update["instances"]
+    ] == [
+        ("turtle1", "violated"),
+        ("turtle2", "held"),
+    ]
 
 
 # ---- bare names (item 10) -------------------------------------------------------------------

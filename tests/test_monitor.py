@@ -114,12 +114,34 @@ def test_traffic_example_federation_finds_car2s_violation_from_platform_2(
         TRAFFIC,
         extra=["--delay", "0.1", "--plot", str(plot)],
     )
-    (verdict,) = [line for line in lines if "verdict" in line]
+    verdict, update = [line for line in lines if "verdict" in line]
     assert code == 1 and verdict["verdict"] is False and verdict["time"] == 300.02
-    # judged from 0.02 s, the first state with every car's speed (car3's comes last)
-    assert "Speed[car2] <= 60 never held within [0.02, 300.02]" in verdict["witness"]
+    # car2's instance is judged from 0.01 s, its first speed; its window closes when the
+    # formula's stream passes 300.01 s (car3's speed at 300.02 s)
+    assert verdict["witness"] == (
+        "c = car2 violated at t+300.02 s: Speed[car2] > 60 held at t+0.01 s, but "
+        "Speed[car2] <= 60 never held within [t+0.01, t+300.01]"
+    )
+    assert [(i["bindings"], i["status"]) for i in verdict["instances"]] == [
+        ({"c": "car1"}, "open"),
+        ({"c": "car2"}, "violated"),
+        ({"c": "car3"}, "open"),
+    ]
+    # the verdict stands; the instances open at it settle by the end
+    assert update["update"] and (update["verdict"], update["time"]) == (False, 300.02)
+    assert [(i["status"], i["time"]) for i in update["instances"]] == [
+        ("held", 359),
+        ("violated", 300.02),
+        ("held", 359.02),
+    ]
     assert not [line for line in lines if "violation" in line]
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+PENDING = (
+    "eventually[0, 300] Speed[car2] <= 60: window [t+60.01, t+360.01] cut off at the end of the "
+    "data, 299.06 s of 300 s seen"
+)
 
 
 def test_traffic_example_single_platform_does_not_claim_what_it_did_not_see(
@@ -130,8 +152,18 @@ def test_traffic_example_single_platform_does_not_claim_what_it_did_not_see(
     )
     (verdict,) = [line for line in lines if "verdict" in line]
     assert code == 3 and verdict["verdict"] is None and verdict["at_end"] is True
-    spans = [u for u in verdict["unknown"] if u["feature"] == "Speed[car2]"]
-    assert {"feature": "Speed[car2]", "from": 204.010000001, "to": 359.02} in spans
+    # car2 leaves platform 1's region after its speed at 199.01 s: silent from there to the
+    # end of the recording, said once
+    assert verdict["unknown"] == [
+        {"feature": "Speed[car2]", "from": 199.01, "to": 359.07, "silent": True}
+    ]
+    assert verdict["witness"] == (
+        "the data left it undecided for c = car2: Speed[car2] silent from t+199.01 s "
+        f"(160.06 s before the end); {PENDING}"
+    )
+    assert [i["status"] for i in verdict["instances"]] == ["held", "unknown", "held"]
+    (car2,) = [i for i in verdict["instances"] if i["status"] == "unknown"]
+    assert car2["pending"] == PENDING
 
 
 Row = tuple[str, float, dict[str, Any], float | None]  # topic, valid time, msg, available
@@ -482,7 +514,10 @@ def test_each_formula_is_parsed_once_and_expanded_once_from_the_cli_to_its_verdi
         "always (Position[car2] >= 0)",
         extra=["--delay", "0.1"],
     )
-    assert code == 1 and [v["verdict"] for v in lines if "verdict" in v] == [False, True]
+    assert code == 1 and [v["verdict"] for v in lines if "verdict" in v and "update" not in v] == [
+        False,
+        True,
+    ]
     assert counts == {"parse": 2, "expand": 2}
 
 
@@ -494,7 +529,10 @@ def test_the_public_api_monitors_a_recording(traffic: Path) -> None:
         km.monitor(TRAFFIC, traffic, StreamPolicy(delay_before_approximation=Fraction(1, 10)))
     )
     verdicts = [e for e in events if isinstance(e, Verdict)]
-    assert [(v.verdict, v.time) for v in verdicts] == [(False, 300.02)]
+    assert [(v.verdict, v.time, v.update) for v in verdicts] == [
+        (False, 300.02, False),
+        (False, 300.02, True),
+    ]
     assert "Speed[car2]" in str(verdicts[0].witness)
     assert all(isinstance(e, Verdict | Violation) for e in events)
 
@@ -541,9 +579,12 @@ def test_a_formulas_verdict_alone_equals_its_verdict_beside_others(
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
+        # every car is seen first at 0: witnesses count `t+` from the first sample the
+        # formulas read, the same whatever runs beside (until `t` counts from the recording)
+        first = [(car, 0, 50.0) for car in (1, 2, 3)]
         rows: list[Row] = [
             (f"topic{car + 2}", tick / 10, {"id": car, "spd": speed}, None)
-            for car, tick, speed in sorted(set(samples), key=lambda r: r[1])
+            for car, tick, speed in sorted(first + sorted(set(samples)), key=lambda r: r[1])
         ]
         source = messages(Path(tmp), rows)
         policy = StreamPolicy(max_age=Fraction(2))

@@ -3,21 +3,32 @@
 from __future__ import annotations
 
 from fractions import Fraction
+from typing import Any
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dkreason.errors import ParseError
+from dkreason.model import FeatureRef
 from dkreason.parse.formula import (
+    Arith,
     Atom,
     Compare,
     Connective,
     Interval,
     Not,
+    Num,
     Quant,
+    Ref,
+    Str,
     Temporal,
+    Unary,
     Until,
+    children,
     features,
     parse_formula,
+    unparse,
 )
 
 from .conftest import formulas
@@ -98,3 +109,96 @@ def test_syntax_errors_point_into_the_formula(text: str, column: int, says: str)
     with pytest.raises(ParseError) as err:
         parse_formula(text)
     assert err.value.span.column == column and says in str(err.value)
+
+
+# ---- formulas as text: what a witness quotes parses back to the same tree ---------------------
+
+leaves = st.sampled_from(["X[a]", "Y", "Z[a, b]", "3", "1.5", "0.25", "2e-3"])
+
+
+@st.composite
+def exprs(draw: st.DrawFn, depth: int = 3) -> str:
+    if depth == 0 or draw(st.integers(0, 2)) == 0:
+        return draw(leaves)
+    kind = draw(st.sampled_from(["+", "-", "*", "/", "neg", "abs"]))
+    if kind == "neg":
+        return f"-{draw(exprs(depth - 1))}"
+    if kind == "abs":
+        return f"abs({draw(exprs(depth - 1))})"
+    text = f"{draw(exprs(depth - 1))} {kind} {draw(exprs(depth - 1))}"
+    return f"({text})" if draw(st.booleans()) else text
+
+
+windows = st.one_of(
+    st.just(""),
+    st.tuples(st.integers(0, 3), st.sampled_from(["", "ms", "min"]), st.integers(0, 4)).map(
+        lambda p: f"[{p[0]}{p[1]}, {p[0] + p[2]}{p[1]}]"
+    ),
+    st.just("[0.5, oo]"),
+)
+
+
+@st.composite
+def texts(draw: st.DrawFn, depth: int = 3) -> str:
+    if depth == 0 or draw(st.integers(0, 3)) == 0:
+        return draw(
+            st.one_of(
+                st.sampled_from(["P", "true", "false", 'S[a] == "o\\"k"', "observed(X[a])"]),
+                st.tuples(
+                    exprs(2), st.sampled_from(["<", "<=", ">", ">=", "==", "!="]), exprs(2)
+                ).map(" ".join),
+            )
+        )
+    kind = draw(st.sampled_from(["not", "prefix", "binary", "until", "quant"]))
+    sub = draw(texts(depth - 1))
+    if kind == "not":
+        return f"not ({sub})" if draw(st.booleans()) else f"not {sub}"
+    if kind == "prefix":
+        op = draw(st.sampled_from(["always", "eventually", "next", "once", "historically"]))
+        return f"{op}{draw(windows)} ({sub})"
+    if kind == "quant":
+        return f"(forall x in S: {sub})"
+    other = draw(texts(depth - 1))
+    if kind == "until":
+        return f"({sub}) {draw(st.sampled_from(['until', 'since']))}{draw(windows)} ({other})"
+    op = draw(st.sampled_from(["and", "or", "->", "<->"]))
+    return f"({sub} {op} {other})" if draw(st.booleans()) else f"({sub}) {op} ({other})"
+
+
+def subtrees(node: Any) -> list[Any]:
+    return [node, *(s for child in children(node) for s in subtrees(child))]
+
+
+@settings(max_examples=400, deadline=None)
+@given(texts())
+def test_a_quoted_subformula_parses_back_to_the_same_tree(text: str) -> None:
+    """Every subformula and subexpression of a parsed formula, as witnesses quote it."""
+    for sub in subtrees(parse_formula(text)):
+        if isinstance(sub, Num | Ref | Arith | Unary | Str):  # an expression: compared
+            assert parse_formula(f"{unparse(sub)} > 0") == Compare(">", sub, Num(0))
+        else:
+            assert parse_formula(unparse(sub)) == sub, unparse(sub)
+
+
+def test_quotes_have_the_parentheses_they_need_and_no_more() -> None:
+    said = {
+        "(X[t1] - X[t2]) * (X[t1] - X[t2]) + Y > 0.25": (
+            "(X[t1] - X[t2]) * (X[t1] - X[t2]) + Y > 0.25"
+        ),
+        "always ((P -> eventually[0, 250ms] (Q)) and not (X > 2))": (
+            "always ((P -> eventually[0, 0.25] Q) and not (X > 2))"
+        ),
+        "a - (b - c) > 1 and (a - b) - c > 1": "a - (b - c) > 1 and a - b - c > 1",
+        "A -> (B -> C)": "A -> B -> C",
+        "(A -> B) -> C": "(A -> B) -> C",
+    }
+    assert {text: unparse(parse_formula(text)) for text in said} == said
+
+
+def test_a_name_before_a_minus_is_a_feature_not_a_quantified_sort() -> None:
+    """`Y - 1`: after a bare name a minus may be a subtraction or (after `forall x in S`
+    without its colon) a formula's unary minus; both read alike."""
+    assert parse_formula("Y - 1 > 0") == Compare(
+        ">", Arith("-", Ref(FeatureRef("Y", ())), Num(1)), Num(0)
+    )
+    assert unparse(parse_formula("forall x in S -X[x] > 1")) == "forall x in S: -X[x] > 1"

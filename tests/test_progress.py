@@ -73,9 +73,9 @@ def traces(draw: st.DrawFn) -> Trace:
     return out
 
 
-def run(formula: str, trace: Trace) -> tuple[bool | None, int | None]:
+def run(formula: str, trace: Trace, end_of_data: str = "open") -> tuple[bool | None, int | None]:
     """(verdict, index of the deciding state or None if settled by finish)."""
-    p = Progressor()
+    p = Progressor(end_of_data=end_of_data)
     p.add(formula)
     for k, (t, values) in enumerate(trace):
         for v in p.step(t, values):
@@ -91,6 +91,15 @@ def run(formula: str, trace: Trace) -> tuple[bool | None, int | None]:
 def test_verdicts_equal_the_offline_semantics(formula: str, trace: Trace) -> None:
     verdict, _ = run(formula, trace)
     assert verdict == holds(parse_formula(formula), trace, 0)
+
+
+@SETTINGS
+@given(formulas(), traces())
+def test_finite_end_of_data_verdicts_equal_the_finite_trace_semantics(
+    formula: str, trace: Trace
+) -> None:
+    verdict, _ = run(formula, trace, "finite")
+    assert verdict == holds(parse_formula(formula), trace, 0, finite=True)
 
 
 @SETTINGS
@@ -163,19 +172,58 @@ def test_response_formula_decides_at_the_state_that_closes_the_window() -> None:
     assert "Speed[car1] <= 60 never held within [100, 400]" in str(verdict.witness)
 
 
-def test_end_of_stream_semantics() -> None:
+END = ("eventually Q", "next P", "always P", "P until Q", "always[0, 100] P", "eventually[0, 5] Q")
+
+
+def test_at_the_end_of_the_data_a_cut_window_is_undecided_and_unbounded_operators_close() -> None:
     p = Progressor()
-    for f in ("eventually Q", "next P", "always P", "P until Q", "always[0, 100] P"):
+    for f in END:
         p.add(f)
     assert p.step(0, {"P": True, "Q": False}) == []
-    got = {v.formula: (v.verdict, v.at_end) for v in p.finish()}
+    got = {v.formula: (v.verdict, v.at_end, v.pending) for v in p.finish(Fraction(39, 10))}
+    assert got == {
+        "eventually Q": (False, True, None),
+        "next P": (False, True, None),
+        "always P": (True, True, None),
+        "P until Q": (False, True, None),
+        "always[0, 100] P": (
+            None,
+            True,
+            "always[0, 100] P: window [0, 100] cut off at the end of the data, 3.9 s of 100 s seen",
+        ),
+        "eventually[0, 5] Q": (
+            None,
+            True,
+            "eventually[0, 5] Q: window [0, 5] cut off at the end of the data, 3.9 s of 5 s seen",
+        ),
+    }
+
+
+def test_finite_end_of_data_closes_every_window_at_the_last_state() -> None:
+    p = Progressor(end_of_data="finite")
+    for f in END:
+        p.add(f)
+    assert p.step(0, {"P": True, "Q": False}) == []
+    got = {v.formula: (v.verdict, v.at_end) for v in p.finish(Fraction(39, 10))}
     assert got == {
         "eventually Q": (False, True),
         "next P": (False, True),
         "always P": (True, True),
         "P until Q": (False, True),
         "always[0, 100] P": (True, True),
+        "eventually[0, 5] Q": (False, True),
     }
+
+
+def test_a_window_the_data_passed_closes_even_without_a_state_in_it() -> None:
+    """The end of the data may come after the last state (the recording went on without
+    sampling these features): a window it passed is decided."""
+    p = Progressor()
+    p.add("eventually[0, 5] Q")
+    p.add("eventually[0, 50] Q")
+    assert p.step(0, {"Q": False}) == []
+    got = {v.formula: (v.verdict, v.at_end) for v in p.finish(end=10)}
+    assert got == {"eventually[0, 5] Q": (False, True), "eventually[0, 50] Q": (None, True)}
 
 
 def test_times_and_units_are_exact() -> None:
@@ -319,11 +367,13 @@ def judged_alone_and_together(batch: list[str], trace: Trace) -> None:
 
 
 def test_times_print_as_exact_decimals_never_as_fractions() -> None:
-    from dkreason.progress.witness import fmt
+    from dkreason.progress.witness import Clock
 
-    assert fmt(Fraction(279258777611209011, 200000000)) == "1396293888.056045055"
-    assert fmt(1779999999970000029, Fraction(1, 10**9)) == "1779999999.970000029"
-    assert fmt(Fraction(1, 10)) == "0.1" and fmt(Fraction(1, 3)) == "1/3"
+    assert Clock().time(Fraction(279258777611209011, 200000000)) == "1396293888.056045055"
+    assert Clock(Fraction(1, 10**9)).time(1779999999970000029) == "1779999999.970000029"
+    assert Clock().time(Fraction(1, 10)) == "0.1" and Clock().time(Fraction(1, 3)) == "1/3"
+    from_start = Clock(Fraction(1, 10**9), lambda: 1779999999000000000)
+    assert from_start.at(1779999999970000029) == "t+0.970000029 s"
 
 
 def test_thresholds_sharing_a_feature_report_when_it_was_unknown() -> None:
@@ -375,25 +425,78 @@ batches = st.lists(
 ).map(lambda picks: [f for pick in picks for f in ([pick] if isinstance(pick, str) else pick)])
 
 
-def engine_run(engine: str, batch: list[str], trace: Trace) -> list[tuple[int | None, Any]]:
-    """Every verdict of a batch judged together, with the index of the state that gave it."""
-    p = Progressor(engine=engine)
+def engine_run(
+    engine: str,
+    batch: list[str],
+    trace: Trace,
+    end_of_data: str = "open",
+    end: int = 0,
+    passes: list[bool] | None = None,
+) -> list[tuple[int | None, Any]]:
+    """Every verdict of a batch judged together, with the index of the state that gave it;
+    with `passes`, the stream also passes the middle of the k-th gap between states (after
+    the last state: half a second after it) without a state when passes[k]."""
+    p = Progressor(engine=engine, end_of_data=end_of_data)
     for f in batch:
         p.add(f)
     out: list[tuple[int | None, Any]] = []
     for k, (t, values) in enumerate(trace):
         out += [(k, v) for v in p.step(t, values)]
-    return out + [(None, v) for v in p.finish()]
+        if passes and k < len(passes) and passes[k]:
+            gap = trace[k + 1][0] - t if k + 1 < len(trace) else Fraction(1)
+            out += [(k, v) for v in p.advance(t + gap / 2)]
+    return out + [(None, v) for v in p.finish(trace[-1][0] + end)]
 
 
 @SETTINGS
-@given(batches.filter(bool), traces())
+@given(
+    batches.filter(bool),
+    traces(),
+    st.sampled_from(["open", "finite"]),
+    st.sampled_from([0, 0, 1, 3]),
+    st.lists(st.booleans(), max_size=7),
+)
 def test_both_engines_give_the_same_verdict_time_and_witness(
-    batch: list[str], trace: Trace
+    batch: list[str], trace: Trace, end_of_data: str, end: int, passes: list[bool]
 ) -> None:
-    """What the fused monitors decide, the general engine decides at the same state with the
-    same witness (and the same unknown spans), alone or beside other formulas."""
-    assert engine_run("auto", batch, trace) == engine_run("general", batch, trace)
+    """What the fused monitors decide, the general engine decides at the same state (or
+    the same time the stream passed without a state) with the same witness (and the same
+    unknown spans, and the same window left open where the data ends, at or after the last
+    state), alone or beside other formulas."""
+    assert engine_run("auto", batch, trace, end_of_data, end, passes) == engine_run(
+        "general", batch, trace, end_of_data, end, passes
+    )
+
+
+@SETTINGS
+@given(formulas(), traces(), st.lists(st.booleans(), max_size=7))
+def test_a_stream_passing_a_window_without_a_state_decides_it_and_the_same_way(
+    formula: str, trace: Trace, passes: list[bool]
+) -> None:
+    """Time passing without a state closes the windows that ended by then: the verdict is
+    the one the states give, decided no later than without it."""
+    (verdict,) = [v for _, v in engine_run("auto", [formula], trace, passes=passes)]
+    assert verdict.verdict == holds(parse_formula(formula), trace, 0)
+    (alone,) = [(k, v) for k, v in engine_run("auto", [formula], trace)]
+    if alone[0] is not None:
+        k = next(k for k, v in engine_run("auto", [formula], trace, passes=passes))
+        assert k is not None and k <= alone[0]
+
+
+def test_a_window_closes_when_the_stream_passes_its_end() -> None:
+    """A response's window [1, 3] ends between the states at 2 and 5: the stream passing 4
+    without one decides it, there."""
+    for engine in ("auto", "general"):
+        p = Progressor(engine=engine)
+        p.add("always (P -> eventually[0, 2] Q)")
+        assert p.step(1, {"P": True, "Q": False}) == p.step(2, {"P": False, "Q": False}) == []
+        assert p.deadline() == 3
+        (v,) = p.advance(4)
+        assert (v.verdict, v.time, v.witness) == (
+            False,
+            4,
+            "violated at 4: P held at 1, but Q never held within [1, 3]",
+        )
 
 
 def test_the_general_engine_can_be_forced() -> None:
@@ -417,12 +520,12 @@ def test_an_unknown_engine_is_a_one_line_error() -> None:
         (
             "always (X > 1)",
             [(0, {"X": 0})],
-            "always (X > 1) is false at 0, because X > 1 was false at 0 (X = 0)",
+            "violated at 0: X > 1 was false at 0 (X = 0)",
         ),
         (
             "always (X > 1) and always (X > 0)",
             [(0, {"X": 2}), (1, {"X": 0})],
-            "always (X > 1) and always (X > 0) is false at 0, because X > 1 was false at 1 (X = 0)",
+            "violated at 1: X > 1 was false at 1 (X = 0)",
         ),
         (
             "always (P -> eventually[0, 2] Q)",
@@ -431,27 +534,30 @@ def test_an_unknown_engine_is_a_one_line_error() -> None:
                 (1, {"P": True, "Q": False}),
                 (3, {"P": False, "Q": False}),
             ],
-            "always (P -> eventually[0, 2] Q) is false at 0, because P held at 1, but Q never "
-            "held within [1, 3]",
+            "violated at 3: P held at 1, but Q never held within [1, 3]",
         ),
         (
             "always eventually[0, 1] Q",
             [(0, {"Q": False}), (1, {"Q": False})],
-            "always eventually[0, 1] Q is false at 0, because eventually[0, 1] (Q) is false at "
-            "0, because Q never held within [0, 1]",
+            "violated at 1: eventually[0, 1] Q is false at 0, because Q never held within [0, 1]",
         ),
         (
             "always not always[0, 1] P",
             [(0, {"P": True}), (2, {"P": True})],
-            "always not always[0, 1] P is false at 0, because always[0, 1] (P) is true at 0, "
-            "because P held throughout [0, 1]",
+            "violated at 2: always[0, 1] P is true at 0, because P held throughout [0, 1]",
+        ),
+        (
+            "always ((X - Y) * (X - Y) > 0.25)",
+            [(0, {"X": 1, "Y": 0}), (1, {"X": 1, "Y": 1})],
+            "violated at 1: (X - Y) * (X - Y) > 0.25 was false at 1 (X = 1, Y = 1)",
         ),
     ],
 )
-def test_witnesses_name_the_formula_its_start_and_what_decided_it(
+def test_witnesses_lead_with_the_decision_and_quote_the_formula_exactly(
     engine: str, formula: str, trace: list[tuple[int, dict[str, Any]]], witness: str
 ) -> None:
-    """The leftmost failing part of a conjunction; a response's trigger and its window."""
+    """When it was decided, then why: the leftmost failing part of a conjunction, a response's
+    trigger and its window, each subformula quoted with the parentheses it needs."""
     p = Progressor(engine=engine)
     p.add(formula)
     (verdict,) = [v for t, values in trace for v in p.step(t, values)]

@@ -133,3 +133,19 @@ def test_states_may_hold_strings_and_types_are_checked_against_their_use(
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1
     assert "s.jsonl:1: Mode[a] is a string ('AUTO'), but a formula uses it as a number" in err
+
+
+def test_a_window_the_state_file_ends_in_is_pending_unless_the_end_is_finite(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    states = tmp_path / "s.jsonl"
+    states.write_text('{"time": 0, "values": {"P": false}}\n{"time": 3, "values": {"P": false}}\n')
+    formula = "eventually[0, 5] P"
+    code, (open_,) = run(capsys, "progress", "--states", str(states), "--json", formula)
+    assert code == 3 and open_["verdict"] is None
+    assert open_["pending"] == (
+        "eventually[0, 5] P: window [0, 5] cut off at the end of the data, 3 s of 5 s seen"
+    )
+    argv = ["progress", "--states", str(states), "--json", "--end-of-data", "finite", formula]
+    code, (finite,) = run(capsys, *argv)
+    assert code == 1 and (finite["verdict"], finite["at_end"]) == (False, True)

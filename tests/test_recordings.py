@@ -725,7 +725,8 @@ def test_start_and_end_may_count_from_the_recordings_start(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
     """On an epoch clock `--start 50` would drop everything; `+0.25` means 0.25 s after the
-    recording's start (its first record, 20 ms after the first stamp)."""
+    recording's start (its first record, 20 ms after the first stamp), where the formula is
+    judged from: X, sampled at 10 Hz, has no value there yet."""
     rec = stamped_bag(tmp_path / "real.mcap", 1_780_000_000.0, 1_780_000_000 * S)
     args = [
         "--config",
@@ -733,7 +734,7 @@ def test_start_and_end_may_count_from_the_recordings_start(
         "--source",
         str(rec),
         "--json",
-        "always (X[me] > 0)",
+        "always (observed(X[me]) -> X[me] > 0)",
     ]
     assert main(["monitor", "--start", "+0.25", "--end", "+1", *args]) == 0
     (verdict,) = [

@@ -168,7 +168,7 @@ def monitor_run(job: Job, run: Run) -> Outcome:
         monitored = MonitorRun(Monitor(job.plan, lambda _: job.request, job.policy), source)
         try:
             for event in monitored.events(tick):
-                if isinstance(event, Verdict):
+                if isinstance(event, Verdict):  # an update names more instances settled
                     decided[event.formula] = event
                 else:
                     violations[event.constraint] += 1
@@ -204,7 +204,7 @@ def rows(batch_id: str, run: Run, digest: str, outcome: Outcome) -> list[Row]:
                 since,
                 time_,
                 None if v is None else v.witness,
-                None,
+                None if v is None else _instances(v),
                 None,
                 json.dumps(dict(outcome.violations)),
                 outcome.messages,
@@ -213,6 +213,13 @@ def rows(batch_id: str, run: Run, digest: str, outcome: Outcome) -> list[Row]:
             )
         )
     return out
+
+
+def _instances(v: Verdict) -> str | None:
+    """A quantified formula's instances (JSON), as `monitor --json` gives them."""
+    if v.instances is None:
+        return None
+    return json.dumps([i.to_json() for i in v.instances], ensure_ascii=False)
 
 
 def died(batch_id: str, run: Run, digest: str, job: Job, why: str) -> list[Row]:

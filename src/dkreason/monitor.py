@@ -10,21 +10,27 @@ federation (which feeds it samples and re-matches it as platforms come and go), 
 from __future__ import annotations
 
 import dataclasses
+import functools
+import heapq
+import itertools
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from fractions import Fraction
-from typing import TYPE_CHECKING, Any
+from operator import itemgetter
+from typing import Any
 
 from .errors import DkError
+from .expand import Instance
+from .judge import Judged, span_seconds, spans
 from .model import FeatureKey, StreamRequest
+from .parse.formula import deadlines
+from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
 from .progress.state import USE, feature_uses
+from .progress.witness import Clock, Time, undecided
 from .stream.policy import StreamPolicy
 from .stream.processor import StreamProcessor, Violation
 from .stream.sources import Source
 from .stream.units import NS, seconds
-
-if TYPE_CHECKING:
-    from .plan import FormulaPlan, Plan
 
 Event = Verdict | Violation
 WORDS: dict[bool | None, str] = {True: "held", False: "violated", None: "unknown"}
@@ -32,16 +38,29 @@ WORDS: dict[bool | None, str] = {True: "held", False: "violated", None: "unknown
 
 
 class _Group:
-    """The formulas over one set of features, and the state stream they are judged on."""
+    """The instances over one set of features, and the state stream they are judged on:
+    formulas' (sharing it when they read the same features), or one quantified formula's."""
 
-    def __init__(self, keys: frozenset[FeatureKey]) -> None:
-        self.keys = keys
-        self.progressor = Progressor(unit=Fraction(1, NS))
+    def __init__(self, keys: frozenset[FeatureKey], formula: int | None) -> None:
+        self.keys, self.formula = keys, formula
+        self.progressor: Progressor
+
+
+Unit = tuple[int, int]  # an instance being judged: (formula, instance) in the plan
+Timers = list[tuple[Time, int, _Group]]  # a heap: (deadline in ns, ticket, group)
 
 
 class Monitor:
     """A plan (formulas parsed, checked and expanded once) and the match that binds it to
-    streams (asked again by `rematch` when the knowledge changes); states in, verdicts out."""
+    streams (asked again by `rematch` when the knowledge changes); states in, verdicts out.
+
+    Each instance of a formula (judge.py) is judged on its own state stream: from the first
+    state at which every feature it reads has a value (a recording's warm-up is not
+    "unknown", and one silent object blinds no other; with a start time, from the state made
+    at it, its atoms over features without a value unknown there), at the instants its own
+    features are sampled or change, and when the stream of its formula's features passes the
+    end of a window it waits on.  Formulas over the same features share one progressor (the
+    instances of a quantified formula with bounded windows, only among themselves)."""
 
     def __init__(
         self,
@@ -53,11 +72,7 @@ class Monitor:
     ) -> None:
         self.plan, self.match, self.policy, self.keep_states = plan, match, policy, keep_states
         self.request = match(plan)
-        # A formula is judged on its own state stream: from the first state in which every
-        # feature it reads has a value (a recording's warm-up is not "unknown"; with a start
-        # time, from the first state on), at the instants its own features are sampled or
-        # change.  Formulas over the same features share one progressor.
-        self.order = {f.text: n for n, f in enumerate(self.plan.formulas)}
+        self.judged = [Judged(f) for f in plan.formulas]
         self.groups: dict[frozenset[FeatureKey], _Group] = {}
         # A state is a group's own when one of its features was sampled or went stale at it
         # (every state with a sample period, and for a group reading no feature): the groups
@@ -66,18 +81,35 @@ class Monitor:
         self.always: list[_Group] = []
         # the due groups' progressors by the features a state freshly sampled (`_due`)
         self.steps: dict[tuple[FeatureKey, ...] | None, list[Progressor]] = {}
-        self.waiting = list(self.plan.formulas)
+        self.rearm: list[_Group] = []  # advanced: asked by when their next window ends
+        # A quantified formula's instances are judged on their own features' states, yet the
+        # stream passing a window's end without one (a state of another instance) closes it:
+        # its instances' groups say by when (`timers`, per formula), and are advanced to
+        # states of the formula's features that are not theirs.
+        self.timers: dict[int, Timers] = {}
+        self.timed: dict[FeatureKey, list[int]] = {}  # feature → the quantified formulas reading it
+        self.tickets = itertools.count()
+        self.units: dict[str, Unit] = {}  # an instance's name in its progressor → its unit
+        self.waiting: dict[Unit, Instance] = {}  # not begun: some feature had no value yet
+        self.waits_on: dict[FeatureKey, list[Unit]] = {}  # the waiting units reading each
+        for n, f in enumerate(plan.formulas):
+            self._wait(n, range(len(f.instances)), f.instances)
+            self._time(n, f)
         if policy.start_time is not None:
-            self._begin(self.waiting)
+            self._begin(list(self.waiting))
+        self.seen = False  # a state was made
         self.states: list[tuple[int, dict[FeatureKey, Any]]] = []
         self.pending: list[Event] = []
-        self.decided = 0
         self.processor: StreamProcessor | None = None
+
+    def origin(self) -> int | None:
+        """The start of the recording(s) (ns; None until known): `t` and `t+` count from it."""
+        return None if self.processor is None else self.processor.origin
 
     def start(self, source: Source) -> StreamProcessor:
         """The stream processor over `source`, states going to the progressor; each feature's
         use in the formulas is checked against its fields' types before any message."""
-        used = feature_uses((f.text, f.tree) for f in self.plan.formulas)
+        used = self._uses()
         self.processor = StreamProcessor(
             self.request,
             self.policy,
@@ -96,43 +128,137 @@ class Monitor:
                     )
         return self.processor
 
-    def _begin(self, formulas: list[FormulaPlan]) -> None:
-        for f in formulas:
-            keys = frozenset(f.keys)
-            group = self.groups.get(keys)
+    def _uses(self) -> dict[FeatureKey, tuple[str, str]]:
+        return feature_uses((f.text, i.tree) for f in self.plan.formulas for i in f.instances)
+
+    def _wait(self, n: int, indices: Iterable[int], instances: Sequence[Instance]) -> None:
+        for i, instance in zip(indices, instances, strict=True):
+            self.waiting[(n, i)] = instance
+            for k in instance.keys:
+                self.waits_on.setdefault(k, []).append((n, i))
+
+    def _time(self, n: int, formula: FormulaPlan) -> None:
+        """A quantified formula that waits on bounded windows gets timers; any other shares
+        groups with the formulas over the same features (nothing but its own states decides
+        it)."""
+        if formula.prefix and any(deadlines(i.tree) for i in formula.instances[:1]):
+            self.timers.setdefault(n, [])
+            for k in formula.keys:
+                if n not in self.timed.setdefault(k, []):
+                    self.timed[k].append(n)
+
+    def _begin(self, units: list[Unit]) -> None:
+        for unit in sorted(units):
+            instance = self.waiting.pop(unit)
+            keys = frozenset(instance.keys)
+            quantified = unit[0] if unit[0] in self.timers else None
+            at: Any = keys if quantified is None else (quantified, keys)
+            group = self.groups.get(at)
             if group is None:
-                group = self.groups[keys] = _Group(keys)
+                group = self.groups[at] = _Group(keys, quantified)
+                group.progressor = Progressor(
+                    Fraction(1, NS),
+                    end_of_data=self.policy.end_of_data,
+                    origin=self.origin,
+                    timer=None if quantified is None else functools.partial(self._arm, group),
+                )
                 for k in keys:
                     self.readers.setdefault(k, []).append(group)
                 if not keys:
                     self.always.append(group)
-            group.progressor.add(f.text, f.tree)
-            self.waiting.remove(f)
+            name = f"{unit[0]}:{unit[1]}"
+            self.units[name] = unit
+            group.progressor.add(name, instance.tree)
         self.steps.clear()
+
+    def _arm(self, group: _Group, deadline: Time) -> None:
+        assert group.formula is not None
+        heapq.heappush(self.timers[group.formula], (deadline, next(self.tickets), group))
+
+    def _advance(self, heap: Timers, time: int, due: list[Progressor]) -> list[Verdict]:
+        """The groups of one quantified formula whose windows ended by `time` (a state of its
+        features): those it is not a state of are advanced to it, and all asked again by when
+        their next window ends (after their own state, for those it is one of)."""
+        out: list[Verdict] = []
+        again = []
+        while heap and heap[0][0] <= time:
+            group = heapq.heappop(heap)[2]
+            if group.progressor not in due:
+                out += group.progressor.advance(time)
+            again.append(group)
+        self.rearm += again
+        return out
+
+    def _ready(self, values: dict[FeatureKey, Any], fresh: tuple[FeatureKey, ...] | None) -> None:
+        """The waiting instances whose every feature has a value now begin (`fresh` None:
+        look at all, else at those reading a feature sampled now)."""
+        if fresh is None:
+            candidates: Iterable[Unit] = list(self.waiting)
+        else:
+            candidates = {u for k in fresh for u in self.waits_on.get(k, ())}
+        ready = [
+            u
+            for u in candidates
+            if u in self.waiting and all(values[k] is not None for k in self.waiting[u].keys)
+        ]
+        if ready:
+            read = {k for u in ready for k in self.waiting[u].keys}
+            self._begin(ready)
+            for k in read:
+                left = [u for u in self.waits_on[k] if u in self.waiting]
+                if left:
+                    self.waits_on[k] = left
+                else:
+                    del self.waits_on[k]
 
     def _on_state(
         self, time: int, values: dict[FeatureKey, Any], fresh: tuple[FeatureKey, ...] | None = None
     ) -> None:
         if self.keep_states:
             self.states.append((time, dict(values)))
-        if self.waiting:
-            self._begin([f for f in self.waiting if all(values[k] is not None for k in f.keys)])
+        if not self.seen:  # the first state: every group's with a start time, and where
+            self.seen = True  # formulas over no feature (or an empty sort) are judged
+            if self.policy.start_time is not None:
+                fresh = None
+            self._ready(values, None)
+            for judged in self.judged:
+                if not judged.names:
+                    self.pending.extend(judged.settle((), self._when(time)))
+        elif self.waiting:
+            self._ready(values, fresh)
         steps = self.steps.get(fresh)
         if steps is None:
             if len(self.steps) >= 1024:  # many features sampled in many combinations
                 self.steps.clear()
             steps = self.steps[fresh] = [g.progressor for g in self._due(fresh)]
-        decided: Sequence[Verdict] = ()
+        decided: Sequence[Verdict] = self._timers(fresh, time, steps) if self.timers else ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
             if out:
                 decided = [*decided, *out]
+        if self.rearm:
+            for group in self.rearm:
+                deadline = group.progressor.deadline()
+                if deadline is not None:
+                    self._arm(group, deadline)
+            self.rearm = []
         if decided:
-            self.decided += len(decided)
-            origin = self.processor.origin if self.processor is not None else None
-            self.pending.extend(
-                in_seconds(v, origin) for v in sorted(decided, key=lambda v: self.order[v.formula])
-            )
+            self._settled([(v, None) for v in decided], self._when(time), at_end=False)
+
+    def _timers(
+        self, fresh: tuple[FeatureKey, ...] | None, time: int, due: list[Progressor]
+    ) -> list[Verdict]:
+        """At a state of quantified formulas' features: their groups whose windows ended by
+        then, advanced (`_advance`)."""
+        formulas = (
+            self.timers if fresh is None else {n for k in fresh for n in self.timed.get(k, ())}
+        )
+        out: list[Verdict] = []
+        for n in sorted(formulas):
+            heap = self.timers[n]
+            if heap and heap[0][0] <= time:
+                out += self._advance(heap, time, due)
+        return out
 
     def _due(self, fresh: tuple[FeatureKey, ...] | None) -> Iterable[_Group]:
         """The groups whose own state this is, in the order they began."""
@@ -142,19 +268,96 @@ class Monitor:
             return self.readers.get(fresh[0], ())
         return [g for g in self.groups.values() if not g.keys or not g.keys.isdisjoint(fresh)]
 
+    def _when(self, ns: int | None) -> tuple[Any, Any]:
+        """A stream time (ns) as a verdict says it: on the recording's clock and as `t`, s."""
+        origin = self.origin()
+        if ns is None:
+            return None, None
+        return seconds(ns), None if origin is None else seconds(ns - origin)
+
+    def _settled(
+        self, decided: Iterable[tuple[Verdict, Any]], now: tuple[Any, Any], at_end: bool
+    ) -> None:
+        """Instance verdicts (from a progressor, times in ns; with the time of their group's
+        last state when settled at the end) to the formulas they decide, in formula order."""
+        batches: dict[int, list[tuple[int, Verdict]]] = {}
+        for v, last in decided:
+            n, i = self.units[v.formula]
+            batches.setdefault(n, []).append((i, self._seconds(v, last)))
+        for n in sorted(batches) if not at_end else range(len(self.judged)):
+            judged = self.judged[n]
+            if n in batches or judged.said is None:
+                batch = sorted(batches.get(n, ()), key=itemgetter(0))
+                self.pending.extend(judged.settle(batch, now, at_end))
+
+    def _seconds(self, v: Verdict, last: int | None) -> Verdict:
+        """A progressor's verdict in seconds, on the recording's clock (`time`) and from its
+        start (`t`, exact: the difference is taken in nanoseconds); an unknown one's spans as
+        people read them:
+        those closer than the maximum age merged, one that lasts to the end said as a source
+        gone silent (or never observed)."""
+        origin = self.origin()
+        v = dataclasses.replace(
+            v,
+            time=None if v.time is None else seconds(v.time),
+            t=None if v.time is None or origin is None else seconds(v.time - origin),
+        )
+        if v.verdict is not None or last is None:
+            return v
+        assert self.processor is not None
+        end = self.processor.horizon()
+        unknown = spans(v.unknown, last, end, self.processor.newest, self.processor.max_age)
+        clock = Clock(Fraction(1, NS), self.origin)
+        witness = undecided(unknown, True, clock, v.pending)
+        return dataclasses.replace(v, unknown=tuple(map(span_seconds, unknown)), witness=witness)
+
     @property
     def done(self) -> bool:
-        return self.decided == len(self.plan.formulas)
+        """Every formula decided and every instance of it settled."""
+        return all(j.said is not None and not j.open for j in self.judged)
 
     def events(self) -> list[Event]:
         """What was decided or violated since the last call."""
         out, self.pending[:] = list(self.pending), []
         return out
 
+    def extend(self, plan: Plan) -> list[tuple[str, str]]:
+        """The same formulas planned again on changed knowledge: the instances of objects that
+        joined their sorts are judged from now on (as the others were from the start), every
+        other instance goes on as it was.  Returns (formula, instance) of each new one; call
+        `rematch` next, so their features are streamed."""
+        formulas, started = [], []
+        for n, (old, new) in enumerate(zip(self.plan.formulas, plan.formulas, strict=True)):
+            judged = self.judged[n]
+            fresh = tuple(i for i in new.instances if i.bindings not in judged.index)
+            if not fresh:
+                formulas.append(old)
+                continue
+            prefix = tuple(
+                dataclasses.replace(
+                    b, objects=(*b.objects, *(o for o in c.objects if o not in b.objects))
+                )
+                for b, c in zip(old.prefix, new.prefix, strict=True)
+            )
+            grown = FormulaPlan(old.text, prefix, (*old.instances, *fresh))
+            formulas.append(grown)
+            self._time(n, grown)
+            indices = judged.extend(grown)
+            self._wait(n, indices, fresh)
+            started += [(old.text, ", ".join(f"{v} = {o}" for v, o in i.bindings)) for i in fresh]
+            if self.policy.start_time is not None:
+                self._begin([(n, i) for i in indices])
+        self.plan = Plan(tuple(formulas))
+        self.steps.clear()
+        return started
+
     def rematch(self, source: Source) -> StreamRequest:
         """The plan's features matched again (the knowledge changed); the streams follow."""
         assert self.processor is not None
         self.request = self.match(self.plan)
+        self.processor.texts = frozenset(
+            k for k, (use, _) in self._uses().items() if use == "string"
+        )
         self.processor.reroute(self.request, source)
         return self.request
 
@@ -162,28 +365,31 @@ class Monitor:
         """End of stream (at `end`, ns, when known): every formula settled."""
         assert self.processor is not None
         self.processor.finish(end)
-        settled = [v for g in self.groups.values() for v in g.progressor.finish()]
-        origin = self.processor.origin
-        self.pending.extend(
-            in_seconds(v, origin) for v in sorted(settled, key=lambda v: self.order[v.formula])
-        )
-        for f in self.waiting:  # never judged: some feature never had a value
-            missing = ", ".join(
-                str(g.key)
-                for g in f.ground
-                if not any(s.get(g.key) is not None for _, s in self.states)
-            )
-            self.pending.append(
-                Verdict(
-                    f.text,
+        horizon = self.processor.horizon()
+        settled = [
+            (v, g.progressor.last_input)
+            for g in self.groups.values()
+            for v in g.progressor.finish(horizon)
+        ]
+        for unit, instance in self.waiting.items():  # some feature never had a value
+            name = f"{unit[0]}:{unit[1]}"
+            self.units[name] = unit
+            missing = ", ".join(str(k) for k in instance.keys if self.processor.newest(k) is None)
+            settled.append(
+                (
+                    Verdict(
+                        name,
+                        None,
+                        None,
+                        True,
+                        "no state had a value for every feature it reads"
+                        + (f" (never seen: {missing})" if missing else ""),
+                    ),
                     None,
-                    None,
-                    True,
-                    "no state had a value for every feature it reads"
-                    + (f" (never seen: {missing})" if missing and self.keep_states else ""),
                 )
             )
-        self.waiting = []
+        self.waiting.clear()
+        self._settled(settled, self._when(horizon), at_end=True)
         return self.events()
 
     def run(self, source: Source, progress: Callable[[int], None] | None = None) -> Iterator[Event]:
@@ -287,21 +493,11 @@ class MonitorRun:
         self.close()
 
 
+def _joined(before: tuple[str, ...], now: tuple[str, ...]) -> tuple[str, ...]:
+    return (*before, *(o for o in now if o not in before))
+
+
 def _article(kind: str, ros_type: str) -> str:
     if kind in ("message", "array"):
         return "a sub-message" if kind == "message" else "an array"
     return f"a{'n' if ros_type[0] in 'aeiou' else ''} {ros_type}"
-
-
-def in_seconds(v: Verdict, origin: int | None) -> Verdict:
-    """The progressor runs in nanoseconds; people read seconds, on the recording's clock
-    (`time`) and from its start (`t`, exact: the difference is taken in nanoseconds)."""
-    unknown = tuple(
-        dataclasses.replace(u, start=seconds(u.start), end=seconds(u.end)) for u in v.unknown
-    )
-    return dataclasses.replace(
-        v,
-        time=None if v.time is None else seconds(v.time),
-        t=None if v.time is None or origin is None else seconds(v.time - origin),
-        unknown=unknown,
-    )

@@ -1,17 +1,22 @@
-"""Formulas → a plan: each formula parsed once, checked once and expanded once, its ground
-features as typed keys.  Matching and progression both start from the plan, so they can never
-disagree on which features a formula reads."""
+"""Formulas → a plan: each formula parsed once, checked once and expanded once into its
+instances (one per binding of its outermost quantifiers' variables), their ground features as
+typed keys.  Matching and progression both start from the plan, so they can never disagree on
+which features a formula reads."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 from .check import check_formula
-from .expand import expand
+from .expand import Binder, Instance, expand, union
 from .kb import KnowledgeBase
 from .model import FeatureKey, GroundFeature
-from .parse.formula import Formula, parse_formula
+from .parse.formula import BoolConst, Formula, chain, parse_formula
+
+T = TypeVar("T")
+Bindings = tuple[tuple[str, str], ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -29,15 +34,51 @@ def parse(formulas: Sequence[str | Parsed]) -> tuple[Parsed, ...]:
 
 @dataclass(frozen=True, slots=True)
 class FormulaPlan:
-    """One formula as written, its quantifier-free tree, and the ground features it reads."""
+    """One formula as written: its outermost quantifiers (`prefix`, each with the objects it
+    ranges over) and an instance per binding of their variables (a formula without them is
+    its one instance, with no bindings)."""
 
     text: str
-    tree: Formula
-    ground: tuple[GroundFeature, ...]
+    prefix: tuple[Binder, ...]
+    instances: tuple[Instance, ...]
+
+    @property
+    def tree(self) -> Formula:
+        """The whole formula without quantifiers: its instances joined as its prefix says."""
+        trees = {i.bindings: i.tree for i in self.instances}
+        return fold(
+            self.prefix,
+            trees.__getitem__,
+            lambda op, parts: (
+                chain("and" if op == "forall" else "or", parts)
+                if parts
+                else BoolConst(op == "forall")
+            ),
+        )
+
+    @property
+    def ground(self) -> tuple[GroundFeature, ...]:
+        """The ground features of every instance, each once, in order of first use."""
+        return union(i.ground for i in self.instances)
 
     @property
     def keys(self) -> tuple[FeatureKey, ...]:
         return tuple(g.key for g in self.ground)
+
+
+def fold(
+    prefix: Sequence[Binder], leaf: Callable[[Bindings], T], join: Callable[[str, list[T]], T]
+) -> T:
+    """A value for a formula from its instances': `leaf` of each binding, joined level by
+    level by the quantifier (`join(op, parts)`, parts in the order of the binder's objects)."""
+
+    def level(n: int, bound: Bindings) -> T:
+        if n == len(prefix):
+            return leaf(bound)
+        b = prefix[n]
+        return join(b.op, [level(n + 1, (*bound, (b.var, o))) for o in b.objects])
+
+    return level(0, ())
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,11 +88,7 @@ class Plan:
     @property
     def ground(self) -> tuple[GroundFeature, ...]:
         """Every ground feature of every formula, each once, in order of first use."""
-        seen: dict[FeatureKey, GroundFeature] = {}
-        for f in self.formulas:
-            for g in f.ground:
-                seen.setdefault(g.key, g)
-        return tuple(seen.values())
+        return union(f.ground for f in self.formulas)
 
     @property
     def text(self) -> str:
@@ -62,5 +99,5 @@ def plan(kb: KnowledgeBase, formulas: Sequence[str | Parsed]) -> Plan:
     out = []
     for f in parse(formulas):
         expansion = expand(kb, f.tree, check_formula(kb, f.tree))
-        out.append(FormulaPlan(f.text, expansion.tree, expansion.ground))
+        out.append(FormulaPlan(f.text, expansion.prefix, expansion.instances))
     return Plan(tuple(out))

@@ -71,14 +71,15 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
             unique = dict(zip(labels, handles, strict=True))
             ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=7)
     lines = []
-    for e in events:
-        if isinstance(e, Verdict) and e.verdict is not None and e.t is not None:
+    verdicts = [e for e in events if isinstance(e, Verdict) and not e.update]  # once each
+    for e in verdicts:
+        if e.verdict is not None and e.t is not None:
             color = "tab:green" if e.verdict else "tab:red"
             for ax in axes[:, 0]:
                 ax.axvline(float(e.t), color=color, ls="--", lw=1.2)
             word = WORDS[e.verdict]
             lines.append(f"{word} at {since(e.t)}: {e.formula}")
-    unknown = [e for e in events if isinstance(e, Verdict) and e.verdict is None]
+    unknown = [e for e in verdicts if e.verdict is None]
     lines += [f"unknown at end: {e.formula}" for e in unknown]
     axes[-1, 0].set_xlabel("t (s from the start of the recording)")
     fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)

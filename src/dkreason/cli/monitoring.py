@@ -18,6 +18,7 @@ from ..progress.statefile import read_states
 from ..stream.binding import open_recordings
 from ..stream.info import bindings, describe
 from ..stream.info import render as render_info
+from ..stream.policy import DEFAULT
 from . import live, render
 from .options import formulas, policy
 
@@ -93,7 +94,7 @@ def monitor(args: argparse.Namespace) -> int:
 
 
 def progress(args: argparse.Namespace) -> int:
-    progressor = Progressor()
+    progressor = Progressor(end_of_data=args.end_of_data or DEFAULT.end_of_data)
     trees = (
         [
             (f.text, f.tree)

@@ -31,6 +31,7 @@ def policy(args: argparse.Namespace) -> StreamPolicy:
         "start_time": args.start,
         "end_time": args.end,
         "max_delay": args.max_delay,
+        "end_of_data": args.end_of_data,
     }
     chosen = {k: v for k, v in given.items() if v is not None}
     if chosen.get("max_age") == "inf":

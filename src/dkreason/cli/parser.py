@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from ..results import DEFAULT_DB, VERDICTS
-from ..stream.policy import APPROXIMATIONS, DEFAULT
+from ..stream.policy import APPROXIMATIONS, DEFAULT, END_OF_DATA
 from . import args as a
 
 EXIT_STATUS = (
@@ -76,6 +76,7 @@ def _progress(sub: a.Sub) -> None:
     )
     p.add_argument("--config", type=Path, help="TOML config: quantifiers range over its objects")
     p.add_argument("--json", action="store_true", help="one JSON line per formula")
+    _end_of_data(p)
     p.add_argument("formulas", nargs="+", metavar="FORMULA")
     p.set_defaults(run="monitoring:progress")
 
@@ -252,6 +253,17 @@ def _policy(p: argparse.ArgumentParser) -> None:
     pol.add_argument("--max-delay", type=a.seconds, help="largest allowed sample delay (s)")
     pol.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
     pol.add_argument("--unique", action="store_true", help="valid times must be unique")
+    _end_of_data(pol)
+
+
+def _end_of_data(p: Any) -> None:
+    p.add_argument(
+        "--end-of-data",
+        choices=END_OF_DATA,
+        help="open: a bounded window (eventually[0, 5]) reaching past the end of the data "
+        "leaves its formula undecided, saying what is pending; finite: it closes there, as on "
+        f"a finite trace (default {DEFAULT.end_of_data})",
+    )
 
 
 def _batch(sub: a.Sub) -> None:

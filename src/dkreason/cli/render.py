@@ -15,12 +15,14 @@ from typing import TYPE_CHECKING, Any
 from ..model import StreamRequest, ros_name
 from ..monitor import WORDS, Event
 from ..names import local_name
-from ..progress import Verdict
+from ..progress import InstanceVerdict, Verdict
 from ..stream.units import since
 
 if TYPE_CHECKING:  # the knowledge base's modules load only when a command needs them
     from ..policy.check import Diagnostic
     from ..query import Answer, Cell, RelationInfo
+
+NAMED = 10  # objects named per status in a verdict's text; the rest are counted
 
 
 def exit_status(verdicts: list[bool | None], failed_constraint: bool = False) -> int:
@@ -46,17 +48,46 @@ def event(event: Event, as_json: bool) -> None:
         return
     when = _when(out.get("time"), event.t)
     if isinstance(event, Verdict):
-        print(
-            f"{'at end' if event.at_end else f'at {when}'}: {shout(event.verdict)}  "
-            f"{event.formula}" + (f"\n    {event.witness}" if event.witness else ""),
-            flush=True,
-        )
+        if event.update:  # the same verdict: more of its instances settled
+            lines = [f"update (still {shout(event.verdict)}): {event.formula}"]
+        else:
+            said = "at end" if event.at_end else f"at {when}"
+            lines = [f"{said}: {shout(event.verdict)}  {event.formula}"]
+            if event.witness:
+                lines.append(event.witness)
+        if event.pending and event.witness is None:
+            lines.append(f"pending: {event.pending}")
+        if event.instances is not None:
+            lines += _instances(event)
+        print("\n    ".join(lines), flush=True)
     else:
         print(
             f"violation at {when}: {event.constraint} on {event.feature} ({event.topic}): "
             f"{event.detail}",
             flush=True,
         )
+
+
+def _instances(v: Verdict) -> list[str]:
+    """Which objects violated, held, stayed unknown, were never observed or are still open;
+    in an update, also why each instance that violated after the verdict did."""
+    by: dict[str, list[InstanceVerdict]] = {}
+    for i in v.instances or ():
+        by.setdefault(i.status, []).append(i)
+    said = []
+    for status in ("violated", "held", "unknown", "never observed", "open"):
+        them = by.get(status, [])
+        if them:
+            names = [i.name for i in them[:NAMED]]
+            more = f" and {len(them) - NAMED} more" if len(them) > NAMED else ""
+            said.append(f"{status} {', '.join(names)}{more}")
+    lines = [f"instances: {'; '.join(said)}"]
+    if v.update:
+        later = [i for i in by.get("violated", []) if i.time != v.time]
+        lines += [f"{i.name} {i.witness}" for i in later[:NAMED]]
+        if len(later) > NAMED:
+            lines.append(f"and {len(later) - NAMED} more violations")
+    return lines
 
 
 def _when(time: Any, t: Any) -> str:
@@ -84,6 +115,8 @@ def summary(verdicts: list[Verdict], violations: Counter[str]) -> None:
     for column in ("formula", "verdict", "t (s)", "at end"):
         table.add_column(column)
     for v in verdicts:
+        if v.update:  # the same verdict, said again
+            continue
         table.add_row(escape(v.formula), WORDS[v.verdict], str(v.t), "yes" if v.at_end else "no")
     console = Console(width=120)
     console.print(table)

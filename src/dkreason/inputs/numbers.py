@@ -74,6 +74,31 @@ def datum(value: Any) -> Any:
     return None if isinstance(value, float) and not math.isfinite(value) else value
 
 
+def decimal(value: Fraction | int) -> str:
+    """An exact number as a person (and the formula grammar) writes it: a whole number, or a
+    decimal without exponent when the number is a finite decimal (nanosecond times and the
+    bounds a formula writes are); a fraction (`1/3`) otherwise."""
+    if not isinstance(value, Fraction) or value.denominator == 1:
+        return str(int(value))
+    digits = _decimals(value.denominator)
+    if digits is None:
+        return str(value)
+    whole, part = divmod(abs(value.numerator) * 10**digits // value.denominator, 10**digits)
+    return f"{'-' if value < 0 else ''}{whole}.{part:0{digits}d}".rstrip("0")
+
+
+def _decimals(denominator: int) -> int | None:
+    """Digits after the point that show 1/denominator exactly; None if no number does."""
+    twos = fives = 0
+    while denominator % 2 == 0:
+        denominator //= 2
+        twos += 1
+    while denominator % 5 == 0:
+        denominator //= 5
+        fives += 1
+    return max(twos, fives) if denominator == 1 else None
+
+
 def _short(value: Any) -> str:
     text = str(value)
     return text if len(text) <= 40 else text[:20] + "…" + text[-10:]

@@ -15,7 +15,9 @@ from ..stream.units import seconds
 
 @dataclass(frozen=True, slots=True)
 class Change:
-    """Something the federation did: joined, left, subscribed, unsubscribed, source_lost."""
+    """Something the federation did: joined, left, subscribed, unsubscribed, source_lost; or
+    an instance of a quantified formula (`feature`: its bindings, `detail`: the formula)
+    judged from now on, its object having joined the formula's sort."""
 
     event: str
     time: float | int | None  # s on the stream clock, like every event's; None before a clock
@@ -44,6 +46,7 @@ class Change:
             "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
             "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
             "source_lost": f"source lost: {self.feature} has no topic left",
+            "instance": f"instance {self.feature} judged from now",
         }[self.event]
         if self.last_sample is not None:
             what += f"; its last sample is from {_shown(self.last_sample)}"

@@ -374,13 +374,23 @@ class LiveMonitor:
     # ---- subscriptions -----------------------------------------------------------------
 
     def _rematch(self, p: str, why: str) -> list[Event]:
-        """The formulas' features (expanded at start) matched again; subscriptions follow.
-        Before the start, the first match subscribes."""
+        """The formulas planned again (objects that joined their sorts get instances, judged
+        from now on) and their features matched again; subscriptions follow.  Before the
+        start, the first match subscribes."""
         if self.monitor is None or self.processor is None:
             return []
+        try:
+            started = self.monitor.extend(self.km.plan(self.formulas))
+        except DkError as exc:  # the knowledge no longer fits a formula: it keeps its objects
+            log.warning("after %s, the formulas keep their objects: %s", why, exc)
+            started = []
         request = self.monitor.rematch(self.source)
         self.read = dict_reader(self.source.name, self.processor.wanted)
-        return self._subscribe(request, p, why)
+        now = self.watermark()
+        return [
+            *self._subscribe(request, p, why),
+            *(change("instance", now, p, formula, feature=name) for formula, name in started),
+        ]
 
     def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
         processor = self.processor

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from functools import lru_cache
 from pathlib import Path
@@ -19,7 +19,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..errors import ParseError, Span
 from ..inputs.files import read_text
-from ..inputs.numbers import UNITS
+from ..inputs.numbers import UNITS, decimal
 from ..model import Arg, FeatureKey, FeatureRef
 from .grammar import lalr
 
@@ -91,6 +91,14 @@ class Atom:
 
 
 @dataclass(frozen=True, slots=True)
+class Observed:
+    """`observed(X)`: X has a value now.  Two-valued, never unknown, so startup and dropout
+    can be judged (`eventually[0, 5] observed(X)` from `--start`)."""
+
+    feature: FeatureRef
+
+
+@dataclass(frozen=True, slots=True)
 class Compare:
     op: str  # < <= > >= == !=
     left: Expr
@@ -130,10 +138,10 @@ class Quant:
     var: str
     sort: str
     body: Formula
-    span: Span
+    span: Span = field(compare=False)
 
 
-Formula = BoolConst | Atom | Compare | Not | Connective | Temporal | Until | Quant
+Formula = BoolConst | Atom | Observed | Compare | Not | Connective | Temporal | Until | Quant
 
 _PREFIX = {"□": "always", "◇": "eventually"}
 _WORD = {
@@ -177,10 +185,13 @@ class _ToAst(Transformer[Token, Any]):
         return BoolConst(str(children[0]) == "true")
 
     def neg(self, children: list[Any]) -> Expr:
-        return Unary("-", _expr(children[0]))
+        return Unary("-", _expr(children[-1]))
 
     def abs_(self, children: list[Any]) -> Expr:
         return Unary("abs", _expr(children[1]))
+
+    def observed(self, children: list[Any]) -> Observed:
+        return Observed(children[1].feature)
 
     def string(self, children: list[Token]) -> Str:
         text = str(children[0])
@@ -364,6 +375,8 @@ _EXPECTED = {
     "RSQB": "']'",
     "LPAR": "'('",
     "CMP": "a comparison",
+    "ADD": "'+'",
+    "MINUS": "'-'",
     "AND": "'and'",
     "OR": "'or'",
     "DURATION": "a time bound",
@@ -384,7 +397,7 @@ def features(formula: Formula) -> list[FeatureRef]:
 def _walk(node: Any, env: dict[str, str]) -> Iterator[FeatureRef]:
     if isinstance(node, Quant):
         yield from _walk(node.body, {**env, node.var: node.sort})
-    elif isinstance(node, Atom | Ref):
+    elif isinstance(node, Atom | Ref | Observed):
         f = node.feature
         yield FeatureRef(
             f.name, tuple(Arg(a.name, env.get(a.name), a.span) for a in f.args), f.span
@@ -409,7 +422,7 @@ def _feature_refs(node: Any) -> Iterator[FeatureRef]:
     todo = [node]  # without recursion: it also locates errors in formulas nested too deeply
     while todo:
         n = todo.pop()
-        if isinstance(n, Atom | Ref):
+        if isinstance(n, Atom | Ref | Observed):
             yield n.feature
         todo += reversed(children(n))
 
@@ -419,6 +432,95 @@ def quantifiers(formula: Formula) -> Iterator[Quant]:
         yield formula
     for child in children(formula):
         yield from quantifiers(child)
+
+
+def deadlines(formula: Formula) -> bool:
+    """Whether the formula waits on a bounded window of the future (`eventually[0, 5]`,
+    `always[0, 5]`, `next[0, 5]`, `until[0, 5]`): time passing alone may decide it."""
+    todo: list[Any] = [formula]
+    while todo:
+        n = todo.pop()
+        future = (isinstance(n, Temporal) and n.op in ("eventually", "always", "next")) or (
+            isinstance(n, Until) and n.op == "until"
+        )
+        if future and n.interval.hi is not None:
+            return True
+        todo += children(n)
+    return False
+
+
+# ---- formulas as text: each with the parentheses it needs, so a witness quotes it exactly ----
+
+# how tightly each construct binds, loosest first, as mtl.lark nests them
+QUANT, IFF, IMP, OR, AND, UNTIL, UNARY, CMP, ADD, MUL, FACTOR = range(11)
+_LEVEL = {"<->": IFF, "->": IMP, "or": OR, "and": AND}
+
+
+def unparse(node: Formula | Expr, unit: Fraction | int = 1) -> str:
+    """A formula or expression as text that parses back to the same tree (a parsed formula's
+    and each of its subformulas'), with only the parentheses it needs (and around a comparison
+    under `not`, for the reader).  Interval bounds are times `unit` seconds (a progressor's
+    trees count in the stream's units)."""
+    return _unparse(node, unit)[0]
+
+
+def _unparse(n: Any, unit: Fraction | int) -> tuple[str, int]:
+    """The text of `n` and how tightly it binds."""
+
+    def wrap(child: Any, level: int) -> str:
+        text, own = _unparse(child, unit)
+        return f"({text})" if own < level else text
+
+    if isinstance(n, BoolConst):
+        return ("true" if n.value else "false"), FACTOR
+    if isinstance(n, Atom | Ref):
+        return feature_text(n.feature), FACTOR
+    if isinstance(n, Observed):
+        return f"observed({feature_text(n.feature)})", FACTOR
+    if isinstance(n, Num):
+        return (repr(n.value) if abs(n.value) != float("inf") else "1e999"), FACTOR
+    if isinstance(n, Str):
+        return '"' + re.sub(r'(["\\])', r"\\\1", n.value) + '"', FACTOR
+    if isinstance(n, Unary):
+        if n.op == "abs":
+            return f"abs({_unparse(n.arg, unit)[0]})", FACTOR
+        inner = isinstance(n.arg, Unary) and n.arg.op == "-"
+        return "-" + (f"({wrap(n.arg, FACTOR)})" if inner else wrap(n.arg, FACTOR)), FACTOR
+    if isinstance(n, Arith):
+        level = ADD if n.op in "+-" else MUL
+        return f"{wrap(n.left, level)} {n.op} {wrap(n.right, level + 1)}", level
+    if isinstance(n, Compare):
+        return f"{wrap(n.left, ADD)} {n.op} {wrap(n.right, ADD)}", CMP
+    if isinstance(n, Not):
+        return "not " + wrap(n.arg, UNARY if not isinstance(n.arg, Compare) else FACTOR), UNARY
+    if isinstance(n, Temporal):
+        return f"{n.op}{interval_text(n.interval, unit)} {wrap(n.arg, UNARY)}", UNARY
+    if isinstance(n, Until):
+        interval = interval_text(n.interval, unit)
+        return f"{wrap(n.left, UNARY)} {n.op}{interval} {wrap(n.right, UNTIL)}", UNTIL
+    if isinstance(n, Connective):
+        level = _LEVEL[n.op]
+        if n.op in ASSOCIATIVE:  # a chain as written (the parser balances it again)
+            return f" {n.op} ".join(wrap(link, level + 1) for link in _links(n)), level
+        left, right = (level, level + 1) if n.op == "<->" else (level + 1, level)
+        return f"{wrap(n.left, left)} {n.op} {wrap(n.right, right)}", level
+    if isinstance(n, Quant):
+        return f"{n.op} {n.var} in {n.sort}: {_unparse(n.body, unit)[0]}", QUANT
+    raise TypeError(type(n).__name__)
+
+
+def feature_text(f: FeatureRef) -> str:
+    """`Name[a, b]` (a feature without arguments: `Name`)."""
+    return f.name + (f"[{', '.join(a.name for a in f.args)}]" if f.args else "")
+
+
+def interval_text(i: Interval, unit: Fraction | int = 1) -> str:
+    """An interval as written, in seconds (`unit`: seconds per time unit of its bounds);
+    nothing for [0, oo]."""
+    if i == ANY:
+        return ""
+    hi = "oo" if i.hi is None else decimal(i.hi * unit)
+    return f"[{decimal(i.lo * unit)}, {hi}]"
 
 
 # ---- feature keys written as text (state files, --feature): read once per spelling ------

@@ -1,25 +1,27 @@
 """Formula AST → node graph, compiled once per formula, subterms shared across formulas.
 
 Formulas arrive without quantifiers (a plan's trees, expand.py); implication becomes
-`not a or b`; every maximal temporal-free subformula becomes one generated `StateNode`.
+`not a or b`; every maximal temporal-free subformula becomes one generated `StateNode`.  Each
+node quotes the subformula it was made for (`unparse`), as written, not as compiled.
 `general.py` runs the graphs.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from fractions import Fraction
 from typing import Any
 
 from ..errors import DkError
 from ..parse.formula import (
-    ANY,
     Connective,
     Formula,
     Interval,
     Not,
     Temporal,
     Until,
+    unparse,
 )
 from .nodes import (
     BoolNode,
@@ -32,8 +34,8 @@ from .nodes import (
     UntilNode,
     WindowNode,
 )
-from .state import compile_state, is_state, render
-from .witness import Time
+from .state import compile_state, is_state
+from .witness import Clock, Time
 
 PAST = {"historically", "once", "previous"}
 
@@ -60,18 +62,11 @@ def scaled(f: Formula, factor: Fraction) -> Formula:
     return replace(f, **changes) if changes else f
 
 
-def interval_text(i: Interval, unit: Fraction | int = 1) -> str:
-    """The interval as the formula wrote it (in seconds, whatever the stream's unit)."""
-    if i == ANY:
-        return ""
-    return str(Interval(i.lo * unit, None if i.hi is None else i.hi * unit))
-
-
 class Graph:
     """One shared node graph for formulas that start at the same state."""
 
-    def __init__(self, unit: Fraction | int = 1) -> None:
-        self.ctx = Ctx(unit)
+    def __init__(self, clock: Clock, timer: Callable[[Time], None] | None = None) -> None:
+        self.ctx = Ctx(clock, timer)
         self.cache: dict[Formula, Node] = {}
 
     def node(self, f: Formula) -> Node:
@@ -88,28 +83,27 @@ class Graph:
             node.rank = n
 
     def text(self, f: Formula) -> str:
-        """How a witness names `f`: as its node does (a state formula, without making one)."""
-        return render(f) if is_state(f) else self.node(f).text
+        """How a witness names `f` (in seconds, whatever the stream's unit)."""
+        return unparse(f, self.ctx.clock.unit)
 
     def _make(self, f: Formula) -> Node:
-        ctx = self.ctx
+        ctx, text = self.ctx, self.text(f)
         if is_state(f):
             fn, keys = compile_state(f)
-            return StateNode(ctx, fn, keys, render(f))
+            return StateNode(ctx, fn, keys, text)
         if isinstance(f, Not):
-            return NotNode(ctx, self.node(f.arg))
+            return NotNode(ctx, self.node(f.arg), text)
         if isinstance(f, Connective):
             said: str | None = None  # for `or`: what held when it is false
             if f.op == "->":
                 said = self.text(f.left)
-                return BoolNode(ctx, "or", self.node(Not(f.left)), self.node(f.right), said)
+                return BoolNode(ctx, "or", self.node(Not(f.left)), self.node(f.right), said, text)
             if f.op == "or":
                 a = f.left
-                said = self.text(a.arg) if isinstance(a, Not) else f"not ({self.text(a)})"
-            return BoolNode(ctx, f.op, self.node(f.left), self.node(f.right), said)
+                said = self.text(a.arg if isinstance(a, Not) else Not(a))
+            return BoolNode(ctx, f.op, self.node(f.left), self.node(f.right), said, text)
         if isinstance(f, Temporal):
             lo, hi = exact(f.interval.lo), exact(f.interval.hi)
-            text = interval_text(f.interval, ctx.unit)
             child = self.node(f.arg)
             assert lo is not None
             if f.op in ("eventually", "always"):
@@ -119,7 +113,6 @@ class Graph:
             return PastNode(ctx, f.op, lo, hi, None, child, text)
         if isinstance(f, Until):
             lo, hi = exact(f.interval.lo), exact(f.interval.hi)
-            text = interval_text(f.interval, ctx.unit)
             assert lo is not None
             left, right = self.node(f.left), self.node(f.right)
             if f.op == "until":

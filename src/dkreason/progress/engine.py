@@ -4,9 +4,10 @@ general node graph (general.py) and the generated fused monitors (fused.py).
 The progressor splits a formula into its top-level conjuncts (parts) and gives each to an
 engine; the formula's verdict is their Kleene conjunction.  An engine judges each part from
 the next state on and reports its value once, by `finish` at the latest: False with a `Why`
-phrased by witness.py (so both engines explain alike), True, or None (unknown for good).  It
-tells the progressor which features its undecided parts read were unknown at each state, for
-the unknown verdicts' witnesses.
+phrased by witness.py (so both engines explain alike), True, or None (unknown for good, with
+a `Why` holding the window the end of the data cut off, if one did).  It tells the progressor
+which features its undecided parts read were unknown at each state, for the unknown
+verdicts' witnesses.
 """
 
 from __future__ import annotations
@@ -19,10 +20,15 @@ from ..parse.formula import Formula
 from .witness import Time, Why
 
 Report = Callable[[bool | None, Why | None], None]
-"""A part's value and, when false, why: the reason at its first state (witness.refuted)."""
+"""A part's value and, when false, why: the reason at its first state (witness.refuted);
+when unknown, a reason holding the cut window (witness.cut_of) if the end of the data cut one."""
 
 Unknown = Callable[[Iterable[FeatureKey], int, Any], None]
 """These features were unknown at the state at this position (and time, as given)."""
+
+Timer = Callable[[Time], None]
+"""A window will have ended by this time: with no state before it, `advance` to it decides
+something (told when a position starts waiting where none did; later ones end later)."""
 
 
 class Engine(Protocol):
@@ -37,8 +43,20 @@ class Engine(Protocol):
         """One state: its position, exact time, every feature's value, the time as given."""
         ...
 
-    def finish(self) -> None:
-        """End of stream: every part that saw a state reports, by the finite-trace semantics."""
+    def advance(self, t: Time) -> None:
+        """No state until after t (the stream passed it): the parts whose windows ended by
+        then report, as a state after t would make them (what it reads left aside)."""
+        ...
+
+    def deadline(self) -> Time | None:
+        """The earliest end of a window a part waits on (None: none)."""
+        ...
+
+    def finish(self, cut: Time | None) -> None:
+        """End of stream: every part that saw a state reports.  `cut`: the end of the data (at
+        or after the last state); a bounded window reaching past it leaves its value unknown.
+        None: every window closes at the last state (the finite-trace semantics).  Unbounded
+        operators keep their finite-trace values either way."""
         ...
 
 

@@ -26,7 +26,6 @@ import operator
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any, TypeVar
 
 from ..model import FeatureKey
@@ -42,11 +41,12 @@ from ..parse.formula import (
     Ref,
     Temporal,
     Unary,
+    unparse,
 )
-from .compile import exact, interval_text
-from .engine import Held, Report, Stepper, Unknown
-from .state import boolean_keys, evaluate, features, is_state, key, python, reads, render
-from .witness import Time, Why, but, operator_text, settled, state_was, window_closed
+from .compile import exact
+from .engine import Held, Report, Stepper, Timer, Unknown
+from .state import boolean_keys, evaluate, features, is_state, key, python, reads
+from .witness import Clock, Time, Why, but, settled, state_was, window_closed, window_cut
 
 TRUE = BoolConst(True)
 INF = float("inf")
@@ -95,8 +95,8 @@ def shape(f: Formula) -> Shape | None:
 class Member:
     """One fused part: its shape and where its value goes."""
 
-    def __init__(self, s: Shape, report: Report, unit: Fraction | int = 1) -> None:
-        self.shape, self.report, self.unit = s, report, unit
+    def __init__(self, s: Shape, report: Report, clock: Clock) -> None:
+        self.shape, self.report, self.clock = s, report, clock
         self.hi: Time | float = INF if s.hi is None else s.hi
         self.unknown = False
         self.done = False
@@ -106,29 +106,38 @@ class Member:
         assert self.first is not None
         self.done = True
         # every fused part is an `always`; the verdict names the formula in its place
-        self.report(False, settled("always", self.first, False, cause, self.unit))
+        self.report(False, settled("always", self.first, False, cause, self.clock))
 
     def fail_now(self, t: Time, values: dict[FeatureKey, Any]) -> None:
         a = self.shape.a
-        self.fail(state_was(render(a), t, False, features(a), values, self.unit))
+        text = unparse(a, self.clock.unit)
+        self.fail(state_was(text, t, False, features(a), values, self.clock))
 
     def expire(self, ti: Time) -> None:
         """The window from ti closed: why, as the general engine says it."""
-        s, unit = self.shape, self.unit
+        s, clock = self.shape, self.clock
         assert s.window is not None
-        child = render(s.window.arg)
-        text = operator_text(s.window.op, interval_text(s.window.interval, unit), child)
-        why = window_closed(text, child, ti, s.lo, s.hi, s.window.op == "always", unit)
-        self.fail(why if s.trigger is None else but(render(s.trigger), ti, why, unit))
+        text, child = unparse(s.window, clock.unit), unparse(s.window.arg, clock.unit)
+        why = window_closed(text, child, ti, s.lo, s.hi, s.window.op == "always", clock)
+        self.fail(why if s.trigger is None else but(unparse(s.trigger, clock.unit), ti, why, clock))
+
+    def cut_off(self, ti: Time, end: Time) -> None:
+        """The window from ti reaches past `end`, the end of the data: unknown, and why."""
+        s = self.shape
+        assert s.window is not None and s.hi is not None
+        self.done = True
+        text = unparse(s.window, self.clock.unit)
+        self.report(None, window_cut(text, ti, s.lo, s.hi, end, self.clock))
 
 
 class Group:
     """Responses with the same trigger, target and window start: one queue of waiting
     positions [time, weak] (weak: a failure there is unknown, not false), members sorted by
-    window end; `unknown_upto` members (a prefix) have seen a weak window close."""
+    window end; `unknown_upto` members (a prefix) have seen a weak window close.  `timer` is
+    told when the first waiting position's earliest window ends (engine.Timer)."""
 
-    def __init__(self, lo: Time) -> None:
-        self.lo = lo
+    def __init__(self, lo: Time, timer: Timer | None = None) -> None:
+        self.lo, self.timer = lo, timer
         self.members: list[Member] = []
         self.pending: deque[list[Any]] = deque()
         self.n_weak = 0
@@ -197,6 +206,8 @@ class Group:
                 while pending and t - pending[0][0] >= widest:
                     pending.popleft()
         if a and not (b and lo == 0) and members:
+            if not pending:
+                self._waits(t)
             pending.append([t, False])
             if members[0].hi == 0:
                 failed = self._expire(t, closing=True) or failed
@@ -224,6 +235,8 @@ class Group:
             while pending and t - pending[0][0] >= widest:  # closed for every member
                 self.n_weak -= pending.popleft()[1]
         if a is not False and not (lo == 0 and b is True) and self.members:
+            if not pending:
+                self._waits(t)
             pending.append([t, a is None or (lo == 0 and b is None)])
             self.n_weak += pending[-1][1]
             if self.members[0].hi == 0:
@@ -232,13 +245,33 @@ class Group:
                     self.n_weak -= pending.popleft()[1]
         return failed
 
-    def finish(self) -> None:
-        """End of stream: a waiting position fails every member (unknown if weak)."""
-        strong, weak = self._oldest(False), self._oldest(True)
+    def _waits(self, t: Time) -> None:
+        hi = self.members[0].shape.hi
+        if self.timer is not None and hi is not None:
+            self.timer(t + hi)
+
+    def advance(self, t: Time) -> bool:
+        """No state until after t: members whose window over a waiting position ended by
+        then fail (turn unknown).  Returns whether one failed."""
+        return bool(self.pending) and self._expire(t, closing=True)
+
+    def deadline(self) -> Time | None:
+        hi = self.members[0].shape.hi if self.members else None
+        return None if not self.pending or hi is None else self.pending[0][0] + hi
+
+    def finish(self, cut: Time | None) -> None:
+        """End of stream: for each member, the waiting positions in order until one decides
+        it: a window reaching past `cut` (the end of the data) leaves it unknown, a strong one
+        closed fails it; a weak one closed makes it unknown (at most).  Without `cut` every
+        window closes here."""
         for m in self.members:
-            if strong is not None:
-                m.expire(strong)
-            elif weak is not None:
+            for ti, weak in self.pending:
+                if cut is not None and m.hi != INF and ti + m.hi > cut:
+                    m.cut_off(ti, cut)
+                    break
+                if not weak:
+                    m.expire(ti)
+                    break
                 m.unknown = True
         self.members = [m for m in self.members if not m.done]
 
@@ -325,8 +358,8 @@ class FusedSet:
     (engine.py), and more: while every part a progressor has is fused, `fast` gives its
     whole step for one state, generated."""
 
-    def __init__(self, unit: Fraction | int, unknown: Unknown) -> None:
-        self.unit, self.unknown = unit, unknown
+    def __init__(self, clock: Clock, unknown: Unknown, timer: Timer | None = None) -> None:
+        self.clock, self.unknown, self.timer = clock, unknown, timer
         self.members: list[Member] = []
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
         # the generated step for the current members (None: generate it at the next state),
@@ -338,11 +371,11 @@ class FusedSet:
         s = shape(part)
         if s is None:
             return False
-        m = Member(s, report, self.unit)
+        m = Member(s, report, self.clock)
         self.members.append(m)
         if s.kind == "response":
             assert s.b is not None
-            self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo)).add(m)
+            self.groups.setdefault((s.a, s.b, s.lo), Group(s.lo, self.timer)).add(m)
         self.changed()
         return True
 
@@ -361,9 +394,20 @@ class FusedSet:
         if self.run(t, values, pos, given):
             self.changed()
 
-    def finish(self) -> None:
+    def advance(self, t: Time) -> None:
+        decided = False
         for g in self.groups.values():
-            g.finish()
+            decided = g.advance(t) or decided
+        if decided:
+            self.changed()
+
+    def deadline(self) -> Time | None:
+        ends = [end for g in self.groups.values() if (end := g.deadline()) is not None]
+        return min(ends, default=None)
+
+    def finish(self, cut: Time | None) -> None:
+        for g in self.groups.values():
+            g.finish(cut)
         for m in self.members:
             if not m.done and m.first is not None:
                 m.done = True

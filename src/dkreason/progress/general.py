@@ -4,16 +4,15 @@ same state (compile.py, nodes.py), ticked once a state.  An `Engine` (engine.py)
 from __future__ import annotations
 
 from collections.abc import Mapping
-from fractions import Fraction
 from typing import Any
 
 from ..model import FeatureKey
 from ..parse.formula import Formula
 from .compile import Graph
-from .engine import Report, Unknown
+from .engine import Report, Timer, Unknown
 from .nodes import PENDING, Node, order
 from .state import features
-from .witness import Time, Why, settled
+from .witness import Clock, Time, Why, settled
 
 
 class Root:
@@ -38,16 +37,16 @@ class Root:
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
         self.ended.append(self)
         if why is not None and why.text != self.node.text:
-            why = settled(self.node.text, self.first, value, why, self.graph.ctx.unit)
+            why = settled(self.node.text, self.first, value, why, self.graph.ctx.clock)
         self.report(value, why)
 
 
 class General:
     """The parts of any shape; `unknown` hears which features their undecided parts read
-    were unknown at each state."""
+    were unknown at each state, `timer` when a window will have ended."""
 
-    def __init__(self, unit: Fraction | int, unknown: Unknown) -> None:
-        self.unit, self.unknown = unit, unknown
+    def __init__(self, clock: Clock, unknown: Unknown, timer: Timer | None = None) -> None:
+        self.clock, self.unknown, self.timer = clock, unknown, timer
         self.graphs: list[Graph] = []  # those with an undecided part
         self.roots: list[Root] = []  # the undecided parts
         self.unstarted: list[Root] = []
@@ -56,7 +55,7 @@ class General:
 
     def add(self, part: Formula, report: Report) -> bool:
         if not self.graphs or self.graphs[-1].ctx.pos >= 0:
-            self.graphs.append(Graph(self.unit))
+            self.graphs.append(Graph(self.clock, self.timer))
         graph = self.graphs[-1]
         root = Root(graph.node(part), graph, features(part), report, self.ended)
         self.roots.append(root)
@@ -84,8 +83,25 @@ class General:
         if self.ended:
             self._forget()
 
-    def finish(self) -> None:
+    def advance(self, t: Time) -> None:
         for graph in self.graphs:
+            for node in sorted(graph.ctx.ticking, key=order):
+                node.advance(t)
+        if self.ended:
+            self._forget()
+
+    def deadline(self) -> Time | None:
+        ends = [
+            end
+            for graph in self.graphs
+            for node in graph.ctx.ticking
+            if (end := node.deadline()) is not None
+        ]
+        return min(ends, default=None)
+
+    def finish(self, cut: Time | None) -> None:
+        for graph in self.graphs:
+            graph.ctx.cut = cut
             for node in sorted(graph.cache.values(), key=order):
                 node.finish()
         self._forget()

@@ -11,6 +11,11 @@ Every node has a `level` (leaves 0): each state ticks the nodes with open work i
 and `finish` settles the end of the stream the same way, children before parents.  A decided
 value comes with its reason, phrased by witness.py; a value returned at once is explained on
 demand (`explain`), at the same state.
+
+Between states, `advance(t)` says the stream passed t without a state: a window that ended by
+then closes (no state can fall in it any more).  A future operator with a bounded window
+says, through the graph's `timer`, by when that may be worth asking: when its first waiting
+position comes (it waits for nothing earlier, and later ones only end later).
 """
 
 from __future__ import annotations
@@ -18,20 +23,22 @@ from __future__ import annotations
 import bisect
 import operator
 from collections import deque
-from fractions import Fraction
+from collections.abc import Callable
 from typing import Any, Protocol
 
 from ..model import FeatureKey
 from .state import StateFn, kleene
 from .witness import (
+    Clock,
     Time,
     Why,
     but,
+    cut_of,
     next_late,
-    operator_text,
     settled,
     state_was,
     window_closed,
+    window_cut,
 )
 
 
@@ -50,24 +57,40 @@ class Waiter(Protocol):
 
 
 class Ctx:
-    """What every node of one graph sees: the current position, time and state."""
+    """What every node of one graph sees: the current position, time and state; at the end,
+    `cut`: the end of the data, past which a bounded window stays undecided (None: every
+    window closes at the last state, by the finite-trace semantics); `timer`, told the time by
+    which a waiting position's window ends (engine.Timer)."""
 
-    def __init__(self, unit: Fraction | int = 1) -> None:
+    def __init__(self, clock: Clock, timer: Callable[[Time], None] | None = None) -> None:
         self.pos = -1
         self.now: Time = 0
         self.values: dict[FeatureKey, Any] = {}
         self.start = 0
-        self.unit = unit  # seconds per time unit
+        self.clock = clock
         self.ticking: set[Node] = set()
+        self.cut: Time | None = None
+        self.timer = timer
+
+    def waits(self, t: Time, hi: Time | None) -> None:
+        """A first position waits from t, its window ending at t + hi."""
+        if self.timer is not None and hi is not None:
+            self.timer(t + hi)
+
+    def cuts(self, ti: Time, hi: Time | None) -> bool:
+        """At the end: whether the window of the position at ti, to ti + hi, reaches past the
+        end of the data (an unbounded one never does: it keeps its finite-trace value)."""
+        return self.cut is not None and hi is not None and ti + hi > self.cut
 
 
 class Node:
+    """`text`: the subformula as a witness quotes it (`parse.formula.unparse`)."""
+
     level = 0
-    text = ""
     rank = 0  # its place in `order`
 
-    def __init__(self, ctx: Ctx) -> None:
-        self.ctx = ctx
+    def __init__(self, ctx: Ctx, text: str) -> None:
+        self.ctx, self.text = ctx, text
         self.waiters: dict[int, list[tuple[Waiter, Any]]] = {}
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
@@ -76,10 +99,17 @@ class Node:
     def explain(self, t: Time, value: Any) -> Why:
         """The reason for the value this node returned at once at the current position (its
         delivered values come with theirs)."""
-        return settled(self.text, t, value, None, self.ctx.unit)
+        return settled(self.text, t, value, None, self.ctx.clock)
 
     def tick(self) -> None:
         pass
+
+    def advance(self, t: Time) -> None:
+        """No state until after t: what that decides (future operators)."""
+
+    def deadline(self) -> Time | None:
+        """The earliest end of a waiting position's window (None: none waits for one)."""
+        return None
 
     def finish(self) -> None:
         pass
@@ -106,8 +136,8 @@ class StateNode(Node):
     """A temporal-free subformula: decided at once from the current state."""
 
     def __init__(self, ctx: Ctx, fn: StateFn, keys: list[FeatureKey], text: str) -> None:
-        super().__init__(ctx)
-        self.fn, self.keys, self.text = fn, keys, text
+        super().__init__(ctx, text)
+        self.fn, self.keys = fn, keys
         self.pos = -1
         self.value: Any = None
 
@@ -117,13 +147,13 @@ class StateNode(Node):
         return self.value
 
     def explain(self, t: Time, value: Any) -> Why:
-        return state_was(self.text, t, self.value, self.keys, self.ctx.values, self.ctx.unit)
+        return state_was(self.text, t, self.value, self.keys, self.ctx.values, self.ctx.clock)
 
 
 class NotNode(Node):
-    def __init__(self, ctx: Ctx, child: Node) -> None:
-        super().__init__(ctx)
-        self.child, self.level, self.text = child, child.level + 1, f"not ({child.text})"
+    def __init__(self, ctx: Ctx, child: Node, text: str) -> None:
+        super().__init__(ctx, text)
+        self.child, self.level = child, child.level + 1
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         if i in self.waiters:
@@ -146,11 +176,12 @@ class BoolNode(Node):
     `said` (`or` only) is what held when it is false, as a witness says it: `A` for
     `A -> B` (compiled as `not A or B`), for `not A or B` too, and `not (A)` for `A or B`."""
 
-    def __init__(self, ctx: Ctx, op: str, left: Node, right: Node, said: str | None) -> None:
-        super().__init__(ctx)
+    def __init__(
+        self, ctx: Ctx, op: str, left: Node, right: Node, said: str | None, text: str
+    ) -> None:
+        super().__init__(ctx, text)
         self.op, self.left, self.right, self.said = op, left, right, said
         self.level = max(left.level, right.level) + 1
-        self.text = f"({left.text}) {op} ({right.text})"
         self.open: dict[int, list[Any]] = {}
         self.decisive = {"and": False, "or": True}.get(op)
         self.sides: tuple[Any, Any] = (PENDING, PENDING)  # behind the last value returned at once
@@ -186,7 +217,7 @@ class BoolNode(Node):
     def _why(self, t: Time, value: Any, right: Why) -> Why:
         """The reason for a value both sides gave, the right one's reason `right`."""
         if value is False and self.said is not None:
-            return but(self.said, t, right, self.ctx.unit)
+            return but(self.said, t, right, self.ctx.clock)
         return right
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
@@ -206,18 +237,19 @@ class BoolNode(Node):
 class WindowNode(Node):
     """eventually_[a,b] (decisive True) and always_[a,b] (decisive False) in O(1) amortised:
     positions wait with absolute windows [t+a, t+b]; a decisive child value settles every
-    waiting position whose window holds it, and a window closes at the state reaching its end."""
+    waiting position whose window holds it, and a window closes at the state reaching its end.
+    A position the child was unknown for keeps why, when a window the end of the data cut off
+    left it unknown."""
 
     def __init__(
-        self, ctx: Ctx, op: str, lo: Time, hi: Time | None, child: Node, interval: str
+        self, ctx: Ctx, op: str, lo: Time, hi: Time | None, child: Node, text: str
     ) -> None:
-        super().__init__(ctx)
+        super().__init__(ctx, text)
         self.decisive = op == "eventually"
         self.lo, self.hi, self.child = lo, hi, child
         self.level = child.level + 1
-        self.text = operator_text(op, interval, child.text)
         self.times: list[Time] = []  # waiting positions, by time
-        self.entries: list[list[Any]] = []  # [position, time, unknown?]
+        self.entries: list[list[Any]] = []  # [position, time, unknown? (False, True, a cut)]
         self.child_open: dict[int, Time] = {}  # child positions requested but not delivered
         self.asked = -1
         self.asked_value: Any = None
@@ -242,6 +274,8 @@ class WindowNode(Node):
             if self.hi == 0 and v is not PENDING:
                 return v
             unknown = v is None
+        if not self.entries:
+            self.ctx.waits(t, self.hi)
         self.times.append(t)
         self.entries.append([i, t, unknown])
         self.ctx.ticking.add(self)
@@ -269,37 +303,60 @@ class WindowNode(Node):
         if first >= last:
             return
         if v is None:
+            cut = cut_of(why) or True
             for entry in self.entries[first:last]:
-                entry[2] = True
+                if not isinstance(entry[2], Why):
+                    entry[2] = cut
             return
         done = self.entries[first:last]
         del self.entries[first:last], self.times[first:last]
         cause = why or self.child.explain(tj, v)
         for i, ti, _ in done:
-            self._resolve(i, v, settled(self.text, ti, v, cause, self.ctx.unit))
+            self._resolve(i, v, settled(self.text, ti, v, cause, self.ctx.clock))
 
     def explain(self, t: Time, value: Any) -> Why:
         if value is not None and value is self.decisive:  # the child's value now decided it
-            return settled(self.text, t, value, self.child.explain(t, value), self.ctx.unit)
+            return settled(self.text, t, value, self.child.explain(t, value), self.ctx.clock)
         return self._closed(t, value)  # a window [t, t], closed at once
 
     def _closed(self, ti: Time, value: Any) -> Why:
-        return window_closed(self.text, self.child.text, ti, self.lo, self.hi, value, self.ctx.unit)
+        clock = self.ctx.clock
+        return window_closed(self.text, self.child.text, ti, self.lo, self.hi, value, clock)
 
-    def _close(self, at_end: bool = False) -> None:
-        now, pos = self.ctx.now, self.ctx.pos
+    def advance(self, t: Time) -> None:
+        self._close(passed=t)
+
+    def deadline(self) -> Time | None:
+        return self.times[0] + self.hi if self.times and self.hi is not None else None
+
+    def _close(self, at_end: bool = False, passed: Time | None = None) -> None:
+        """Settle the waiting positions whose windows closed: at the current state, by
+        `passed` (no state until after it), or at the end."""
+        ctx = self.ctx
+        now, pos = ctx.now, ctx.pos
         oldest_open = min(self.child_open.values()) if self.child_open else None
         while self.entries:
             i, ti, unknown = self.entries[0]
             hi = None if self.hi is None else ti + self.hi
             if not at_end:
-                if hi is None or hi > now or (hi == now and self.asked != pos):
+                if hi is None or (
+                    hi > passed
+                    if passed is not None
+                    else hi > now or (hi == now and self.asked != pos)
+                ):
                     break
                 if oldest_open is not None and oldest_open <= hi:
                     break
             del self.entries[0], self.times[0]
+            if at_end and ctx.cuts(ti, self.hi):
+                assert self.hi is not None and ctx.cut is not None
+                cut = window_cut(self.text, ti, self.lo, self.hi, ctx.cut, ctx.clock)
+                self._resolve(i, None, cut)
+                continue
             value = None if unknown else (not self.decisive)
-            self._resolve(i, value, self._closed(ti, value))
+            self._resolve(
+                i, value, unknown if isinstance(unknown, Why) else self._closed(ti, value)
+            )
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:
         j, tj = key
@@ -314,17 +371,35 @@ class WindowNode(Node):
 class NextNode(Node):
     """next_[a,b]: decided when the next state arrives (false if none does)."""
 
-    def __init__(self, ctx: Ctx, lo: Time, hi: Time | None, child: Node, interval: str) -> None:
-        super().__init__(ctx)
+    def __init__(self, ctx: Ctx, lo: Time, hi: Time | None, child: Node, text: str) -> None:
+        super().__init__(ctx, text)
         self.lo, self.hi, self.child = lo, hi, child
-        self.level, self.text = child.level + 1, operator_text("next", interval, child.text)
+        self.level = child.level + 1
         self.waiting: list[tuple[int, Time]] = []
 
     def request(self, i: int, t: Time, waiter: Waiter, key: Any) -> Any:
         if i not in self.waiters:
+            if not self.waiting:
+                self.ctx.waits(t, self.hi)
             self.waiting.append((i, t))
             self.ctx.ticking.add(self)
         return self._wait(i, waiter, key)
+
+    def advance(self, t: Time) -> None:
+        """The next state comes after t: later than the window of a position whose window
+        ended by then."""
+        if self.hi is None:
+            return
+        late = [(i, ti) for i, ti in self.waiting if t - ti >= self.hi]
+        if late:
+            self.waiting = [w for w in self.waiting if w not in late]
+            for i, ti in late:
+                self._resolve(i, False, next_late(self.text, ti, None, self.ctx.clock))
+
+    def deadline(self) -> Time | None:
+        if self.hi is None or not self.waiting:
+            return None
+        return min(ti for _, ti in self.waiting) + self.hi
 
     def tick(self) -> None:
         now, pos = self.ctx.now, self.ctx.pos
@@ -333,7 +408,7 @@ class NextNode(Node):
         for i, ti in ready:
             gap = now - ti
             if gap < self.lo or (self.hi is not None and gap > self.hi):
-                self._resolve(i, False, next_late(self.text, ti, gap, self.ctx.unit))
+                self._resolve(i, False, next_late(self.text, ti, gap, self.ctx.clock))
                 continue
             v = self.child.request(pos, now, self, i)
             if v is not PENDING:
@@ -345,8 +420,15 @@ class NextNode(Node):
         self._resolve(key, value, why)
 
     def finish(self) -> None:
+        ctx = self.ctx
         for i, ti in self.waiting:
-            self._resolve(i, False, next_late(self.text, ti, None, self.ctx.unit))
+            if ctx.cuts(ti, self.hi):
+                assert self.hi is not None and ctx.cut is not None
+                self._resolve(
+                    i, None, window_cut(self.text, ti, self.lo, self.hi, ctx.cut, ctx.clock)
+                )
+            else:
+                self._resolve(i, False, next_late(self.text, ti, None, ctx.clock))
         self.waiting = []
 
 
@@ -355,12 +437,11 @@ class UntilNode(Node):
     with pending values read as unknown; a True or False result is final (Kleene monotony)."""
 
     def __init__(
-        self, ctx: Ctx, lo: Time, hi: Time | None, left: Node, right: Node, interval: str
+        self, ctx: Ctx, lo: Time, hi: Time | None, left: Node, right: Node, text: str
     ) -> None:
-        super().__init__(ctx)
+        super().__init__(ctx, text)
         self.lo, self.hi, self.left, self.right = lo, hi, left, right
         self.level = max(left.level, right.level) + 1
-        self.text = f"({left.text}) until{interval} ({right.text})"
         self.hist: dict[int, list[Any]] = {}  # position → [time, φ, ψ]
         self.entries: list[tuple[int, Time]] = []
         self.seen = -1
@@ -382,13 +463,23 @@ class UntilNode(Node):
         if value is not PENDING:
             self._trim()
             return value
+        if not self.entries:
+            self.ctx.waits(t, self.hi)
         self.entries.append((i, t))
         self.ctx.ticking.add(self)
         return self._wait(i, waiter, key)
 
-    def _evaluate(self, i: int, ti: Time, at_end: bool) -> Any:
+    def advance(self, t: Time) -> None:
+        self._settle(at_end=False, passed=t)
+
+    def deadline(self) -> Time | None:
+        return self.entries[0][1] + self.hi if self.entries and self.hi is not None else None
+
+    def _evaluate(self, i: int, ti: Time, at_end: bool, passed: Time | None = None) -> Any:
         """Kleene value at i with pending and not-yet-seen positions read as unknown: final if
-        True or False, PENDING if unknown while anything it read may still change."""
+        True or False, PENDING if unknown while anything it read may still change (no state
+        comes before `passed`, when given)."""
+        now = self.ctx.now if passed is None else passed
         result: Any = False
         phi: Any = True
         open_ = False
@@ -396,9 +487,10 @@ class UntilNode(Node):
         while True:
             row = self.hist.get(j)
             if row is None:  # not recorded yet (this state, or one to come): open unless closed
-                if not at_end and (
-                    j <= self.ctx.pos or self.hi is None or self.ctx.now < ti + self.hi
-                ):
+                if at_end:  # past the data: unknown if the window reaches there
+                    if self.ctx.cuts(ti, self.hi):
+                        result = kleene("or", result, kleene("and", None, phi))
+                elif j <= self.ctx.pos or self.hi is None or now < ti + self.hi:
                     open_ = True
                     result = kleene("or", result, kleene("and", None, phi))
                 break
@@ -422,14 +514,19 @@ class UntilNode(Node):
         self._record(self.ctx.pos, self.ctx.now)
         self._settle(at_end=False)
 
-    def _settle(self, at_end: bool) -> None:
-        still = []
+    def _settle(self, at_end: bool, passed: Time | None = None) -> None:
+        ctx, still = self.ctx, []
         for i, ti in self.entries:
-            value = self._evaluate(i, ti, at_end)
+            value = self._evaluate(i, ti, at_end, passed)
             if value is PENDING:
                 still.append((i, ti))
+            elif at_end and value is None and ctx.cuts(ti, self.hi):
+                assert self.hi is not None and ctx.cut is not None
+                self._resolve(
+                    i, None, window_cut(self.text, ti, self.lo, self.hi, ctx.cut, ctx.clock)
+                )
             else:
-                self._resolve(i, value, settled(self.text, ti, value, None, self.ctx.unit))
+                self._resolve(i, value, settled(self.text, ti, value, None, ctx.clock))
         self.entries = still
         self._trim()
         if not self.entries:
@@ -466,16 +563,11 @@ class PastNode(Node):
         hi: Time | None,
         left: Node | None,
         right: Node,
-        interval: str,
+        text: str,
     ) -> None:
-        super().__init__(ctx)
+        super().__init__(ctx, text)
         self.op, self.lo, self.hi, self.left, self.right = op, lo, hi, left, right
         self.level = max(right.level, left.level if left else 0) + 1
-        self.text = (
-            f"({left.text}) since{interval} ({right.text})"
-            if left is not None
-            else operator_text(op, interval, right.text)
-        )
         self.hist: deque[list[Any]] = deque()  # [position, time, φ (since), ψ]
         self.entries: list[tuple[int, Time]] = []
         self.decisive = op != "historically"
@@ -571,7 +663,7 @@ class PastNode(Node):
             if value is PENDING:
                 still.append((i, ti))
             else:
-                self._resolve(i, value, settled(self.text, ti, value, None, self.ctx.unit))
+                self._resolve(i, value, settled(self.text, ti, value, None, self.ctx.clock))
         self.entries = still
 
     def deliver(self, key: Any, value: Any, why: Why | None) -> None:

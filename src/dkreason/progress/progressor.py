@@ -14,14 +14,19 @@ Each top-level conjunct of a formula (a part) goes to one of two engines behind 
 (engine.py): the generated fused monitors (fused.py) when they take its shape, the general
 node graph (general.py) otherwise or always (`engine="general"`).  Both give the same
 verdicts at the same states with the same witnesses (witness.py).
+
+The end of the data: `finish(end)` settles what is left.  A bounded window (`eventually[0, 5]`,
+`always[0, 5]`, `until[0, 5]`, `next[0, 5]`) reaching past the end of the data is left
+undecided (`verdict` None, its `pending` text says which window and how much of it was seen):
+no violation is claimed past the data.  Unbounded operators keep their finite-trace values
+(`always` holds, an unmet `eventually` fails), as every window does with
+`end_of_data="finite"`.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
-from decimal import Decimal
+from collections.abc import Callable, Iterable, Mapping
 from fractions import Fraction
 from typing import Any
 
@@ -29,64 +34,16 @@ from ..errors import DkError
 from ..inputs.numbers import exact
 from ..model import FeatureKey
 from ..parse.formula import Connective, Formula, feature_key, parse_formula, quantifiers
+from ..stream.policy import END_OF_DATA
 from .compile import scaled
-from .engine import Engine, Held, Report, Stepper
+from .engine import Engine, Held, Report, Stepper, Timer
 from .fused import FusedSet
 from .general import General
 from .state import features, is_state
-from .witness import Time, Why, refuted, undecided
+from .verdict import UnknownSpan, Verdict
+from .witness import Clock, Time, Why, cut_of, refuted, undecided
 
 ENGINES = ("auto", "general")
-
-
-@dataclass(frozen=True, slots=True)
-class UnknownSpan:
-    feature: FeatureKey
-    start: Any
-    end: Any
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "feature": str(self.feature),
-            "from": _json_time(self.start),
-            "to": _json_time(self.end),
-        }
-
-
-@dataclass(frozen=True, slots=True)
-class Verdict:
-    """The value of a formula at the first state, with the state that decided it.
-
-    `at_end` is True when `finish()` settled it; `verdict` is None only then, when the data
-    left it unknown (`unknown` says which features and when).  A monitor over a recording
-    also gives `t`, the time in seconds from the recording's start."""
-
-    formula: str
-    verdict: bool | None
-    time: Any
-    at_end: bool
-    witness: str | None = None
-    unknown: tuple[UnknownSpan, ...] = field(default=())
-    t: float | int | None = None
-
-    def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {
-            "formula": self.formula,
-            "verdict": self.verdict,
-            "time": _json_time(self.time),
-            **({} if self.t is None else {"t": self.t}),
-            "at_end": self.at_end,
-            "witness": self.witness,
-        }
-        if self.verdict is None:
-            out["unknown"] = [u.to_json() for u in self.unknown]
-        return out
-
-
-def _json_time(t: Any) -> Any:
-    if isinstance(t, Fraction | Decimal):
-        return int(t) if t == int(t) else float(t)
-    return t
 
 
 def exact_time(t: Any) -> Time:
@@ -107,6 +64,7 @@ class _Formula:
         self.value: bool | None = True  # so far
         self.why: Why | None = None
         self.failed = -1  # the part that is the witness
+        self.cut: tuple[int, Why] | None = None  # the leftmost part a cut window left open
         self.queued = False  # in `decided`, to be reported
         self.reported = False
         self.started = False
@@ -121,8 +79,12 @@ class _Formula:
             return
         if value is False and (self.value is not False or n < self.failed):
             self.value, self.why, self.failed = False, why, n
-        elif value is None and self.value is True:
-            self.value = None
+        elif value is None:
+            if self.value is True:
+                self.value = None
+            cut = cut_of(why)
+            if cut is not None and (self.cut is None or n < self.cut[0]):
+                self.cut = (n, cut)
         if (self.value is False or not self.open) and not self.queued:
             self.queued = True
             self.decided.append(self)
@@ -161,14 +123,29 @@ class Progressor:
     """`unit` is the seconds per unit of the times given to `step` (1; 1/10**9 for ns).
     `engine`: "auto" gives each part of a formula to the fused monitors when they take its
     shape and to the general engine otherwise; "general" gives every part to the general
-    engine (the same verdicts, times and witnesses, more slowly)."""
+    engine (the same verdicts, times and witnesses, more slowly).  `end_of_data`: "open"
+    leaves a bounded window that the end of the data cuts off undecided, "finite" closes it
+    (module docstring).  `origin`: when given, witnesses say times as `t+…` seconds from the
+    stream time it returns (the run's start).  `timer`: told by when a window will have ended
+    (in the stream's times), so a caller that sees the stream pass it without a state of these
+    formulas can `advance` to it."""
 
-    def __init__(self, unit: Fraction | int = 1, engine: str = "auto") -> None:
+    def __init__(
+        self,
+        unit: Fraction | int = 1,
+        engine: str = "auto",
+        end_of_data: str = "open",
+        origin: Callable[[], Time | None] | None = None,
+        timer: Timer | None = None,
+    ) -> None:
         if engine not in ENGINES:
             raise DkError(f"unknown engine {engine!r} ({' or '.join(ENGINES)})")
-        self.unit = unit
-        self.fused = FusedSet(unit, self.note_unknown)
-        self.general = General(unit, self.note_unknown)
+        if end_of_data not in END_OF_DATA:
+            raise DkError(f"unknown end of data {end_of_data!r} ({' or '.join(END_OF_DATA)})")
+        self.unit, self.end_of_data = unit, end_of_data
+        self.clock = Clock(unit, origin)
+        self.fused = FusedSet(self.clock, self.note_unknown, timer)
+        self.general = General(self.clock, self.note_unknown, timer)
         self.engines: tuple[Engine, ...] = (
             (self.fused, self.general) if engine == "auto" else (self.general,)
         )
@@ -260,11 +237,38 @@ class Progressor:
         self.stepper, self.held = self.step_state, None
         return self._decided(at_end=False)
 
-    def finish(self) -> list[Verdict]:
-        """End of stream: settle every undecided formula by the finite-trace semantics."""
+    def advance(self, time: Any) -> list[Verdict]:
+        """The stream passed `time` (after the last state) without a state of these formulas:
+        the windows that ended by then close.  Returns the verdicts that decides, at `time`;
+        the next state must come after it."""
+        t = time if type(time) is int else exact_time(time)
+        if not t > self.stepped[0]:
+            raise DkError(
+                f"time {time} is not after the previous state's time {self.stepped[1]} "
+                f"(times must increase strictly)"
+            )
+        self.stepped = (t, time)
         self._general()
         for engine in self.engines:
-            engine.finish()
+            engine.advance(t)
+        return self._decided(at_end=False, time=time) if self.decided else []
+
+    def deadline(self) -> Time | None:
+        """By when a window a formula waits on ends (None: none waits for one)."""
+        ends = [end for e in self.engines if (end := e.deadline()) is not None]
+        return min(ends, default=None)
+
+    def finish(self, end: Any = None) -> list[Verdict]:
+        """End of stream: settle every undecided formula.  `end`: where the data ends, at or
+        after the last state (a recording may go on without sampling what these formulas
+        read), in the times `step` takes; None: at the last state."""
+        self._general()
+        cut = None
+        if self.end_of_data == "open" and self.last_input is not None:
+            last = exact_time(self.last_input)
+            cut = last if end is None else max(last, exact_time(end))
+        for engine in self.engines:
+            engine.finish(cut)
         for m in self.formulas:
             if not m.started and not m.queued:
                 m.value, m.queued = None, True
@@ -277,7 +281,9 @@ class Progressor:
             self.pos, self.last_input = self.held()
         self.stepper, self.held = self.step_state, None
 
-    def _decided(self, at_end: bool) -> list[Verdict]:
+    def _decided(self, at_end: bool, time: Any = None) -> list[Verdict]:
+        """The decided formulas' verdicts, at the current state (or `time`, advanced to)."""
+        time = self.last_input if time is None else time
         out = []
         order = {id(m): n for n, m in enumerate(self.formulas)}
         ready = sorted(self.decided, key=lambda m: order[id(m)])
@@ -287,18 +293,17 @@ class Progressor:
                 self.decided.append(m)
                 continue
             m.reported = True
-            witness = None
+            witness = pending = None
             unknown: tuple[UnknownSpan, ...] = ()
             if m.value is False and m.why is not None:
-                witness = refuted(m.text, m.why)
+                witness = refuted(m.why, time, self.clock)
             elif m.value is None:
                 unknown = tuple(
                     UnknownSpan(k, s[0], s[1]) for k in m.keys for s in self.unknown.get(k, ())
                 )
-                witness = undecided(
-                    ((u.feature, u.start, u.end) for u in unknown), m.started, self.unit
-                )
-            out.append(Verdict(m.text, m.value, self.last_input, at_end, witness, unknown))
+                pending = None if m.cut is None else m.cut[1].render()
+                witness = undecided(unknown, m.started, self.clock, pending)
+            out.append(Verdict(m.text, m.value, time, at_end, witness, unknown, pending=pending))
         return out
 
     def note_unknown(self, keys: Iterable[FeatureKey], pos: int, given: Any) -> None:
@@ -311,4 +316,4 @@ class Progressor:
                 spans.append([given, given, pos])
 
 
-__all__ = ["ENGINES", "Progressor", "UnknownSpan", "Verdict"]
+__all__ = ["ENGINES", "Progressor"]

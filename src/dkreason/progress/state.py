@@ -2,12 +2,12 @@
 
 Each compiles to a function of the state's values returning True, False or None (unknown,
 Kleene).  The generated code reads every feature first, then takes a two-valued fast path
-when all are known, and falls back to a three-valued interpreter otherwise.
+when all it reads as values are known (`observed(X)` reads only whether X has one), and falls
+back to a three-valued interpreter otherwise.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import operator
 from collections.abc import Callable, Iterable, Mapping
@@ -25,10 +25,12 @@ from ..parse.formula import (
     Formula,
     Not,
     Num,
+    Observed,
     Ref,
     Str,
     Unary,
     children,
+    unparse,
 )
 
 Value = bool | None
@@ -51,7 +53,7 @@ def key(feature: Any) -> FeatureKey:
 
 
 def is_state(f: Formula) -> bool:
-    if isinstance(f, BoolConst | Atom | Compare):
+    if isinstance(f, BoolConst | Atom | Observed | Compare):
         return True
     if isinstance(f, Not):
         return is_state(f.arg)
@@ -65,7 +67,7 @@ def features(node: Any) -> list[FeatureKey]:
     out: dict[FeatureKey, None] = {}
 
     def walk(n: Any) -> None:
-        if isinstance(n, Atom | Ref):
+        if isinstance(n, Atom | Ref | Observed):
             out[key(n.feature)] = None
         for child in children(n):
             walk(child)
@@ -74,25 +76,13 @@ def features(node: Any) -> list[FeatureKey]:
     return list(out)
 
 
-def render(f: Any) -> str:
-    """Source-like text of a state formula or expression (for witnesses)."""
-    if isinstance(f, BoolConst):
-        return "true" if f.value else "false"
-    if isinstance(f, Atom | Ref):
-        return str(key(f.feature))
-    if isinstance(f, Num):
-        return repr(f.value)
-    if isinstance(f, Compare | Arith):
-        return f"{render(f.left)} {f.op} {render(f.right)}"
-    if isinstance(f, Unary):
-        return f"-{render(f.arg)}" if f.op == "-" else f"abs({render(f.arg)})"
-    if isinstance(f, Str):
-        return json.dumps(f.value, ensure_ascii=False)
-    if isinstance(f, Not):
-        return f"not ({render(f.arg)})"
-    if isinstance(f, Connective):
-        return f"({render(f.left)}) {f.op} ({render(f.right)})"
-    raise TypeError(type(f).__name__)
+def valued(node: Any) -> list[FeatureKey]:
+    """The features a state formula reads the values of (not only whether they have one)."""
+    if isinstance(node, Observed):
+        return []
+    if isinstance(node, Atom | Ref):
+        return [key(node.feature)]
+    return list(dict.fromkeys(k for child in children(node) for k in valued(child)))
 
 
 def uses(f: Any) -> dict[FeatureKey, str]:
@@ -106,7 +96,7 @@ def uses(f: Any) -> dict[FeatureKey, str]:
             out.setdefault(key(n.feature), as_)
         elif isinstance(n, Compare):
             if is_text(n) and n.op not in ("==", "!="):
-                raise DkError(f"strings compare only with == or !=, not {n.op}: {render(n)}")
+                raise DkError(f"strings compare only with == or !=, not {n.op}: {unparse(n)}")
             for side in (n.left, n.right):
                 walk(side, "string" if is_text(n) else "number")
         else:
@@ -138,6 +128,8 @@ def feature_uses(formulas: Iterable[tuple[str, Any]]) -> dict[FeatureKey, tuple[
 def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) -> Value:
     if isinstance(f, BoolConst):
         return f.value
+    if isinstance(f, Observed):
+        return values[key(f.feature)] is not None
     if isinstance(f, Atom):
         v = values[key(f.feature)]
         if v is None or isinstance(v, bool):
@@ -189,14 +181,14 @@ def _text(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> str | None
                 f"value {v!r} at time {time}"
             )
         return v
-    raise DkError(f"only a feature compares with a string, not {render(e)}")
+    raise DkError(f"only a feature compares with a string, not {unparse(e)}")
 
 
 def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
     if isinstance(e, Num):
         return e.value
     if isinstance(e, Str):
-        raise DkError(f"the string {render(e)} is used as a number")
+        raise DkError(f"the string {unparse(e)} is used as a number")
     if isinstance(e, Ref):
         v = values[key(e.feature)]
         if v is not None and not isinstance(v, int | float) and not hasattr(v, "__truediv__"):
@@ -236,14 +228,8 @@ def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
     keys = features(f)
     scope: dict[str, Any] = {"slow": evaluate, "formula": f}
     names, lines = reads(keys, "values", scope)
-    bools = boolean_keys(f)
     body = python(f, names)
-    known = (
-        " and ".join(
-            (f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None") for k in keys
-        )
-        or "True"
-    )
+    known = knowing(f, names)
     reads_ = "".join(f"    {line}\n" for line in lines)
     source = (
         f"def state(values, time=None):\n{reads_}"
@@ -252,8 +238,21 @@ def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
         f"        except (ZeroDivisionError, TypeError):\n            pass\n"
         f"    return slow(formula, values, time)\n"
     )
-    exec(compile(source, f"<state {render(f)}>", "exec"), scope)
+    exec(compile(source, f"<state {unparse(f)}>", "exec"), scope)
     return scope["state"], keys
+
+
+def knowing(f: Formula, names: dict[FeatureKey, str]) -> str:
+    """The generated test that `f`'s two-valued fast path applies: every value it reads is
+    known (a condition's is a boolean)."""
+    bools = boolean_keys(f)
+    return (
+        " and ".join(
+            f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None"
+            for k in valued(f)
+        )
+        or "True"
+    )
 
 
 def boolean_keys(f: Any) -> set[FeatureKey]:
@@ -268,6 +267,8 @@ def python(n: Any, names: dict[FeatureKey, str]) -> str:
     into the local `names`."""
     if isinstance(n, BoolConst):
         return "True" if n.value else "False"
+    if isinstance(n, Observed):
+        return f"({names[key(n.feature)]} is not None)"
     if isinstance(n, Atom | Ref):
         return names[key(n.feature)]
     if isinstance(n, Num):

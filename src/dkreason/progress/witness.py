@@ -1,33 +1,81 @@
 """Witnesses, phrased in one place for both engines.
 
 A decision's reason is a chain of `Why` links ("X is false at 3, because …").  Each kind of
-link is made here (a state formula's value, a window that closed, a value its subformula
-settled, a trigger whose response failed), and so is the verdict's witness text, so the same
-formula and trace read the same whichever engine judged them (tests/test_progress.py checks
-it on random formulas and traces).
+link is made here (a state formula's value, a window that closed or that the end of the data
+cut off, a value its subformula settled, a trigger whose response failed), and so is the
+verdict's witness text, so the same formula and trace read the same whichever engine judged
+them (tests/test_progress.py checks it on random formulas and traces).  Subformulas are quoted
+as `parse.formula.unparse` prints them: re-parsed, each gives the same tree.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
+from ..inputs.numbers import decimal
 from ..model import FeatureKey
+from .verdict import UnknownSpan
 
 Time = int | Fraction
+SHOWN = 10  # spans a witness names; the rest are counted
+UNDECIDED = "the data left it undecided: "  # how an unknown verdict's witness begins
+
+
+@dataclass(frozen=True, slots=True)
+class Clock:
+    """How a witness says a time: in seconds (`unit`: seconds per time unit of the stream) and,
+    with an `origin` (a stream time, asked when a witness is phrased: the run's start, which
+    only the monitor knows), as `t+…` seconds from it."""
+
+    unit: Fraction | int = 1
+    origin: Callable[[], Time | None] | None = None
+
+    def time(self, t: Any) -> str:
+        """A time: `t+0.02` from the origin (`t-0.02` before it), else as the stream has it
+        (`oo`: none)."""
+        if t is None:
+            return "oo"
+        origin = None if self.origin is None else self.origin()
+        if not isinstance(t, int | Fraction):
+            return str(t)  # as the caller gave it
+        if origin is None:
+            return decimal(t * self.unit)
+        since = Fraction(t - origin) * self.unit  # negative for a stamp before the start
+        return f"t{'-' if since < 0 else '+'}{decimal(abs(since))}"
+
+    def at(self, t: Any) -> str:
+        """A time after "at": `t+0.02 s` from the origin."""
+        return self.time(t) + (" s" if self.origin is not None else "")
+
+    def span(self, a: Any, b: Any) -> str:
+        return f"[{self.time(a)}, {self.time(b)}]"
+
+    def seconds(self, d: Time) -> str:
+        """A duration: `3.9 s`."""
+        return f"{decimal(d * self.unit)} s"
 
 
 class Why:
     """Why a value was decided at a position: built only on decisions.  `plain` links only
-    restate a value ("X is false at 3"); their cause says why."""
+    restate a value ("X is false at 3"); their cause says why.  A `cut` link is a time window
+    the end of the data cut off (what left the value open)."""
 
-    __slots__ = ("text", "at", "detail", "cause", "plain")
+    __slots__ = ("text", "at", "detail", "cause", "plain", "cut")
 
     def __init__(
-        self, text: str, at: Time, detail: str, cause: Why | None = None, plain: bool = False
+        self,
+        text: str,
+        at: Time,
+        detail: str,
+        cause: Why | None = None,
+        plain: bool = False,
+        cut: bool = False,
     ) -> None:
-        self.text, self.at, self.detail, self.cause, self.plain = text, at, detail, cause, plain
+        self.text, self.at, self.detail, self.cause = text, at, detail, cause
+        self.plain, self.cut = plain, cut
 
     def render(self) -> str:
         own = f"{self.text} {self.detail}"
@@ -37,45 +85,8 @@ class Why:
         return f"Why({self.render()!r})"
 
 
-def fmt(t: Time | None, unit: Fraction | int = 1) -> str:
-    """A time for people: in seconds (`unit` is the seconds per time unit of the stream)."""
-    if t is None:
-        return "oo"
-    if unit != 1:
-        t = Fraction(t) * unit
-    if isinstance(t, Fraction):
-        if t.denominator == 1:
-            return str(t.numerator)
-        as_float = float(t)
-        if Fraction(repr(as_float)) == t:
-            return repr(as_float)
-        digits = _decimals(t.denominator)  # exact when it is a finite decimal (ns times are)
-        if digits is None:
-            return str(t)
-        whole, part = divmod(abs(t.numerator) * 10**digits // t.denominator, 10**digits)
-        return f"{'-' if t < 0 else ''}{whole}.{part:0{digits}d}".rstrip("0")
-    return str(t)
-
-
-def _decimals(denominator: int) -> int | None:
-    """Digits after the point that show 1/denominator exactly; None if no number does."""
-    twos = fives = 0
-    while denominator % 2 == 0:
-        denominator //= 2
-        twos += 1
-    while denominator % 5 == 0:
-        denominator //= 5
-        fives += 1
-    return max(twos, fives) if denominator == 1 else None
-
-
 def word(value: Any) -> str:
     return {True: "true", False: "false", None: "unknown"}.get(value, "pending")
-
-
-def operator_text(op: str, interval: str, child: str) -> str:
-    """How a witness names a temporal operator over a subformula: `eventually[0, 2] (Q)`."""
-    return f"{op}{interval} ({child})"
 
 
 def state_was(
@@ -83,18 +94,18 @@ def state_was(
     t: Time,
     value: bool | None,
     keys: Iterable[FeatureKey],
-    values: Mapping[FeatureKey, Any],
-    unit: Fraction | int,
+    values: Any,
+    clock: Clock,
 ) -> Why:
     """A state formula's value at t, with the values it read: `X > 1 was false at 3 (X = 0)`."""
     shown = ", ".join(f"{k} = {values[k]}" for k in keys)
     said = {True: "held", False: "was false", None: "was unknown"}[value]
-    return Why(text, t, f"{said} at {fmt(t, unit)}" + (f" ({shown})" if shown else ""))
+    return Why(text, t, f"{said} at {clock.at(t)}" + (f" ({shown})" if shown else ""))
 
 
-def settled(text: str, t: Time, value: Any, cause: Why | None, unit: Fraction | int) -> Why:
+def settled(text: str, t: Time, value: Any, cause: Why | None, clock: Clock) -> Why:
     """A subformula's value at t, for the reason `cause` gives (a plain link)."""
-    return Why(text, t, f"is {word(value)} at {fmt(t, unit)}", cause, plain=True)
+    return Why(text, t, f"is {word(value)} at {clock.at(t)}", cause, plain=True)
 
 
 def window_closed(
@@ -104,11 +115,11 @@ def window_closed(
     lo: Time,
     hi: Time | None,
     value: bool | None,
-    unit: Fraction | int,
+    clock: Clock,
 ) -> Why:
     """The window [ti + lo, ti + hi] of `text` closed: its `child` never held within it
     (eventually, false), held throughout (always, true), or was unknown somewhere in it."""
-    within = f"[{fmt(ti + lo, unit)}, {fmt(None if hi is None else ti + hi, unit)}]"
+    within = clock.span(ti + lo, None if hi is None else ti + hi)
     how = (
         "was unknown within"
         if value is None
@@ -116,34 +127,68 @@ def window_closed(
         if value
         else "never held within"
     )
-    return settled(text, ti, value, Why(child, ti, f"{how} {within}"), unit)
+    return settled(text, ti, value, Why(child, ti, f"{how} {within}"), clock)
 
 
-def but(trigger: str, ti: Time, why: Why, unit: Fraction | int) -> Why:
+def window_cut(text: str, ti: Time, lo: Time, hi: Time, end: Time, clock: Clock) -> Why:
+    """The window [ti + lo, ti + hi] of `text` reaches past `end`, the end of the data: what
+    it decides is not in the data (a `cut` link)."""
+    seen = max(end - ti - lo, 0)
+    return Why(
+        f"{text}: window {clock.span(ti + lo, ti + hi)}",
+        ti,
+        f"cut off at the end of the data, {clock.seconds(seen)} of {clock.seconds(hi - lo)} seen",
+        cut=True,
+    )
+
+
+def cut_of(why: Why | None) -> Why | None:
+    """The window cut off at the end of the data that left a value open, if one did."""
+    while why is not None and not why.cut:
+        why = why.cause
+    return why
+
+
+def but(trigger: str, ti: Time, why: Why, clock: Clock) -> Why:
     """`A -> B` (or `not A or B`) is false at ti: A held, but `why` B did not (its plain link
     left out: the sentence says when)."""
     if why.plain and why.cause is not None:
         why = why.cause
-    return Why(f"{trigger} held at {fmt(ti, unit)}, but {why.text}", why.at, why.detail, why.cause)
+    return Why(f"{trigger} held at {clock.at(ti)}, but {why.text}", why.at, why.detail, why.cause)
 
 
-def next_late(text: str, ti: Time, gap: Time | None, unit: Fraction | int) -> Why:
+def next_late(text: str, ti: Time, gap: Time | None, clock: Clock) -> Why:
     """`next[a, b]` is false at ti: the next state came outside [a, b] (`gap` later), or never."""
-    late = f"the next state came {fmt(gap, unit)} later" if gap is not None else "no next state"
-    return Why(text, ti, f"is false at {fmt(ti, unit)}: {late}")
+    late = f"the next state came {clock.time(gap)} later" if gap is not None else "no next state"
+    return Why(text, ti, f"is false at {clock.at(ti)}: {late}")
 
 
-def refuted(formula: str, why: Why) -> str:
-    """A false verdict's witness: the reason for the value at the formula's first state, told
-    of the formula as the user wrote it (the engine's text for it left out)."""
-    return Why(formula, why.at, why.detail, why.cause).render()
+def refuted(why: Why, decided: Any, clock: Clock) -> str:
+    """A false verdict's witness, led by the decision: when it was decided, then the reason
+    for the value at the formula's first state (a link only restating it left out)."""
+    reason = why.cause if why.plain and why.cause is not None else why
+    return f"violated at {clock.at(decided)}: {reason.render()}"
 
 
 def undecided(
-    spans: Iterable[tuple[FeatureKey, Any, Any]], started: bool, unit: Fraction | int
+    spans: Iterable[UnknownSpan], started: bool, clock: Clock, pending: str | None = None
 ) -> str:
-    """An unknown verdict's witness: where the features it reads were unknown."""
-    shown = ", ".join(f"{k} unknown from {fmt(a, unit)} to {fmt(b, unit)}" for k, a, b in spans)
-    return "the data left it undecided: " + (
-        shown if shown else "no state was seen" if not started else ""
-    )
+    """An unknown verdict's witness: where the features it reads were unknown (the first
+    `SHOWN`, and how many more), and the window the end of the data cut off."""
+    said = [_unknown(s, clock) for s in spans]
+    if len(said) > SHOWN:
+        said[SHOWN:] = [f"and {len(said) - SHOWN} more"]
+    if pending is not None:
+        said.append(pending)
+    return UNDECIDED + ("; ".join(said) if said else "no state was seen" if not started else "")
+
+
+def _unknown(span: UnknownSpan, clock: Clock) -> str:
+    if not span.silent:
+        if span.start == span.end:
+            return f"{span.feature} unknown at {clock.at(span.start)}"
+        return f"{span.feature} unknown from {clock.at(span.start)} to {clock.at(span.end)}"
+    if span.start is None:
+        return f"{span.feature} never observed"
+    before = clock.seconds(span.end - span.start)
+    return f"{span.feature} silent from {clock.at(span.start)} ({before} before the end)"

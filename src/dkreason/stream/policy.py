@@ -22,6 +22,7 @@ from ..inputs.numbers import duration, exact
 
 Seconds = Fraction | Decimal | float | int | str
 APPROXIMATIONS = ("recent", "none")
+END_OF_DATA = ("open", "finite")
 
 
 @dataclass(frozen=True, slots=True, init=False)
@@ -40,6 +41,9 @@ class StreamPolicy:
     ordered_on_valid_time: bool
     unique_valid_time: bool
     span_from_start: bool  # start_time and end_time count from the start of the recording
+    # at the end of the data, a bounded window reaching past it stays undecided ("open"), or
+    # closes as on a finite trace ("finite", the thesis' semantics)
+    end_of_data: Literal["open", "finite"]
 
     def __init__(
         self,
@@ -55,11 +59,16 @@ class StreamPolicy:
         ordered_on_valid_time: bool = False,
         unique_valid_time: bool = False,
         span_from_start: bool = False,
+        end_of_data: Literal["open", "finite"] = "open",
     ) -> None:
         if approximation not in APPROXIMATIONS:
             raise DkError(
                 f"StreamPolicy approximation: {approximation!r} is not one of "
                 f"{', '.join(APPROXIMATIONS)}"
+            )
+        if end_of_data not in END_OF_DATA:
+            raise DkError(
+                f"StreamPolicy end_of_data: {end_of_data!r} is not one of {', '.join(END_OF_DATA)}"
             )
         period = _optional(sample_period, "sample_period")
         if period == 0:
@@ -103,6 +112,7 @@ class StreamPolicy:
             "end_time": end,
             "max_delay": _optional(max_delay, "max_delay"),
             **flags,
+            "end_of_data": end_of_data,
         }
         for name, value in fields.items():
             object.__setattr__(self, name, value)

@@ -162,6 +162,7 @@ class StreamProcessor:
         self.recorded_end = source.last_record()  # where a recording ends (ns), if known
         self.sized = False  # the periodic states to the stream's known end were counted
         self.keys: list[FeatureKey] = []  # the states' keys
+        self.position: dict[FeatureKey, int] = {}  # each key's place in them
         self.current: dict[FeatureKey, Any] = {}  # the last state's values (on every change)
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
         self.groups: dict[str, list[_Group]] = {}
@@ -187,17 +188,31 @@ class StreamProcessor:
         self.redo: set[int] = set()  # features a late sample reached since the last state
         self.made: float = -_INF  # time of the last state made (ns)
         self.next_state: int | None = None if policy.span_from_start else self.start
+        # on every change, with a start time: the state made at it, every feature's value
+        # there (unknown unless sampled then), so formulas are judged from that instant
+        self.opening: int | None = None
         self.last_seen: int | None = None
         self.read = 0  # messages replayed on the relevant topics
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
         for f in request.features:
-            self.keys.append(f.feature.key)
-            self.current[f.feature.key] = None
-            self.hist.append([])
-            self.due.append(-1)
-            self.queued.append(False)
+            self._feature(f.feature.key)
         self.quiet_until = self._next_due()  # with a period and a start: its first state
         self._route(request, source)
+
+    def _feature(self, key: FeatureKey) -> None:
+        self.position[key] = len(self.keys)
+        self.keys.append(key)
+        self.current[key] = None
+        self.hist.append([])
+        self.due.append(-1)
+        self.queued.append(False)
+
+    def _open(self, start: int) -> None:
+        """A state is due at the start time (on every change; periodic states start there)."""
+        if self.period is None:
+            self.opening = start
+            self.times.appendleft(start)
+            self.at.appendleft([])
 
     @property
     def origin(self) -> int | None:
@@ -207,10 +222,14 @@ class StreamProcessor:
         return self.first_taken if known is None else known
 
     def reroute(self, request: StreamRequest, source: Source) -> None:
-        """New topics for the same features (a live federation changed): what each feature
-        has seen so far stays."""
-        if [f.feature.key for f in request.features] != self.keys:
+        """New topics for the features (a live federation changed), and new features (objects
+        joined a sort a formula ranges over): what each feature has seen so far stays."""
+        keys = [f.feature.key for f in request.features]
+        if set(self.keys) - set(keys):
             raise DkError("a new route must keep the features of the stream request")
+        for key in keys:
+            if key not in self.position:
+                self._feature(key)
         self.groups, self.wanted, self.source = {}, {}, source
         self._route(request, source)
 
@@ -221,7 +240,8 @@ class StreamProcessor:
 
         types = source.types()
         namespaces = dict(request.namespaces)
-        for q, f in enumerate(request.features):
+        for f in request.features:
+            q = self.position[f.feature.key]
             for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
                 names = recording_names(
                     m, request.local, namespaces.get(m.platform), request.shared_names
@@ -338,7 +358,9 @@ class StreamProcessor:
             self.end = None if self.end is None else origin + self.end
             if self.period is not None:
                 self.next_state = self.start
-                self.quiet_until = self._next_due()
+        if self.start is not None:
+            self._open(self.start)
+        self.quiet_until = self._next_due()
 
     def _take(self, messages: Iterable[Message], watch: Sized | None) -> Iterator[int]:
         """The replay's hot path, written out in one loop with the processor's state in
@@ -476,6 +498,13 @@ class StreamProcessor:
         if self.last_seen is not None:
             self._emit(self.last_seen, final=True)
 
+    def horizon(self) -> int | None:
+        """Where the data ends (ns): the latest valid time seen (or the recording's end,
+        once finished), no later than the window's end; None before any sample."""
+        if self.max_valid < 0:
+            return None
+        return self.max_valid if self.end is None else min(self.max_valid, self.end)
+
     def _violation(self, kind: str, available: int, route: _Route, detail: str) -> None:
         origin = self.origin
         self.on_violation(
@@ -606,7 +635,8 @@ class StreamProcessor:
             stale, expired = (
                 self._expired(s, final) if expiries and expiries[0][0] == s else _NO_EXPIRY
             )
-            if not (sampled or stale) or s <= self.made:
+            opening = s == self.opening
+            if not (sampled or stale or opening) or s <= self.made:
                 continue
             if not self.incremental:
                 values, fresh = self._every_value(s, stale)
@@ -630,6 +660,8 @@ class StreamProcessor:
                 redo.clear()
                 values = current
             self.made = s
+            if opening:  # the start: every formula's state
+                self.opening = fresh = None
             self.on_state(s, values, fresh)
 
     def _size(self, now: int, final: bool) -> None:
@@ -667,7 +699,7 @@ class StreamProcessor:
 
     def newest(self, key: FeatureKey) -> int | None:
         """The valid time (ns) of the feature's newest sample; None before its first."""
-        hist = self.hist[self.keys.index(key)]
+        hist = self.hist[self.position[key]]
         return hist[-1][0] if hist else None
 
     def _stale(self, q: int, s: int) -> bool:
