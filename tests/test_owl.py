@@ -441,6 +441,94 @@ def test_deep_nesting_is_one_line_and_exit_2_not_a_signal(tmp_path: Path, kind: 
     assert "nested deeper than" in done.stderr
 
 
+# A large document is read a piece at a time (parse/owlsplit.py); PIECE is made small here.
+LARGE_FUNCTIONAL = FUNCTIONAL.replace(
+    "Ontology(<http://x.org/s>\n",
+    "Prefix(rdfs:=<http://www.w3.org/2000/01/rdf-schema#>)\n"
+    'Ontology(<http://x.org/s>\nImport(<http://x.org/none>)\nAnnotation(rdfs:comment "a (b")\n',
+).replace(
+    "ClassAssertion(:UAV :uav1)\n",
+    "".join(
+        f'ClassAssertion(:UAV :u{k}) # ) comment\nAnnotationAssertion(rdfs:label :u{k} "x) (")\n'
+        for k in range(40)
+    ),
+)
+LARGE_MANCHESTER = (
+    "Prefix: rdfs: <http://www.w3.org/2000/01/rdf-schema#>\n"
+    + MANCHESTER
+    + "".join(
+        f'Individual: u{k}\n    Annotations: rdfs:label "a\nClass: Fake"\n    Types: UAV\n'
+        for k in range(40)
+    )
+)
+
+
+@pytest.mark.parametrize(
+    ("name", "text"), [("s.ofn", LARGE_FUNCTIONAL), ("s.omn", LARGE_MANCHESTER)]
+)
+def test_a_large_document_read_in_pieces_gives_the_triples_read_at_once(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str, text: str
+) -> None:
+    from dkreason.parse import owlsplit
+    from dkreason.parse.owl import read_sources
+
+    (tmp_path / name).write_text(text)
+    whole = set(read_sources([tmp_path / name], skip=True).graph)
+    monkeypatch.setattr(owlsplit, "PIECE", 200)
+    assert len(owlsplit.pieces(text, name[-3:])) > 5
+    assert _isomorphic(set(read_sources([tmp_path / name], skip=True).graph), whole)
+
+
+def _isomorphic(a: set[Any], b: set[Any]) -> bool:
+    from rdflib import Graph
+    from rdflib.compare import isomorphic
+
+    one, two = Graph(), Graph()
+    for triple in a:
+        one.add(triple)
+    for triple in b:
+        two.add(triple)
+    return isomorphic(one, two)
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "where"),
+    [
+        (
+            "s.ofn",
+            LARGE_FUNCTIONAL.replace("ClassAssertion(:UAV :u33)", "ClassAssertion(:UAV"),
+            ":79:1:",
+        ),
+        (
+            "s.omn",
+            LARGE_MANCHESTER.replace("u33\n    Annotations", "u33\n Types: and and\n"),
+            ":145:2:",
+        ),
+    ],
+)
+def test_an_error_in_a_later_piece_is_placed_in_the_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str, text: str, where: str
+) -> None:
+    from dkreason.parse import owlsplit
+
+    (tmp_path / name).write_text(text)
+    with pytest.raises(ParseError) as whole:
+        read_ontology(tmp_path / name, "s")
+    monkeypatch.setattr(owlsplit, "PIECE", 200)
+    with pytest.raises(ParseError) as pieces:
+        read_ontology(tmp_path / name, "s")
+    assert str(pieces.value) == str(whole.value)
+    assert where in str(whole.value)
+
+
+def test_anonymous_individuals_keep_a_document_whole(monkeypatch: pytest.MonkeyPatch) -> None:
+    from dkreason.parse import owlsplit
+
+    monkeypatch.setattr(owlsplit, "PIECE", 200)
+    text = LARGE_FUNCTIONAL.replace(":u3)", "_:x)").replace(":u4)", "_:x)")
+    assert owlsplit.pieces(text, "ofn") == [text]
+
+
 @pytest.mark.parametrize("kind", ["ofn", "omn", "omn-chain", "owx"])
 def test_nesting_as_deep_as_real_ontologies_go_is_read(tmp_path: Path, kind: str) -> None:
     from dkreason.workloads import nested_owl

@@ -22,12 +22,14 @@ from ..errors import DkError, ParseError, Span
 from ..inputs.files import json_value, read_bytes, resolved
 from ..model import IdValue, Ontology, Signature
 from ..names import local_name
+from .owlsplit import pieces
 from .owlsyntax import (
     MAX_DEPTH,
     OWL_SYNTAXES,
     SYNTAXES,
     XML_SYNTAXES,
     check_depth,
+    owl_text,
     syntax,
     write_rdf,
 )
@@ -63,6 +65,8 @@ def read_sources(
     naming the importing file and the IRI, or with `skip` a warning."""
     from rdflib import Graph, URIRef
     from rdflib.namespace import OWL, RDF
+
+    from .triples import TripleStore
 
     graph: Any = None
     read: list[tuple[Path, bytes]] = []
@@ -117,7 +121,7 @@ def read_sources(
                 graph.bind(prefix, ns)
         del part
     return Sources(
-        Graph(bind_namespaces="none") if graph is None else graph,
+        Graph(store=TripleStore(), bind_namespaces="none") if graph is None else graph,
         tuple(read),
         tuple(skipped),
         tuple(absent),
@@ -205,18 +209,28 @@ def _graph(data: bytes, file: str, base: str | None, fmt: str | None) -> Any:
     elif fmt == "json-ld":
         _local_contexts(json_value(data, Span(file)), file)
     if fmt not in OWL_SYNTAXES:
-        return _rdf(file, base, data=data, format=fmt)
+        return _rdf(file, base, None, data=data, format=fmt)
+    graph = None
     with tempfile.TemporaryDirectory(prefix="dkreason-owl-") as folder:
         rdf = Path(folder) / "ontology.owl"
-        write_rdf(data, file, fmt, rdf)
-        return _rdf(file, base, source=str(rdf), format="xml")
+        for piece in pieces(owl_text(data, file, fmt), fmt):  # owlsplit.py: memory bounded
+            write_rdf(piece, file, fmt, rdf)
+            graph = _rdf(file, base, graph, source=str(rdf), format="xml")
+    return graph
 
 
-def _rdf(file: str, base: str | None, **what: Any) -> Any:
-    """rdflib's graph of `what` (data or a source, and a format); `file` names it in errors."""
+def _rdf(file: str, base: str | None, graph: Any, **what: Any) -> Any:
+    """rdflib's graph of `what` (data or a source, and a format), or `graph` with it added;
+    `file` names it in errors.  JSON-LD's parser asks for a store of named graphs (rdflib's
+    own); every other syntax is read into the compact one (parse/triples.py)."""
     from rdflib import Graph
 
-    graph = Graph(bind_namespaces="none")
+    from .triples import TripleStore
+
+    if graph is None:
+        store = "default" if what["format"] == "json-ld" else TripleStore()
+        graph = Graph(store=store, bind_namespaces="none")
+
     quiet = logging.getLogger("rdflib.term")  # ill-typed literals: reported by us, once
     quiet.disabled = True
     try:

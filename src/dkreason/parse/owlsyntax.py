@@ -211,17 +211,24 @@ def check_depth(data: bytes, file: str, fmt: str) -> None:
         )
 
 
-def write_rdf(data: bytes, file: str, fmt: str, out: Path) -> None:
-    """Write the ontology in `data` (OWL Functional, Manchester or OWL/XML syntax, already
-    checked: no deeper than MAX_DEPTH, XML hardened) to `out` as RDF/XML."""
-    import pyhornedowl
-
+def owl_text(data: bytes, file: str, fmt: str) -> str:
+    """The text of a document in OWL Functional, Manchester or OWL/XML syntax (already checked:
+    no deeper than MAX_DEPTH, XML hardened), without a BOM; an empty or cut Manchester document
+    is refused (py-horned-owl reads it as an empty ontology)."""
     text = decode(data, file).removeprefix("\ufeff")
     if fmt == "omn" and not re.search(r"(^|\s)Ontology:", text):
         raise ParseError(
             "malformed Manchester Syntax: no `Ontology:` header (an empty or cut file?)",
             Span(file),
         )
+    return text
+
+
+def write_rdf(text: str, file: str, fmt: str, out: Path) -> None:
+    """Write the ontology in `text` (from `owl_text`, or a piece of one that keeps its lines and
+    columns) to `out` as RDF/XML; an error names its place in `file`."""
+    import pyhornedowl
+
     try:
         ontology = pyhornedowl.open_ontology_from_string(text, fmt)  # type: ignore[arg-type]
         ontology.save_to_file(str(out), "owl")
@@ -233,7 +240,7 @@ def write_rdf(data: bytes, file: str, fmt: str, out: Path) -> None:
         if where:
             line, column = int(where.group(1)), int(where.group(2))
         elif offset:
-            line, column = _position(data, int(offset.group(1)))
+            line, column = _position(text.encode(), int(offset.group(1)))
         why = re.search(
             r"(ParserError|ValidityError|Error)\(\s*(\"[^\"]*\"|Error \{ "
             r"variant: \w+)",
