@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -109,12 +110,18 @@ class KnowledgeManager:
         msg: Sequence[str | Path] = (),
         typestore: str | None = None,
         keep_states: bool = False,
+        record: str | Path | None = None,
+        clips: str | Path | None = None,
+        margin: float | Fraction = 2,
     ) -> MonitorRun:
         """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
         recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
         lines; `remap`, `clock`, `msg` files and `typestore` as the CLI's options) or any
         other `Source` (e.g. a `PushSource`).  Iterate it for verdicts and stream-constraint
-        violations as they happen; all times are seconds."""
+        violations as they happen; all times are seconds.  Over ROS recordings, once iterated
+        it writes `record` (an MCAP file: the relevant topics byte for byte, the events as
+        `foxglove.Log` and JSON) and into the folder `clips` one MCAP file per violation
+        (`margin` s around its witness window; `run.written` names them)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
         from .stream.binding import open_recordings
@@ -137,7 +144,20 @@ class KnowledgeManager:
         engine = Monitor(
             self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
         )
-        return MonitorRun(engine, opened)
+        if record is None and clips is None:
+            return MonitorRun(engine, opened)
+        from .live.record import RecordedRun
+        from .stream.binding import Recordings
+
+        if not isinstance(opened, Recordings):
+            raise DkError("record and clips copy recordings: give paths, not a Source")
+        return RecordedRun(
+            engine,
+            opened,
+            None if record is None else Path(record),
+            None if clips is None else Path(clips),
+            Fraction(margin),
+        )
 
     def batch(
         self,

@@ -35,7 +35,6 @@ def monitor(args: argparse.Namespace) -> int:
             ("--bridge", args.bridge),
             ("--bind", args.bind),
             ("--sim-time", args.sim_time),
-            ("--record", args.record),
             ("--domain", args.domain),
         )
         if given not in (False, [], None)
@@ -44,6 +43,10 @@ def monitor(args: argparse.Namespace) -> int:
         raise DkError(f"{ros2_only[0]} is for --ros2")
     if args.publish_verdicts and not (args.live or args.ros2):
         raise DkError("--publish-verdicts is for --live or --ros2")
+    if args.live and args.record is not None:
+        raise DkError("--record is for recordings and --ros2 (--live samples are no ROS messages)")
+    if args.clips is not None and (args.live or args.ros2):
+        raise DkError("--clips is for recordings (--source)")
     if args.ros2:
         return live.monitor_ros2(args, stream_policy)
     if args.live:
@@ -60,6 +63,9 @@ def monitor(args: argparse.Namespace) -> int:
         msg=args.msg,
         typestore=args.typestore,
         keep_states=args.plot is not None,
+        record=args.record,
+        clips=args.clips,
+        margin=args.clip_margin,
     )
     for topic, features in run.absent.items():
         print(f"warning: {topic} (for {', '.join(features)}) is in no recording", file=sys.stderr)
@@ -86,6 +92,11 @@ def monitor(args: argparse.Namespace) -> int:
         plot(run, events, args.plot)
         if not args.json:
             print(f"plot written to {args.plot}")
+    if not args.json:
+        if args.record is not None:
+            print(f"recorded to {args.record}")
+        for path, verdict in getattr(run, "written", ()):
+            print(f"clip {path}: {verdict.formula}")
     if error is not None:
         raise error
     return render.exit_status(

@@ -5,6 +5,7 @@ the function that runs it (`module:function` in cli/), imported only when it run
 from __future__ import annotations
 
 import argparse
+from fractions import Fraction
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -117,6 +118,28 @@ def _monitor(sub: a.Sub) -> None:
         action="store_true",
         help="exit 1 when a stream constraint was violated, as when a formula was",
     )
+    out.add_argument(
+        "--record",
+        type=Path,
+        metavar="OUT.mcap",
+        help="recordings and --ros2: write the relevant topics' messages (byte for byte) and "
+        "the verdicts (foxglove.Log on /dkreason/log, JSON on /dkreason/events) to one MCAP "
+        "file, which Foxglove opens and --source replays",
+    )
+    out.add_argument(
+        "--clips",
+        type=Path,
+        metavar="DIR",
+        help="recordings: one MCAP file per violation in DIR, the relevant topics from "
+        "--clip-margin before its witness window to --clip-margin after it",
+    )
+    out.add_argument(
+        "--clip-margin",
+        type=a.seconds,
+        default=Fraction(2),
+        metavar="SECONDS",
+        help="--clips: seconds kept before and after a witness window (default 2)",
+    )
 
     _recordings(p)
     _policy(p)
@@ -180,13 +203,6 @@ def _monitor(sub: a.Sub) -> None:
         "--sim-time",
         action="store_true",
         help="ros2: the stream clock is /clock (rosgraph_msgs/msg/Clock), as with use_sim_time",
-    )
-    live.add_argument(
-        "--record",
-        type=Path,
-        metavar="OUT.mcap",
-        help="ros2: write the relevant topics' messages and the verdicts (a JSON "
-        "channel) to one MCAP file, which --source replays",
     )
 
 

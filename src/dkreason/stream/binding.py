@@ -12,13 +12,15 @@ names that robot records (its topics are presented as `PLATFORM:/name`).
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator, Mapping, Sequence
+import heapq
+from collections.abc import Collection, Generator, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from operator import attrgetter
 from pathlib import Path
 
 from ..errors import DkError
 from ..model import TopicMatch, ros_name
-from .sources import Message, Source, Wanted, open_source
+from .sources import Message, Raw, Source, Wanted, open_source
 
 CLOCKS = ("auto", "header", "record")
 
@@ -189,6 +191,20 @@ class Recordings:
         record = self.clock == "record"
         for topic, available, valid, values in messages:
             yield shown[topic], available, available if record else valid, values
+
+    def raw(self, topics: Collection[str]) -> Generator[Raw]:
+        """The messages on `topics` (as presented) as recorded, under each recording's own
+        names (so a copy replays with the same `--remap`), merged by record time."""
+        streams = []
+        for r in self.parts:
+            own = {o for t in topics if (o := self._own(r, t)) is not None}
+            read = getattr(r.source, "raw", None)
+            if read is None:
+                raise DkError(
+                    f"{r.source.name}: its messages cannot be copied (JSON lines, or damaged)"
+                )
+            streams.append(read(own))
+        return heapq.merge(*streams, key=attrgetter("time"))
 
     def close(self) -> None:
         for r in self.parts:
