@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from .monitor import MonitorRun
     from .query import Answer, RelationInfo
     from .results import Row
+    from .stream.info import Binding, RecordingInfo
     from .stream.policy import StreamPolicy
     from .stream.sources import Source
 
@@ -158,6 +159,38 @@ class KnowledgeManager:
             None if clips is None else Path(clips),
             Fraction(margin),
         )
+
+    def info(
+        self,
+        sources: Sequence[str | Path],
+        *,
+        fields: bool = False,
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> tuple[list[RecordingInfo], list[Binding]]:
+        """What `dkreason info --config` shows: each recording described (`describe`), and
+        every spec topic of every platform with the recording topic it binds to."""
+        from .stream.info import inspect
+
+        infos, binds = inspect(
+            sources, self.kb, fields=fields, msg=[Path(m) for m in msg], typestore=typestore
+        )
+        return infos, binds or []
+
+    @staticmethod
+    def describe(
+        sources: Sequence[str | Path],
+        *,
+        fields: bool = False,
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> list[RecordingInfo]:
+        """What `dkreason info` shows of recordings (a folder of several: each of them): their
+        topics, types, counts, span, clock and damage; with `fields`, each topic's field paths
+        a spec can read and their types."""
+        from .stream.info import inspect
+
+        return inspect(sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore)[0]
 
     def batch(
         self,

@@ -15,8 +15,6 @@ from ..parse.formula import parse_formula
 from ..progress import Progressor, Verdict
 from ..progress.state import feature_uses
 from ..progress.statefile import read_states
-from ..stream.binding import open_recordings
-from ..stream.info import bindings, describe
 from ..stream.info import render as render_info
 from ..stream.policy import DEFAULT
 from . import live, render
@@ -139,19 +137,17 @@ def progress(args: argparse.Namespace) -> int:
 
 
 def info(args: argparse.Namespace) -> int:
-    km = KnowledgeManager.from_config(args.config) if args.config else None
-    recordings = open_recordings(
-        args.source,
-        km.platforms if km else (),
-        clock="header",  # each recording's own clock: describe() says which
-        msg=args.msg,
-        typestore=args.typestore,
-    )
-    try:
-        infos = [describe(r) for r in recordings.parts]
-        binds = bindings(km.kb, recordings) if km else None
-    finally:
-        recordings.close()
+    if args.config:
+        infos, binds = KnowledgeManager.from_config(args.config).info(
+            args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+        )
+    else:
+        infos, binds = (
+            KnowledgeManager.describe(
+                args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+            ),
+            None,
+        )
     if args.json:
         print(
             json.dumps(

@@ -439,8 +439,19 @@ def _info(sub: a.Sub) -> None:
     p = sub.add_parser("info", help="what recordings hold, and which spec topics they bind")
     p.add_argument("--config", type=Path, help="TOML config: show which spec topics bind")
     p.add_argument("--json", action="store_true", help="one JSON document")
+    p.add_argument(
+        "--fields",
+        action="store_true",
+        help="each topic's field paths a spec can read (msg.pose.position.z), with their "
+        "types; array elements as msg.ranges[i] (any length) or msg.covariance[0..35]",
+    )
     a.definitions(p)
-    p.add_argument("source", nargs="+", metavar="[PLATFORM=]PATH")
+    p.add_argument(
+        "source",
+        nargs="+",
+        metavar="[PLATFORM=]PATH",
+        help="a recording, or a folder of recordings (each described)",
+    )
     p.set_defaults(run="monitoring:info")
 
 

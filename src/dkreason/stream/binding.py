@@ -246,6 +246,44 @@ def open_recordings(
         raise
 
 
+RECORDINGS = (".bag", ".mcap", ".db3", ".jsonl")  # what a folder is searched for, and bag folders
+
+
+def is_bag_folder(path: Path) -> bool:
+    """A ROS 2 bag folder: one recording, however many storage files it holds."""
+    return (path / "metadata.yaml").is_file()
+
+
+def recordings_in(folder: Path) -> Iterator[Path]:
+    """The recordings in a folder that is not itself a bag folder, searched through."""
+    for entry in sorted(folder.iterdir()):
+        if entry.is_dir():
+            yield from [entry] if is_bag_folder(entry) else recordings_in(entry)
+        elif entry.suffix in RECORDINGS:
+            yield entry
+
+
+def expand_folders(given: Sequence[str | Path]) -> list[str]:
+    """Each `[PLATFORM=]PATH`, a folder holding several recordings (not a bag folder) as
+    those recordings (`dkreason info`); a folder holding none is an error."""
+    out: list[str] = []
+    for item in given:
+        platform, sep, rest = str(item).partition("=")
+        path = Path(rest if sep and not Path(item).exists() else item)
+        prefix = f"{platform}=" if sep and not Path(item).exists() else ""
+        if not path.is_dir() or is_bag_folder(path):
+            out.append(str(item))
+            continue
+        found = [f"{prefix}{p}" for p in recordings_in(path)]
+        if not found:
+            raise DkError(
+                f"{path}: no recording in this folder (.bag, .mcap, .db3, .jsonl files "
+                "or ROS 2 bag folders with a metadata.yaml)"
+            )
+        out += found
+    return out
+
+
 def remaps(rules: Sequence[str]) -> dict[str, str]:
     """`FROM:=TO` rules (ROS's remapping syntax) as a mapping; a topic remapped twice is an
     error, not the last rule silently."""
