@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from .monitor import MonitorRun
     from .query import Answer, RelationInfo
     from .results import Row
+    from .starter import Starter
     from .stream.info import Binding, RecordingInfo
     from .stream.policy import StreamPolicy
     from .stream.sources import Source
@@ -191,6 +192,30 @@ class KnowledgeManager:
         from .stream.info import inspect
 
         return inspect(sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore)[0]
+
+    @staticmethod
+    def init(
+        sources: Sequence[str | Path],
+        folder: str | Path,
+        *,
+        robot: str = "robot",
+        topics: Sequence[str] = (),
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> Starter:
+        """`dkreason init`: a starter model of `robot` from recordings (`topics`: only these)
+        written to `folder` as ROBOT.ttl, ROBOT.sslt and ROBOT.toml; `from_config` takes the
+        config as it is, its features one per number, boolean or string field."""
+        from .starter import init
+
+        return init(
+            sources,
+            Path(folder),
+            robot=robot,
+            topics=topics,
+            msg=[Path(m) for m in msg],
+            typestore=typestore,
+        )
 
     def batch(
         self,

@@ -44,12 +44,14 @@ def build(description: str | None) -> a.Parser:
     _explain(sub)
     _specs(sub)
     _info(sub)
+    _init(sub)
     _sort(sub)
     _batch(sub)
     _results(sub)
     _rules(sub)
     _query(sub)
     _test(sub)
+    _completion(sub)
     return parser
 
 
@@ -103,7 +105,7 @@ def _monitor(sub: a.Sub) -> None:
         default=[],
         metavar="[PLATFORM=]PATH",
         help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages; "
-        "repeat for several recordings (merged by record time); PLATFORM= "
+        "several (--source A B, or repeated) are merged by record time; PLATFORM= "
         "binds a recording's topics to that platform's specs only",
     )
     out = p.add_argument_group("output")
@@ -455,6 +457,39 @@ def _info(sub: a.Sub) -> None:
     p.set_defaults(run="monitoring:info")
 
 
+def _init(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "init",
+        help="a starter model from a recording: ontology, specs and config, a feature per field",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example:\n  dkreason init --source run.mcap --robot rover --topics /odom /battery "
+        "model/\n  dkreason monitor --config model/rover.toml --source run.mcap "
+        "'always (BatteryPercentage[rover] > 0.2)'",
+    )
+    p.add_argument(
+        "--source",
+        action="append",
+        required=True,
+        metavar="PATH",
+        help="a recording whose topics and fields the model describes (several: --source A B)",
+    )
+    p.add_argument(
+        "--robot",
+        default="robot",
+        help="the robot's name: its object, platform and files (default robot)",
+    )
+    p.add_argument(
+        "--topics",
+        action="append",
+        default=[],
+        metavar="TOPIC",
+        help="only these topics, as info names them (--topics /odom /battery; default: all)",
+    )
+    a.definitions(p)
+    p.add_argument("folder", type=Path, metavar="DIR", help="where ROBOT.ttl, .sslt, .toml go")
+    p.set_defaults(run="knowledge:init")
+
+
 def _sort(sub: a.Sub) -> None:
     p = sub.add_parser("sort", help="the objects of a sort")
     a.config(p)
@@ -514,3 +549,12 @@ def _test(sub: a.Sub) -> None:
         "--update", action="store_true", help="rewrite each case's expected output with the actual"
     )
     p.set_defaults(run="rules:test")
+
+
+def _completion(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "completion",
+        help='a shell completion script: eval "$(dkreason completion bash)" in ~/.bashrc',
+    )
+    p.add_argument("shell", choices=("bash", "zsh"))
+    p.set_defaults(run="completion:completion")
