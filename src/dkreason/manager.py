@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from fractions import Fraction
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform, check_config, read_mapping, read_platform
@@ -192,6 +192,51 @@ class KnowledgeManager:
         from .stream.info import inspect
 
         return inspect(sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore)[0]
+
+    def plot(
+        self,
+        features: Sequence[str],
+        source: str | Path | Sequence[str | Path],
+        path: str | Path,
+        policy: StreamPolicy | None = None,
+        *,
+        remap: Mapping[str, str] | Sequence[str] | None = None,
+        clock: str = "auto",
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> None:
+        """`dkreason plot`: ground features' values over time (`Speed[car1]`, one panel
+        each) drawn from recordings to `path` (.png, .svg or .pdf), as the monitor would see
+        them (states made by `policy`)."""
+        import re
+
+        from .plot import FORMATS, plot_features
+
+        path = Path(path)
+        if path.suffix.lower() not in FORMATS or not path.parent.is_dir():
+            raise DkError(f"{path}: name a .png, .svg or .pdf file in an existing directory")
+        for f in features:
+            if not re.fullmatch(r"\s*\w+\s*\[[\w\s,]*\]\s*", f):
+                raise DkError(f"{f!r}: expected a ground feature, like Speed[car1]")
+        if not features:
+            raise DkError("plot needs a feature, like Speed[car1]")
+        options: dict[str, Any] = {
+            "remap": remap,
+            "clock": clock,
+            "msg": msg,
+            "typestore": typestore,
+        }
+        formula = "always (" + " or ".join(f"observed({f})" for f in features) + ")"
+        with self.monitor(formula, source, policy, **options) as first:  # the fields' kinds
+            kinds = {k: ks[0][2] for k, ks in first.processor.kinds.items() if ks}
+        keys = [g.key for g in self.plan(formula).ground]
+        strings = [f'{k} == ""' for k in keys if kinds.get(k) == "string"]  # read as strings
+        formula = formula[:-1] + "".join(f" or {s}" for s in strings) + ")"
+        run = self.monitor(formula, source, policy, keep_states=True, **options)
+        for _ in run:  # the states, kept
+            pass
+        title = f"{', '.join(map(str, keys))} from {run.source.name}"
+        plot_features(run, keys, path, title)
 
     @staticmethod
     def init(

@@ -51,7 +51,13 @@ LISTS: dict[str, Callable[[str], bool]] = {
     "--formulas-file": _formulas_file,
     "--topics": _topic,
 }
-SPREAD = ("monitor", "info", "init", "batch")  # the commands whose list options take several
+SPREAD = (
+    "monitor",
+    "info",
+    "init",
+    "batch",
+    "plot",
+)  # the commands whose list options take several
 
 
 def spread(argv: Sequence[str]) -> list[str]:

@@ -7,9 +7,10 @@ import argparse
 import json
 import sys
 from collections import Counter
+from pathlib import Path
 from typing import Any
 
-from ..errors import DkError
+from ..errors import DkError, one_line
 from ..manager import KnowledgeManager
 from ..parse.formula import parse_formula
 from ..progress import Progressor, Verdict
@@ -85,11 +86,7 @@ def monitor(args: argparse.Namespace) -> int:
     if not args.json:
         render.summary(verdicts, violations)
     if args.plot is not None and run.states:
-        from ..plot import plot
-
-        plot(run, events, args.plot)
-        if not args.json:
-            print(f"plot written to {args.plot}")
+        _plot(run, events, args.plot, args.json)
     if not args.json:
         if args.record is not None:
             print(f"recorded to {args.record}")
@@ -100,6 +97,33 @@ def monitor(args: argparse.Namespace) -> int:
     return render.exit_status(
         [v.verdict for v in verdicts], args.fail_on_constraint and bool(violations)
     )
+
+
+def _plot(run: Any, events: list[Any], path: Path, quiet: bool) -> None:
+    """`--plot`: a failure to draw is one error line; the verdicts' exit status stands."""
+    from ..plot import plot
+
+    try:
+        plot(run, events, path)
+    except Exception as exc:  # matplotlib's errors are of any kind (fonts, disk, backends)
+        print(f"error: --plot {path}: {one_line(str(exc)) or type(exc).__name__}", file=sys.stderr)
+        return
+    if not quiet:
+        print(f"plot written to {path}")
+
+
+def plot(args: argparse.Namespace) -> int:
+    KnowledgeManager.from_config(args.config).plot(
+        args.features,
+        args.source,
+        args.output,
+        remap=args.remap,
+        clock=args.clock,
+        msg=args.msg,
+        typestore=args.typestore,
+    )
+    print(f"plot written to {args.output}")
+    return 0
 
 
 def progress(args: argparse.Namespace) -> int:

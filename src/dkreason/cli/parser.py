@@ -44,6 +44,7 @@ def build(description: str | None) -> a.Parser:
     _explain(sub)
     _specs(sub)
     _info(sub)
+    _plot(sub)
     _init(sub)
     _sort(sub)
     _batch(sub)
@@ -455,6 +456,35 @@ def _info(sub: a.Sub) -> None:
         help="a recording, or a folder of recordings (each described)",
     )
     p.set_defaults(run="monitoring:info")
+
+
+def _plot(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "plot",
+        help="features' values over time from a recording (to pick a threshold)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example:\n  dkreason plot --config examples/single.toml --source run.mcap "
+        "-o speeds.png 'Speed[car1]' 'Speed[car2]'",
+    )
+    a.config(p)
+    p.add_argument(
+        "--source",
+        action="append",
+        required=True,
+        metavar="[PLATFORM=]PATH",
+        help="the recording(s), as monitor takes them",
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        metavar="OUT",
+        help="the image: .png, .svg or .pdf, as the name says",
+    )
+    _recordings(p)
+    p.add_argument("features", nargs="+", metavar="FEATURE", help="a ground feature: Speed[car1]")
+    p.set_defaults(run="monitoring:plot")
 
 
 def _init(sub: a.Sub) -> None:
