@@ -31,10 +31,9 @@ from .monitor import Monitor, MonitorRun
 from .plan import Plan
 from .progress import Verdict
 from .results import Results, Row
-from .stream.binding import open_recordings
+from .stream.binding import is_bag_folder, open_recordings, recordings_in
 from .stream.policy import StreamPolicy
 
-RECORDINGS = (".bag", ".mcap", ".db3", ".jsonl")  # what a folder is searched for, and bag folders
 _WORDS = {True: "held", False: "violated", None: "undecided"}
 
 
@@ -103,10 +102,10 @@ def find_runs(sources: Sequence[str]) -> list[Run]:
                     )
             continue
         path = Path(source)
-        if path.is_dir() and not _is_bag_folder(path):
+        if path.is_dir() and not is_bag_folder(path):
             runs += [
                 Run(str(Path(source) / found.relative_to(path)), (str(found.resolve()),))
-                for found in _recordings(path)
+                for found in recordings_in(path)
             ]
         else:
             runs.append(Run(source, (_absolute(source, Path.cwd()),)))
@@ -128,18 +127,6 @@ def _absolute(item: str, base: Path) -> str:
         platform, _, path = item.partition("=")
         return f"{platform}={(base / path).resolve()}"
     return str((base / item).resolve())
-
-
-def _is_bag_folder(path: Path) -> bool:
-    return (path / "metadata.yaml").is_file()
-
-
-def _recordings(folder: Path) -> Iterator[Path]:
-    for entry in sorted(folder.iterdir()):
-        if entry.is_dir():
-            yield from [entry] if _is_bag_folder(entry) else _recordings(entry)
-        elif entry.suffix in RECORDINGS:
-            yield entry
 
 
 def monitor_run(job: Job, run: Run) -> Outcome:

@@ -112,11 +112,11 @@ class Judged:
         last = max(timed, key=lambda v: v.time, default=None)
         time, t = now if last is None else (last.time, last.t)
         at_end = at_end or any(v.at_end for v in self.settled.values())
-        witness = pending = None
+        witness = pending = window = None
         unknown: tuple[UnknownSpan, ...] = ()
         if value is False and deciding is not None:
             v = self.settled[deciding]
-            time, t, at_end = v.time, v.t, v.at_end
+            time, t, at_end, window = v.time, v.t, v.at_end, v.window
             witness = f"{instances[deciding].name} {v.witness}"
         elif value is None:
             left = [(i, self.settled[n]) for n, i in enumerate(instances) if i.verdict is None]
@@ -139,6 +139,7 @@ class Judged:
             t=t,
             pending=pending,
             instances=instances,
+            window=window,
         )
 
 

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from fractions import Fraction
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform, check_config, read_mapping, read_platform
@@ -21,6 +22,8 @@ if TYPE_CHECKING:
     from .monitor import MonitorRun
     from .query import Answer, RelationInfo
     from .results import Row
+    from .starter import Starter
+    from .stream.info import Binding, RecordingInfo
     from .stream.policy import StreamPolicy
     from .stream.sources import Source
 
@@ -109,12 +112,18 @@ class KnowledgeManager:
         msg: Sequence[str | Path] = (),
         typestore: str | None = None,
         keep_states: bool = False,
+        record: str | Path | None = None,
+        clips: str | Path | None = None,
+        margin: float | Fraction = 2,
     ) -> MonitorRun:
         """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
         recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
         lines; `remap`, `clock`, `msg` files and `typestore` as the CLI's options) or any
         other `Source` (e.g. a `PushSource`).  Iterate it for verdicts and stream-constraint
-        violations as they happen; all times are seconds."""
+        violations as they happen; all times are seconds.  Over ROS recordings, once iterated
+        it writes `record` (an MCAP file: the relevant topics byte for byte, the events as
+        `foxglove.Log` and JSON) and into the folder `clips` one MCAP file per violation
+        (`margin` s around its witness window; `run.written` names them)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
         from .stream.binding import open_recordings
@@ -137,7 +146,121 @@ class KnowledgeManager:
         engine = Monitor(
             self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
         )
-        return MonitorRun(engine, opened)
+        if record is None and clips is None:
+            return MonitorRun(engine, opened)
+        from .live.record import RecordedRun
+        from .stream.binding import Recordings
+
+        if not isinstance(opened, Recordings):
+            raise DkError("record and clips copy recordings: give paths, not a Source")
+        return RecordedRun(
+            engine,
+            opened,
+            None if record is None else Path(record),
+            None if clips is None else Path(clips),
+            Fraction(margin),
+        )
+
+    def info(
+        self,
+        sources: Sequence[str | Path],
+        *,
+        fields: bool = False,
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> tuple[list[RecordingInfo], list[Binding]]:
+        """What `dkreason info --config` shows: each recording described (`describe`), and
+        every spec topic of every platform with the recording topic it binds to."""
+        from .stream.info import inspect
+
+        infos, binds = inspect(
+            sources, self.kb, fields=fields, msg=[Path(m) for m in msg], typestore=typestore
+        )
+        return infos, binds or []
+
+    @staticmethod
+    def describe(
+        sources: Sequence[str | Path],
+        *,
+        fields: bool = False,
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> list[RecordingInfo]:
+        """What `dkreason info` shows of recordings (a folder of several: each of them): their
+        topics, types, counts, span, clock and damage; with `fields`, each topic's field paths
+        a spec can read and their types."""
+        from .stream.info import inspect
+
+        return inspect(sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore)[0]
+
+    def plot(
+        self,
+        features: Sequence[str],
+        source: str | Path | Sequence[str | Path],
+        path: str | Path,
+        policy: StreamPolicy | None = None,
+        *,
+        remap: Mapping[str, str] | Sequence[str] | None = None,
+        clock: str = "auto",
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> None:
+        """`dkreason plot`: ground features' values over time (`Speed[car1]`, one panel
+        each) drawn from recordings to `path` (.png, .svg or .pdf), as the monitor would see
+        them (states made by `policy`)."""
+        import re
+
+        from .plot import FORMATS, plot_features
+
+        path = Path(path)
+        if path.suffix.lower() not in FORMATS or not path.parent.is_dir():
+            raise DkError(f"{path}: name a .png, .svg or .pdf file in an existing directory")
+        for f in features:
+            if not re.fullmatch(r"\s*\w+\s*\[[\w\s,]*\]\s*", f):
+                raise DkError(f"{f!r}: expected a ground feature, like Speed[car1]")
+        if not features:
+            raise DkError("plot needs a feature, like Speed[car1]")
+        options: dict[str, Any] = {
+            "remap": remap,
+            "clock": clock,
+            "msg": msg,
+            "typestore": typestore,
+        }
+        formula = "always (" + " or ".join(f"observed({f})" for f in features) + ")"
+        with self.monitor(formula, source, policy, **options) as first:  # the fields' kinds
+            kinds = {k: ks[0][2] for k, ks in first.processor.kinds.items() if ks}
+        keys = [g.key for g in self.plan(formula).ground]
+        strings = [f'{k} == ""' for k in keys if kinds.get(k) == "string"]  # read as strings
+        formula = formula[:-1] + "".join(f" or {s}" for s in strings) + ")"
+        run = self.monitor(formula, source, policy, keep_states=True, **options)
+        for _ in run:  # the states, kept
+            pass
+        title = f"{', '.join(map(str, keys))} from {run.source.name}"
+        plot_features(run, keys, path, title)
+
+    @staticmethod
+    def init(
+        sources: Sequence[str | Path],
+        folder: str | Path,
+        *,
+        robot: str = "robot",
+        topics: Sequence[str] = (),
+        msg: Sequence[str | Path] = (),
+        typestore: str | None = None,
+    ) -> Starter:
+        """`dkreason init`: a starter model of `robot` from recordings (`topics`: only these)
+        written to `folder` as ROBOT.ttl, ROBOT.sslt and ROBOT.toml; `from_config` takes the
+        config as it is, its features one per number, boolean or string field."""
+        from .starter import init
+
+        return init(
+            sources,
+            Path(folder),
+            robot=robot,
+            topics=topics,
+            msg=[Path(m) for m in msg],
+            typestore=typestore,
+        )
 
     def batch(
         self,

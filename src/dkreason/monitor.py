@@ -301,6 +301,7 @@ class Monitor:
             v,
             time=None if v.time is None else seconds(v.time),
             t=None if v.time is None or origin is None else seconds(v.time - origin),
+            window=None if v.window is None else (seconds(v.window[0]), seconds(v.window[1])),
         )
         if v.verdict is not None or last is None:
             return v

@@ -1,90 +1,217 @@
-"""`--plot`: a monitored run drawn with matplotlib, kept out of the engine so monitoring never
-imports a plotting library."""
+"""Plots, with matplotlib, kept out of the engine so monitoring never imports a plotting library:
+`dkreason plot` (features' values over time, to pick a threshold) and `monitor --plot` (the
+same panels with what the monitor said drawn on the features each formula reads).
+
+One panel per feature, on the time axis of every other output (`t`, s from the start of the
+recording, never an offset): numbers as lines, booleans and strings as steps between their
+values; spans without a value shaded.  `monitor --plot` adds, on the panels of the features a
+formula reads, its verdict (a line labelled with the formula's number and word), its witness
+window, and the constants its comparisons hold those features to.  A legend names only what
+is drawn.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
+from .model import FeatureKey
 from .monitor import WORDS, Event, MonitorRun
+from .parse.formula import Compare, Num, Ref, children
 from .progress import Verdict
+from .progress.state import key
 from .stream.processor import Violation
 from .stream.units import NS, since
 
+COLOURS = {True: "tab:green", False: "tab:red", None: "tab:grey"}
+FORMATS = (".png", ".svg", ".pdf")
+
+
+def plot_features(run: MonitorRun, keys: Sequence[FeatureKey], path: Path, title: str) -> None:
+    """`dkreason plot`: the features' values over time (the run's states)."""
+    fig, axes = _panels(run, keys)
+    fig.suptitle(title, fontsize=9)
+    _save(fig, path)
+
 
 def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
-    """Each feature over time (unobserved spans shaded), verdicts as vertical lines, stream
-    constraint violations as orange ticks, on the time axis of every other output (`t`, s from
-    the start of the recording); written atomically, as PNG, SVG or PDF by the file's
-    suffix."""
+    """`monitor --plot`: the features the formulas read, with verdicts, witness windows,
+    thresholds and stream constraint violations on the panels they concern."""
+    formulas = run.monitor.plan.formulas
+    keys = [f.feature.key for f in run.request.features]
+    fig, axes = _panels(run, keys)
+    panel = dict(zip(keys, axes, strict=True))
+    origin = run.start or Fraction(0)
+    reads = [{k for i in f.instances for k in i.keys} for f in formulas]
+    index = {f.text: n for n, f in enumerate(formulas)}
+    drawn: dict[tuple[FeatureKey, float], list[str]] = {}
+    for n, f in enumerate(formulas):
+        for k, op, value in thresholds(i.tree for i in f.instances):
+            drawn.setdefault((k, value), []).append(f"{op} {value:g} (#{n + 1})")
+    for (k, value), said in drawn.items():
+        if k in panel:
+            panel[k].axhline(value, color="tab:purple", ls=":", lw=1, label="threshold")
+            panel[k].annotate(
+                ", ".join(said),
+                (0, value),
+                xycoords=("axes fraction", "data"),
+                xytext=(3, 2),
+                textcoords="offset points",
+                fontsize=7,
+                color="tab:purple",
+                va="bottom",
+                bbox={"fc": "white", "ec": "none", "alpha": 0.7, "pad": 1},
+            )
+    lines = []
+    for e in (e for e in events if isinstance(e, Verdict) and not e.update):
+        n = index.get(e.formula, 0)
+        word = WORDS[e.verdict]
+        when = "at the end" if e.t is None else f"at {since(e.t)}"
+        lines.append(f"#{n + 1} {word} {when}: {e.formula}")
+        for k in reads[n]:
+            ax = panel.get(k)
+            if ax is None:
+                continue
+            if e.window is not None:
+                lo, hi = (float(Fraction(w) - origin) for w in e.window)
+                ax.axvspan(lo, hi, color="tab:red", alpha=0.12, lw=0, label="witness window")
+            if e.t is not None and e.verdict is not None:
+                ax.axvline(float(e.t), color=COLOURS[e.verdict], ls="--", lw=1.2)
+                ax.annotate(
+                    f"#{n + 1} {word}",
+                    (float(e.t), 1),
+                    xycoords=("data", "axes fraction"),
+                    xytext=(-3, -3),
+                    textcoords="offset points",
+                    fontsize=7,
+                    color=COLOURS[e.verdict],
+                    ha="right",
+                    va="top",
+                    bbox={"fc": "white", "ec": "none", "alpha": 0.7, "pad": 1},
+                )
+    for v in events:
+        if isinstance(v, Violation) and v.t is not None and v.feature in panel:
+            ax = panel[v.feature]
+            ax.plot(
+                [float(v.t)],
+                [ax.get_ylim()[0]],
+                "|",
+                color="tab:orange",
+                ms=10,
+                label="stream constraint violated",
+            )
+    for ax in axes:
+        _legend(ax)
+    fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)
+    _save(fig, path)
+
+
+def thresholds(trees: Iterable[Any]) -> list[tuple[FeatureKey, str, float]]:
+    """Each comparison of a feature with a constant (`Speed[car1] > 60`): the feature, the
+    comparison as it reads with the feature on the left, and the constant; each once."""
+    flip = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
+    found: dict[tuple[FeatureKey, str, float], None] = {}
+
+    def walk(node: Any) -> None:
+        if isinstance(node, Compare):
+            if isinstance(node.left, Ref) and isinstance(node.right, Num):
+                found[(key(node.left.feature), node.op, float(node.right.value))] = None
+            elif isinstance(node.right, Ref) and isinstance(node.left, Num):
+                found[(key(node.right.feature), flip[node.op], float(node.left.value))] = None
+            return
+        for child in children(node):
+            walk(child)
+
+    for tree in trees:
+        walk(tree)
+    return list(found)
+
+
+def _panels(run: MonitorRun, keys: Sequence[FeatureKey]) -> tuple[Any, list[Any]]:
+    """A figure with a panel per feature, its values drawn and its spans without a value
+    shaded; the time axis relative, without an offset."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    keys = [f.feature.key for f in run.request.features]
-    fig, axes = plt.subplots(
+    fig, grid = plt.subplots(
         max(len(keys), 1),
         1,
         sharex=True,
         squeeze=False,
-        figsize=(10, 1.5 * max(len(keys), 1) + 1.6),
+        figsize=(10, 1.6 * max(len(keys), 1) + 1.2),
+        layout="constrained",
     )
+    axes = list(grid[:, 0])
     origin = run.start or Fraction(0)
     times = [float(Fraction(t, NS) - origin) for t, _ in run.states]
-    for ax, key in zip(axes[:, 0], keys, strict=False):
-        values = [state.get(key) for _, state in run.states]
+    for ax, k in zip(axes, keys, strict=False):
+        values = [state.get(k) for _, state in run.states]
+        _values(ax, times, values)
+        _unknown(ax, times, values)
+        ax.set_ylabel(str(k), rotation=0, ha="right", va="center", fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+    axes[-1].set_xlabel("t (s from the start of the recording)")
+    axes[-1].ticklabel_format(axis="x", useOffset=False, style="plain")
+    if times:  # the last state drawn as wide as a step, not as a tick at the edge
+        span = max(times) - min(times) or 1.0
+        axes[-1].set_xlim(min(times), max(times) + span / 50)
+    return fig, axes
+
+
+def _values(ax: Any, times: list[float], values: list[Any]) -> None:
+    """Numbers as a line; booleans and strings as steps between their values, named."""
+    seen = [v for v in values if v is not None]
+    if not seen or not any(isinstance(v, bool | str) for v in seen):
         ys = [float(v) if v is not None else float("nan") for v in values]
         ax.step(times, ys, where="post", lw=1.4, color="tab:blue")
-        ax.margins(y=0.25)
-        start = None
-        for t, v in zip([*times, None], [*values, 0], strict=True):
-            if v is None and start is None:
-                start = t
-            elif v is not None and start is not None:
-                ax.axvspan(
-                    start,
-                    t if t is not None else times[-1],
-                    color="grey",
-                    alpha=0.25,
-                    lw=0,
-                    label="unobserved",
-                )
-                start = None
-        ticks = [
-            float(e.t)
-            for e in events
-            if isinstance(e, Violation) and e.feature == key and e.t is not None
-        ]
-        if ticks:
-            ax.plot(
-                ticks,
-                [ax.get_ylim()[0]] * len(ticks),
-                "|",
-                color="tab:orange",
-                ms=10,
-                label="constraint violated",
-            )
-        ax.set_ylabel(str(key), rotation=0, ha="right", va="center", fontsize=9)
-        handles, labels = ax.get_legend_handles_labels()
-        if handles:
-            unique = dict(zip(labels, handles, strict=True))
-            ax.legend(unique.values(), unique.keys(), loc="upper right", fontsize=7)
-    lines = []
-    verdicts = [e for e in events if isinstance(e, Verdict) and not e.update]  # once each
-    for e in verdicts:
-        if e.verdict is not None and e.t is not None:
-            color = "tab:green" if e.verdict else "tab:red"
-            for ax in axes[:, 0]:
-                ax.axvline(float(e.t), color=color, ls="--", lw=1.2)
-            word = WORDS[e.verdict]
-            lines.append(f"{word} at {since(e.t)}: {e.formula}")
-    unknown = [e for e in verdicts if e.verdict is None]
-    lines += [f"unknown at end: {e.formula}" for e in unknown]
-    axes[-1, 0].set_xlabel("t (s from the start of the recording)")
-    fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)
-    fig.tight_layout(rect=(0, 0, 1, 0.97 - 0.02 * len(lines)))
+        ax.margins(y=0.2)
+        return
+    named = [
+        None if v is None else str(v).lower() if isinstance(v, bool) else str(v) for v in values
+    ]
+    levels = (
+        ["false", "true"]
+        if all(isinstance(v, bool) for v in seen)
+        else sorted({n for n in named if n is not None})
+    )
+    at = {level: n for n, level in enumerate(levels)}
+    ys = [float("nan") if n is None else float(at[n]) for n in named]
+    ax.step(times, ys, where="post", lw=1.4, color="tab:blue")
+    ax.set_yticks(range(len(levels)), levels, fontsize=8)
+    ax.set_ylim(-0.5, len(levels) - 0.5)
+
+
+def _unknown(ax: Any, times: list[float], values: list[Any]) -> None:
+    start = None
+    for t, v in zip([*times, None], [*values, 0], strict=True):
+        if v is None and start is None:
+            start = t
+        elif v is not None and start is not None:
+            end = t if t is not None else times[-1]
+            ax.axvspan(start, end, color="grey", alpha=0.25, lw=0, label="no value")
+            start = None
+
+
+def _legend(ax: Any) -> None:
+    """A legend of what this panel shows, each kind once; none for a panel with nothing."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        unique = dict(zip(labels, handles, strict=True))
+        ax.legend(unique.values(), unique.keys(), loc="best", fontsize=7)
+
+
+def _save(fig: Any, path: Path) -> None:
+    """Written atomically, as PNG, SVG or PDF by the file's suffix."""
+    import matplotlib.pyplot as plt
+
     tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")  # the format follows the suffix
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    tmp.replace(path)
+    try:
+        fig.savefig(tmp, dpi=110)
+        tmp.replace(path)
+    finally:
+        plt.close(fig)
+        tmp.unlink(missing_ok=True)

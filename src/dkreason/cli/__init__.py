@@ -12,11 +12,16 @@ import sys
 from collections.abc import Sequence
 
 from ..errors import DkError, one_line
+from .args import spread
 from .parser import build
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build(__doc__.split("\n")[0] if __doc__ else None).parse_args(argv)
+    given = sys.argv[1:] if argv is None else list(argv)
+    if not given:  # bare `dkreason`: what it can do
+        build(__doc__.split("\n")[0] if __doc__ else None).print_help()
+        return 2
+    args = build(__doc__.split("\n")[0] if __doc__ else None).parse_args(spread(given))
     module, function = args.run.split(":")
     try:
         run = getattr(importlib.import_module(f".{module}", __name__), function)

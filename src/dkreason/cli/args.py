@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from collections.abc import Callable, Sequence
 from fractions import Fraction
 from pathlib import Path
 from typing import Any, Literal, NoReturn
@@ -21,6 +22,68 @@ from ..stream.policy import time_bound
 class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, like every other input error
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+
+RECORDING_SUFFIXES = (".bag", ".mcap", ".db3", ".jsonl")
+
+
+def _recording(token: str) -> bool:
+    """A `[PLATFORM=]PATH` that names a recording (a file or a ROS 2 bag folder)."""
+    path = Path(token if Path(token).exists() else token.partition("=")[2] or token)
+    return path.suffix in RECORDING_SUFFIXES or (path / "metadata.yaml").is_file()
+
+
+def _formulas_file(token: str) -> bool:
+    return Path(token).is_file() and not _recording(token)
+
+
+def _topic(token: str) -> bool:
+    return token.startswith("/") and not Path(token).exists()
+
+
+# The options taking a list of files (or topics), and what a further value looks like: an
+# option given several values, as a shell glob gives them (`--msg msg/*.msg`), takes those
+# that look like its values; the next that does not is the next argument (a formula, DIR).
+LISTS: dict[str, Callable[[str], bool]] = {
+    "--msg": lambda t: t.endswith(".msg"),
+    "--source": _recording,
+    "-f": _formulas_file,
+    "--formulas-file": _formulas_file,
+    "--topics": _topic,
+}
+SPREAD = (
+    "monitor",
+    "info",
+    "init",
+    "batch",
+    "plot",
+)  # the commands whose list options take several
+
+
+def spread(argv: Sequence[str]) -> list[str]:
+    """`--msg A B` read as `--msg A --msg B` (see LISTS), in the commands of SPREAD."""
+    args = list(argv)
+    if not args or args[0] not in SPREAD:
+        return args
+    out: list[str] = []
+    option: str | None = None
+    i = 0
+    while i < len(args):
+        token = args[i]
+        if token == "--":
+            return out + args[i:]
+        if option is not None and not token.startswith("-") and LISTS[option](token):
+            out += [option, token]
+            i += 1
+            continue
+        name, eq, _ = token.partition("=")
+        option = name if name in LISTS and token.startswith("-") else None
+        out.append(token)
+        i += 1
+        if option is not None and not eq and i < len(args):  # its own first value, as it is
+            out.append(args[i])
+            i += 1
+    return out
 
 
 Sub = Any  # argparse's subparsers action (its class is private)
@@ -112,7 +175,7 @@ def formulas_file(p: Options) -> None:
         action="append",
         default=[],
         metavar="FILE",
-        help="formulas, one per line (# comments); repeatable",
+        help="formulas, one per line (# comments); several: -f A B, or repeated",
     )
 
 
@@ -124,7 +187,7 @@ def definitions(p: Options) -> None:
         default=[],
         metavar="FILE",
         help="a pkg/msg/Name.msg definition, for recordings that store none or to "
-        "replace a wrong one they store (repeatable)",
+        "replace a wrong one they store (several: --msg msg/*.msg, or repeated)",
     )
     p.add_argument(
         "--typestore",

@@ -1,4 +1,4 @@
-"""The knowledge commands: match, explain, specs, sort — each one façade call, rendered."""
+"""The knowledge commands: match, explain, specs, sort, init — each one façade call, rendered."""
 
 from __future__ import annotations
 
@@ -65,4 +65,25 @@ def specs(args: argparse.Namespace) -> int:
 def sort(args: argparse.Namespace) -> int:
     for name in KnowledgeManager.from_config(args.config).list_sort(args.sort, args.platform):
         print(name)
+    return 0
+
+
+def init(args: argparse.Namespace) -> int:
+    made = KnowledgeManager.init(
+        args.source,
+        args.folder,
+        robot=args.robot,
+        topics=args.topics,
+        msg=args.msg,
+        typestore=args.typestore,
+    )
+    print(f"wrote {made.config}, {made.ontology}, {made.specs}")
+    named = [f"{f.name}[{made.robot}]" for f in made.features]
+    width = max(map(len, named))
+    for name, f in zip(named, made.features, strict=True):
+        print(f"  {name:<{width}}  {f.kind:<6}  {f.topic} {f.field}")
+    first = made.features[0]
+    test = {"number": " > 0", "bool": "", "string": ' != ""'}[first.kind]
+    sources = " ".join(f"--source {s}" for s in args.source)
+    print(f"next: dkreason monitor --config {made.config} {sources} 'always ({named[0]}{test})'")
     return 0

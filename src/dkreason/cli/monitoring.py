@@ -7,16 +7,15 @@ import argparse
 import json
 import sys
 from collections import Counter
+from pathlib import Path
 from typing import Any
 
-from ..errors import DkError
+from ..errors import DkError, one_line
 from ..manager import KnowledgeManager
 from ..parse.formula import parse_formula
 from ..progress import Progressor, Verdict
 from ..progress.state import feature_uses
 from ..progress.statefile import read_states
-from ..stream.binding import open_recordings
-from ..stream.info import bindings, describe
 from ..stream.info import render as render_info
 from ..stream.policy import DEFAULT
 from . import live, render
@@ -35,7 +34,6 @@ def monitor(args: argparse.Namespace) -> int:
             ("--bridge", args.bridge),
             ("--bind", args.bind),
             ("--sim-time", args.sim_time),
-            ("--record", args.record),
             ("--domain", args.domain),
         )
         if given not in (False, [], None)
@@ -44,6 +42,10 @@ def monitor(args: argparse.Namespace) -> int:
         raise DkError(f"{ros2_only[0]} is for --ros2")
     if args.publish_verdicts and not (args.live or args.ros2):
         raise DkError("--publish-verdicts is for --live or --ros2")
+    if args.live and args.record is not None:
+        raise DkError("--record is for recordings and --ros2 (--live samples are no ROS messages)")
+    if args.clips is not None and (args.live or args.ros2):
+        raise DkError("--clips is for recordings (--source)")
     if args.ros2:
         return live.monitor_ros2(args, stream_policy)
     if args.live:
@@ -60,6 +62,9 @@ def monitor(args: argparse.Namespace) -> int:
         msg=args.msg,
         typestore=args.typestore,
         keep_states=args.plot is not None,
+        record=args.record,
+        clips=args.clips,
+        margin=args.clip_margin,
     )
     for topic, features in run.absent.items():
         print(f"warning: {topic} (for {', '.join(features)}) is in no recording", file=sys.stderr)
@@ -81,16 +86,44 @@ def monitor(args: argparse.Namespace) -> int:
     if not args.json:
         render.summary(verdicts, violations)
     if args.plot is not None and run.states:
-        from ..plot import plot
-
-        plot(run, events, args.plot)
-        if not args.json:
-            print(f"plot written to {args.plot}")
+        _plot(run, events, args.plot, args.json)
+    if not args.json:
+        if args.record is not None:
+            print(f"recorded to {args.record}")
+        for path, verdict in getattr(run, "written", ()):
+            print(f"clip {path}: {verdict.formula}")
     if error is not None:
         raise error
     return render.exit_status(
         [v.verdict for v in verdicts], args.fail_on_constraint and bool(violations)
     )
+
+
+def _plot(run: Any, events: list[Any], path: Path, quiet: bool) -> None:
+    """`--plot`: a failure to draw is one error line; the verdicts' exit status stands."""
+    from ..plot import plot
+
+    try:
+        plot(run, events, path)
+    except Exception as exc:  # matplotlib's errors are of any kind (fonts, disk, backends)
+        print(f"error: --plot {path}: {one_line(str(exc)) or type(exc).__name__}", file=sys.stderr)
+        return
+    if not quiet:
+        print(f"plot written to {path}")
+
+
+def plot(args: argparse.Namespace) -> int:
+    KnowledgeManager.from_config(args.config).plot(
+        args.features,
+        args.source,
+        args.output,
+        remap=args.remap,
+        clock=args.clock,
+        msg=args.msg,
+        typestore=args.typestore,
+    )
+    print(f"plot written to {args.output}")
+    return 0
 
 
 def progress(args: argparse.Namespace) -> int:
@@ -128,19 +161,17 @@ def progress(args: argparse.Namespace) -> int:
 
 
 def info(args: argparse.Namespace) -> int:
-    km = KnowledgeManager.from_config(args.config) if args.config else None
-    recordings = open_recordings(
-        args.source,
-        km.platforms if km else (),
-        clock="header",  # each recording's own clock: describe() says which
-        msg=args.msg,
-        typestore=args.typestore,
-    )
-    try:
-        infos = [describe(r) for r in recordings.parts]
-        binds = bindings(km.kb, recordings) if km else None
-    finally:
-        recordings.close()
+    if args.config:
+        infos, binds = KnowledgeManager.from_config(args.config).info(
+            args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+        )
+    else:
+        infos, binds = (
+            KnowledgeManager.describe(
+                args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+            ),
+            None,
+        )
     if args.json:
         print(
             json.dumps(

@@ -5,6 +5,7 @@ the function that runs it (`module:function` in cli/), imported only when it run
 from __future__ import annotations
 
 import argparse
+from fractions import Fraction
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -43,12 +44,15 @@ def build(description: str | None) -> a.Parser:
     _explain(sub)
     _specs(sub)
     _info(sub)
+    _plot(sub)
+    _init(sub)
     _sort(sub)
     _batch(sub)
     _results(sub)
     _rules(sub)
     _query(sub)
     _test(sub)
+    _completion(sub)
     return parser
 
 
@@ -102,7 +106,7 @@ def _monitor(sub: a.Sub) -> None:
         default=[],
         metavar="[PLATFORM=]PATH",
         help="ROS 1 .bag, ROS 2 bag folder or .mcap/.db3 file, or .jsonl messages; "
-        "repeat for several recordings (merged by record time); PLATFORM= "
+        "several (--source A B, or repeated) are merged by record time; PLATFORM= "
         "binds a recording's topics to that platform's specs only",
     )
     out = p.add_argument_group("output")
@@ -116,6 +120,28 @@ def _monitor(sub: a.Sub) -> None:
         "--fail-on-constraint",
         action="store_true",
         help="exit 1 when a stream constraint was violated, as when a formula was",
+    )
+    out.add_argument(
+        "--record",
+        type=Path,
+        metavar="OUT.mcap",
+        help="recordings and --ros2: write the relevant topics' messages (byte for byte) and "
+        "the verdicts (foxglove.Log on /dkreason/log, JSON on /dkreason/events) to one MCAP "
+        "file, which Foxglove opens and --source replays",
+    )
+    out.add_argument(
+        "--clips",
+        type=Path,
+        metavar="DIR",
+        help="recordings: one MCAP file per violation in DIR, the relevant topics from "
+        "--clip-margin before its witness window to --clip-margin after it",
+    )
+    out.add_argument(
+        "--clip-margin",
+        type=a.seconds,
+        default=Fraction(2),
+        metavar="SECONDS",
+        help="--clips: seconds kept before and after a witness window (default 2)",
     )
 
     _recordings(p)
@@ -180,13 +206,6 @@ def _monitor(sub: a.Sub) -> None:
         "--sim-time",
         action="store_true",
         help="ros2: the stream clock is /clock (rosgraph_msgs/msg/Clock), as with use_sim_time",
-    )
-    live.add_argument(
-        "--record",
-        type=Path,
-        metavar="OUT.mcap",
-        help="ros2: write the relevant topics' messages and the verdicts (a JSON "
-        "channel) to one MCAP file, which --source replays",
     )
 
 
@@ -423,9 +442,82 @@ def _info(sub: a.Sub) -> None:
     p = sub.add_parser("info", help="what recordings hold, and which spec topics they bind")
     p.add_argument("--config", type=Path, help="TOML config: show which spec topics bind")
     p.add_argument("--json", action="store_true", help="one JSON document")
+    p.add_argument(
+        "--fields",
+        action="store_true",
+        help="each topic's field paths a spec can read (msg.pose.position.z), with their "
+        "types; array elements as msg.ranges[i] (any length) or msg.covariance[0..35]",
+    )
     a.definitions(p)
-    p.add_argument("source", nargs="+", metavar="[PLATFORM=]PATH")
+    p.add_argument(
+        "source",
+        nargs="+",
+        metavar="[PLATFORM=]PATH",
+        help="a recording, or a folder of recordings (each described)",
+    )
     p.set_defaults(run="monitoring:info")
+
+
+def _plot(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "plot",
+        help="features' values over time from a recording (to pick a threshold)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example:\n  dkreason plot --config examples/single.toml --source run.mcap "
+        "-o speeds.png 'Speed[car1]' 'Speed[car2]'",
+    )
+    a.config(p)
+    p.add_argument(
+        "--source",
+        action="append",
+        required=True,
+        metavar="[PLATFORM=]PATH",
+        help="the recording(s), as monitor takes them",
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        required=True,
+        metavar="OUT",
+        help="the image: .png, .svg or .pdf, as the name says",
+    )
+    _recordings(p)
+    p.add_argument("features", nargs="+", metavar="FEATURE", help="a ground feature: Speed[car1]")
+    p.set_defaults(run="monitoring:plot")
+
+
+def _init(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "init",
+        help="a starter model from a recording: ontology, specs and config, a feature per field",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="example:\n  dkreason init --source run.mcap --robot rover --topics /odom /battery "
+        "model/\n  dkreason monitor --config model/rover.toml --source run.mcap "
+        "'always (BatteryPercentage[rover] > 0.2)'",
+    )
+    p.add_argument(
+        "--source",
+        action="append",
+        required=True,
+        metavar="PATH",
+        help="a recording whose topics and fields the model describes (several: --source A B)",
+    )
+    p.add_argument(
+        "--robot",
+        default="robot",
+        help="the robot's name: its object, platform and files (default robot)",
+    )
+    p.add_argument(
+        "--topics",
+        action="append",
+        default=[],
+        metavar="TOPIC",
+        help="only these topics, as info names them (--topics /odom /battery; default: all)",
+    )
+    a.definitions(p)
+    p.add_argument("folder", type=Path, metavar="DIR", help="where ROBOT.ttl, .sslt, .toml go")
+    p.set_defaults(run="knowledge:init")
 
 
 def _sort(sub: a.Sub) -> None:
@@ -487,3 +579,12 @@ def _test(sub: a.Sub) -> None:
         "--update", action="store_true", help="rewrite each case's expected output with the actual"
     )
     p.set_defaults(run="rules:test")
+
+
+def _completion(sub: a.Sub) -> None:
+    p = sub.add_parser(
+        "completion",
+        help='a shell completion script: eval "$(dkreason completion bash)" in ~/.bashrc',
+    )
+    p.add_argument("shell", choices=("bash", "zsh"))
+    p.set_defaults(run="completion:completion")

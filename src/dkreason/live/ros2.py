@@ -211,9 +211,7 @@ class Ros2Monitor:
         try:
             for event in loop.run(self.monitor, self.processor, self, end, duration):
                 if self.recorder is not None:
-                    t = event.time
-                    at = None if t is None else round(t * NS)
-                    self.recorder.event(at if at is not None else self.now() or 0, event.to_json())
+                    self.recorder.event(self.now() or 0, event)
                 yield event
         finally:
             if self.recorder is not None:

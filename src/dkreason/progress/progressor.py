@@ -41,7 +41,7 @@ from .fused import FusedSet
 from .general import General
 from .state import features, is_state
 from .verdict import UnknownSpan, Verdict
-from .witness import Clock, Time, Why, cut_of, refuted, undecided
+from .witness import Clock, Time, Why, cut_of, refuted, since, undecided
 
 ENGINES = ("auto", "general")
 
@@ -293,17 +293,22 @@ class Progressor:
                 self.decided.append(m)
                 continue
             m.reported = True
-            witness = pending = None
+            witness = pending = window = None
             unknown: tuple[UnknownSpan, ...] = ()
             if m.value is False and m.why is not None:
                 witness = refuted(m.why, time, self.clock)
+                window = (min(since(m.why), time), time)
             elif m.value is None:
                 unknown = tuple(
                     UnknownSpan(k, s[0], s[1]) for k in m.keys for s in self.unknown.get(k, ())
                 )
                 pending = None if m.cut is None else m.cut[1].render()
                 witness = undecided(unknown, m.started, self.clock, pending)
-            out.append(Verdict(m.text, m.value, time, at_end, witness, unknown, pending=pending))
+            out.append(
+                Verdict(
+                    m.text, m.value, time, at_end, witness, unknown, pending=pending, window=window
+                )
+            )
         return out
 
     def note_unknown(self, keys: Iterable[FeatureKey], pos: int, given: Any) -> None:

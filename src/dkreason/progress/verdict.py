@@ -77,7 +77,9 @@ class Verdict:
     end of the data cut off).  A monitor over a recording also gives `t`, the time in seconds
     from the recording's start.  A formula with outer quantifiers names its `instances`; when
     some were still open at its verdict, later `update`s (the same verdict, never retracted)
-    name them as they settle."""
+    name them as they settle.  A violated verdict's `window` is its witness's span on the
+    stream's clock: from the earliest time its reason names to the decision (what `--clips`
+    cuts out and `--plot` shades)."""
 
     formula: str
     verdict: bool | None
@@ -89,6 +91,7 @@ class Verdict:
     pending: str | None = None
     instances: tuple[InstanceVerdict, ...] | None = None
     update: bool = False
+    window: tuple[Any, Any] | None = None
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {

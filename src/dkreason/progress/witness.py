@@ -163,6 +163,14 @@ def next_late(text: str, ti: Time, gap: Time | None, clock: Clock) -> Why:
     return Why(text, ti, f"is false at {clock.at(ti)}: {late}")
 
 
+def since(why: Why) -> Time:
+    """The earliest time a reason names: where its witness window begins."""
+    first, link = why.at, why.cause
+    while link is not None:
+        first, link = min(first, link.at), link.cause
+    return first
+
+
 def refuted(why: Why, decided: Any, clock: Clock) -> str:
     """A false verdict's witness, led by the decision: when it was decided, then the reason
     for the value at the formula's first state (a link only restating it left out)."""

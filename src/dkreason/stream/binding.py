@@ -12,13 +12,15 @@ names that robot records (its topics are presented as `PLATFORM:/name`).
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator, Mapping, Sequence
+import heapq
+from collections.abc import Collection, Generator, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from operator import attrgetter
 from pathlib import Path
 
 from ..errors import DkError
 from ..model import TopicMatch, ros_name
-from .sources import Message, Source, Wanted, open_source
+from .sources import Message, Raw, Source, Wanted, open_source
 
 CLOCKS = ("auto", "header", "record")
 
@@ -190,6 +192,20 @@ class Recordings:
         for topic, available, valid, values in messages:
             yield shown[topic], available, available if record else valid, values
 
+    def raw(self, topics: Collection[str]) -> Generator[Raw]:
+        """The messages on `topics` (as presented) as recorded, under each recording's own
+        names (so a copy replays with the same `--remap`), merged by record time."""
+        streams = []
+        for r in self.parts:
+            own = {o for t in topics if (o := self._own(r, t)) is not None}
+            read = getattr(r.source, "raw", None)
+            if read is None:
+                raise DkError(
+                    f"{r.source.name}: its messages cannot be copied (JSON lines, or damaged)"
+                )
+            streams.append(read(own))
+        return heapq.merge(*streams, key=attrgetter("time"))
+
     def close(self) -> None:
         for r in self.parts:
             r.source.close()
@@ -228,6 +244,44 @@ def open_recordings(
         for r in parts:
             r.source.close()
         raise
+
+
+RECORDINGS = (".bag", ".mcap", ".db3", ".jsonl")  # what a folder is searched for, and bag folders
+
+
+def is_bag_folder(path: Path) -> bool:
+    """A ROS 2 bag folder: one recording, however many storage files it holds."""
+    return (path / "metadata.yaml").is_file()
+
+
+def recordings_in(folder: Path) -> Iterator[Path]:
+    """The recordings in a folder that is not itself a bag folder, searched through."""
+    for entry in sorted(folder.iterdir()):
+        if entry.is_dir():
+            yield from [entry] if is_bag_folder(entry) else recordings_in(entry)
+        elif entry.suffix in RECORDINGS:
+            yield entry
+
+
+def expand_folders(given: Sequence[str | Path]) -> list[str]:
+    """Each `[PLATFORM=]PATH`, a folder holding several recordings (not a bag folder) as
+    those recordings (`dkreason info`); a folder holding none is an error."""
+    out: list[str] = []
+    for item in given:
+        platform, sep, rest = str(item).partition("=")
+        path = Path(rest if sep and not Path(item).exists() else item)
+        prefix = f"{platform}=" if sep and not Path(item).exists() else ""
+        if not path.is_dir() or is_bag_folder(path):
+            out.append(str(item))
+            continue
+        found = [f"{prefix}{p}" for p in recordings_in(path)]
+        if not found:
+            raise DkError(
+                f"{path}: no recording in this folder (.bag, .mcap, .db3, .jsonl files "
+                "or ROS 2 bag folders with a metadata.yaml)"
+            )
+        out += found
+    return out
 
 
 def remaps(rules: Sequence[str]) -> dict[str, str]:

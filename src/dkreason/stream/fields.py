@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from ..errors import DkError
@@ -89,3 +90,58 @@ def _desc(desc: Any) -> tuple[str, Any]:
     if value in (3, 4):  # ARRAY, SEQUENCE
         return ("array", _desc(spec[0]))
     return ("base", spec)
+
+
+@dataclass(frozen=True, slots=True)
+class FieldPath:
+    """A field a spec can read (`msg.pose.position.z`): a number, bool or string, with its ROS
+    type; an array's elements are written with their index (`msg.ranges[i]`, a sequence of any
+    length; `msg.covariance[0..35]`, fixed size), which a spec gives as a number."""
+
+    path: str
+    ros_type: str
+
+    @property
+    def kind(self) -> str:
+        """number, bool or string: how a formula may use it."""
+        return (
+            "bool"
+            if self.ros_type == "bool"
+            else "string"
+            if self.ros_type in ("string", "wstring")
+            else "number"
+        )
+
+    def to_json(self) -> dict[str, str]:
+        return {"field": self.path, "type": self.ros_type, "kind": self.kind}
+
+
+DEPTH = 12  # nested messages followed (a definition cannot recurse, but may be deep)
+
+
+def paths(fielddefs: dict[str, Any], msgtype: str) -> list[FieldPath]:
+    """Every field path of `msgtype` a spec can read, in definition order."""
+    out: list[FieldPath] = []
+
+    def walk(desc: tuple[str, Any], at: str, depth: int) -> None:
+        kind_, what = desc
+        if kind_ == "base":
+            out.append(FieldPath(at, str(what[0] if isinstance(what, tuple) else what)))
+        elif kind_ == "array":
+            walk(what[0], at + what[1], depth)
+        elif depth < DEPTH and what in fielddefs:
+            for name, field in fielddefs[what][1]:
+                walk(_indexed(field), f"{at}.{name}", depth + 1)
+
+    walk(("name", msgtype), "msg", 0)
+    return out
+
+
+def _indexed(desc: Any) -> tuple[str, Any]:
+    """A field's descriptor, an array's with the index it is written with."""
+    nodetype, spec = desc
+    if int(nodetype) in (3, 4):  # ARRAY (fixed size), SEQUENCE
+        size = int(spec[1])
+        index = f"[0..{size - 1}]" if int(nodetype) == 3 and size else "[i]"
+        return ("array", (_indexed(spec[0]), index))
+    return _desc(desc)

@@ -4,19 +4,30 @@ Per recording: each topic with its message type and count, the time span and the
 its header stamps, and what is damaged.  Counts and span are what the recording holds: an
 indexed MCAP file's chunks are read (a damaged chunk is named, with what of it was read);
 a file without a usable index is read through; only a ROS 1 bag's or an sqlite3 file's
-index is taken at its word.  With a knowledge base: every spec topic of every platform, and
-the recording topic it binds to (stream/binding.py), or that none does.
+index is taken at its word.  With `fields`: each topic's field paths a spec can read, with
+their types (fields.py).  With a knowledge base: every spec topic of every platform, and the
+recording topic it binds to (stream/binding.py), or that none does.  A folder holding several
+recordings is read as those recordings.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from ..model import TopicMatch
-from .binding import Recording, Recordings, message_type_fits, recording_names
+from .binding import (
+    Recording,
+    Recordings,
+    expand_folders,
+    message_type_fits,
+    open_recordings,
+    recording_names,
+)
 from .damaged import DamagedRecording
+from .fields import FieldPath, paths
 from .units import NS, seconds_text
 
 
@@ -25,6 +36,11 @@ class TopicInfo:
     name: str
     msgtype: str
     count: int | None
+    fields: tuple[FieldPath, ...] = ()  # when asked for, and the definition is known
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"topic": self.name, "type": self.msgtype, "count": self.count}
+        return out | ({"fields": [f.to_json() for f in self.fields]} if self.fields else {})
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,7 +58,7 @@ class RecordingInfo:
             "clock": self.clock,
             "start": None if self.start is None else round(self.start / NS, 9),
             "end": None if self.end is None else round(self.end / NS, 9),
-            "topics": [{"topic": t.name, "type": t.msgtype, "count": t.count} for t in self.topics],
+            "topics": [t.to_json() for t in self.topics],
             "damage": list(self.damage),
         }
 
@@ -65,7 +81,31 @@ class Binding:
         }
 
 
-def describe(recording: Recording) -> RecordingInfo:
+def inspect(
+    given: Sequence[str | Path],
+    kb: Any = None,
+    *,
+    fields: bool = False,
+    msg: Sequence[Path] = (),
+    typestore: str | None = None,
+) -> tuple[list[RecordingInfo], list[Binding] | None]:
+    """What `dkreason info` shows: each recording described (a folder of several, each of
+    them), and with a knowledge base the spec topics' bindings."""
+    recordings = open_recordings(
+        expand_folders(given),
+        kb.platforms if kb is not None else (),
+        clock="header",  # each recording's own clock: describe() says which
+        msg=msg,
+        typestore=typestore,
+    )
+    try:
+        infos = [describe(r, fields) for r in recordings.parts]
+        return infos, bindings(kb, recordings) if kb is not None else None
+    finally:
+        recordings.close()
+
+
+def describe(recording: Recording, fields: bool = False) -> RecordingInfo:
     """A recording's topics, counts, span, clock and damage (see the module docstring)."""
     source = recording.source
     types = source.types()
@@ -93,9 +133,13 @@ def describe(recording: Recording) -> RecordingInfo:
             damage = (str(exc).removeprefix(f"{source.name}: "),)
         types = types or found
     clock = Recordings([recording], clock="auto")
+    fielddefs = getattr(getattr(source, "store", None), "fielddefs", {}) if fields else {}
     return RecordingInfo(
         source.name,
-        tuple(TopicInfo(t, types[t], counts.get(t, 0)) for t in sorted(types)),
+        tuple(
+            TopicInfo(t, types[t], counts.get(t, 0), tuple(paths(fielddefs, types[t])))
+            for t in sorted(types)
+        ),
         start,
         end,
         clock.clock if clock.stamped else "none",
@@ -144,10 +188,12 @@ def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> s
             }[info.clock]
         )
         width = max((len(t.name) for t in info.topics), default=0)
-        lines += [
-            f"  {t.name:<{width}}  {t.msgtype}  {t.count if t.count is not None else '?'}"
-            for t in info.topics
-        ]
+        for t in info.topics:
+            lines.append(
+                f"  {t.name:<{width}}  {t.msgtype}  {t.count if t.count is not None else '?'}"
+            )
+            across = max((len(f.path) for f in t.fields), default=0)
+            lines += [f"      {f.path:<{across}}  {f.ros_type}" for f in t.fields]
         lines += [f"  damaged: {d}" for d in info.damage]
     for b in binds or ():
         where = f"{b.platform}/{b.topic} ({b.msgtype})"

@@ -10,7 +10,8 @@ field by field where their layout allows (fastread.py) and deserialised in full 
 from __future__ import annotations
 
 import queue
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Collection, Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from decimal import Decimal
 from pathlib import Path
 from typing import Any, Protocol
@@ -35,6 +36,19 @@ from .units import NS, to_ns
 Message = tuple[str, int, int, tuple[Any, ...]]
 Record = tuple[str, int, int, Any]  # a whole message: topic, available, valid, plain data
 Wanted = dict[str, list[str]]  # topic → fields, in the order the values are yielded
+
+
+@dataclass(frozen=True, slots=True)
+class Raw:
+    """A message as recorded, to be copied (`--record`, `--clips`): its topic, record time
+    (ns) and CDR bytes, and what its channel needs: the message type and its definition's
+    text (ros2msg)."""
+
+    topic: str
+    time: int
+    data: bytes
+    msgtype: str
+    definition: str
 
 
 class Source(Protocol):
@@ -133,6 +147,7 @@ class RosbagSource:
                 for name in replaced
             ]
         self.note = "; ".join(notes)
+        self.store = self.reader.typestore  # closing the reader empties its own
 
     def types(self) -> dict[str, str]:
         return {c.topic: c.msgtype for c in self.connections}
@@ -265,6 +280,31 @@ class RosbagSource:
         finally:
             indexed.close()
 
+    def raw(self, topics: Collection[str]) -> Iterator[Raw]:
+        """The messages on `topics` as recorded, read afresh (after a run, the file closed):
+        CDR byte for byte; a ROS 1 message converted to CDR (rosbags reads no ROS 1 encoding
+        in an MCAP file).  Definitions from this source's types (`--msg` ones included)."""
+        from rosbags.highlevel import AnyReader
+
+        store = self.store
+        definitions: dict[str, str] = {}
+        try:
+            with AnyReader([self.path], default_typestore=store) as reader:
+                wanted = [c for c in reader.connections if c.topic in topics and _ros(c)]
+                for c, t_ns, data in reader.messages(connections=wanted):
+                    cdr = (
+                        bytes(store.ros1_to_cdr(data, c.msgtype))
+                        if not reader.is2 or _encoding(c) == "ros1"
+                        else data
+                    )
+                    if c.msgtype not in definitions:
+                        definitions[c.msgtype] = store.generate_msgdef(c.msgtype, ros_version=2)[0]
+                    yield Raw(c.topic, t_ns, cdr, c.msgtype, definitions[c.msgtype])
+        except DkError:
+            raise
+        except Exception as exc:  # a damaged file can fail anywhere in rosbags
+            raise DamagedRecording(f"{self.name}: damaged recording ({why(exc)})") from None
+
     def records(self) -> Iterator[Record]:
         """Every message in full, as plain data (what a live platform node publishes)."""
         try:
@@ -290,9 +330,14 @@ class RosbagSource:
 ENCODINGS = ("cdr", "ros1")  # a channel's, when it is ROS (an MCAP may hold JSON, protobuf)
 
 
+def _encoding(connection: Any) -> str:
+    """A ROS 2 recording's channel's encoding (an MCAP file's may be ros1, json, …)."""
+    return str(getattr(connection.ext, "serialization_format", "cdr"))
+
+
 def _ros(connection: Any) -> bool:
     """A channel in a ROS encoding."""
-    return getattr(connection.ext, "serialization_format", "cdr") in ENCODINGS
+    return _encoding(connection) in ENCODINGS
 
 
 def _foreign_channels_allowed() -> None:

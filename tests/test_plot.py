@@ -1,0 +1,61 @@
+"""`dkreason plot` (features over time) and `monitor --plot` (what the monitor said, drawn)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from dkreason import FeatureKey, KnowledgeManager
+from dkreason.cli import main
+from dkreason.parse.formula import parse_formula
+from dkreason.plot import thresholds
+from dkreason.stream.recording import write_recording
+
+from .test_init import TYPES, rows
+from .test_monitor import SLOW, SPEEDING, car_rows
+from .test_monitor import TYPES as CAR_TYPES
+
+REPO = Path(__file__).resolve().parents[1]
+MAGIC = {".png": b"\x89PNG", ".svg": b"<?xml", ".pdf": b"%PDF"}
+
+
+@pytest.mark.parametrize("suffix", [".png", ".svg", ".pdf"])
+def test_plot_draws_numbers_booleans_and_strings(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, suffix: str
+) -> None:
+    bag = tmp_path / "rover.bag"
+    write_recording(bag, "ros1", TYPES, rows())
+    config = KnowledgeManager.init([bag], tmp_path, robot="rover").config
+    out = tmp_path / f"features{suffix}"
+    features = ["RoverBatteryPercentage[rover]", "RoverBatteryCharging[rover]"]
+    features.append("RoverBatteryStatus[rover]")
+    code = main(["plot", "--config", str(config), "--source", str(bag), "-o", str(out), *features])
+    assert code == 0 and out.read_bytes().startswith(MAGIC[suffix])
+    assert main(["plot", "--config", str(config), "--source", str(bag), "-o", str(out), "x)"]) == 2
+    assert "expected a ground feature, like Speed[car1]" in capsys.readouterr().err
+
+
+def test_thresholds_are_the_constants_features_are_compared_with() -> None:
+    tree = parse_formula("always (Speed[car1] > 60 -> eventually[0, 3] 60 >= Speed[car1])")
+    car1 = FeatureKey("Speed", ("car1",))
+    assert thresholds([tree]) == [(car1, ">", 60.0), (car1, "<=", 60.0)]
+
+
+def test_a_plot_that_fails_is_one_line_and_keeps_the_exit_status(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import dkreason.plot
+
+    def broken(*_: object) -> None:
+        raise RuntimeError("no fonts\nat all")
+
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", CAR_TYPES, car_rows())
+    args = ["monitor", "--config", str(REPO / "examples" / "single.toml"), "--source", str(source)]
+    out = tmp_path / "run.png"
+    assert main([*args, "--plot", str(out), SPEEDING, SLOW]) == 1
+    assert out.read_bytes().startswith(MAGIC[".png"])
+    monkeypatch.setattr(dkreason.plot, "plot", broken)
+    assert main([*args, "--plot", str(out), SPEEDING, SLOW]) == 1
+    assert capsys.readouterr().err == f"error: --plot {out}: no fonts\\nat all\n"
