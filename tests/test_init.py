@@ -57,8 +57,7 @@ def bag(tmp_path: Path) -> Path:
 def test_init_writes_a_model_that_match_and_monitor_take_as_it_is(
     capsys: pytest.CaptureFixture[str], tmp_path: Path, bag: Path
 ) -> None:
-    model = tmp_path / "model"
-    model.mkdir()
+    model = tmp_path / "model"  # made by init, as a new user names a new folder
     assert main(["init", "--source", str(bag), "--robot", "rover", str(model)]) == 0
     out = capsys.readouterr().out
     assert "RoverBatteryPercentage[rover]" in out and "number" in out

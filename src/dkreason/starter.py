@@ -60,11 +60,12 @@ def init(
     typestore: str | None = None,
 ) -> Starter:
     """A starter model of `robot` from the recordings' topics (`topics`: only these) in
-    `folder`: ROBOT.ttl, ROBOT.sslt and ROBOT.toml, none of which may exist yet."""
+    `folder` (made if it does not exist): ROBOT.ttl, ROBOT.sslt and ROBOT.toml, none of which
+    may exist yet."""
     if not ROBOT.match(robot):
         raise DkError(f"--robot {robot!r}: letters, digits and _, not starting with a digit")
-    if not folder.is_dir():
-        raise DkError(f"{folder}: no such directory")
+    if folder.exists() and not folder.is_dir():
+        raise DkError(f"{folder}: not a directory")
     files = {s: folder / f"{robot}.{s}" for s in ("ttl", "sslt", "toml")}
     for path in files.values():
         if path.exists():
@@ -94,6 +95,10 @@ def init(
             "no number, boolean or string field outside the header in "
             + (", ".join(topics) if topics else "the recordings")
         )
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DkError(f"{folder}: cannot be made ({exc.strerror})") from None
     write_atomic(files["ttl"], _ontology(robot, features.values()).encode())
     header = f"# {robot}'s topics, from {', '.join(map(str, sources))} (dkreason init)\n"
     write_atomic(files["sslt"], (header + "\n".join(specs) + "\n").encode())

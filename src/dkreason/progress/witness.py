@@ -164,7 +164,9 @@ def next_late(text: str, ti: Time, gap: Time | None, clock: Clock) -> Why:
 
 
 def since(why: Why) -> Time:
-    """The earliest time a reason names: where its witness window begins."""
+    """The earliest time the witness of `why` names: where its window begins (an invariant
+    violated at t: at t, not at the formula's first state, which only restates it)."""
+    why = _told(why)
     first, link = why.at, why.cause
     while link is not None:
         first, link = min(first, link.at), link.cause
@@ -174,8 +176,12 @@ def since(why: Why) -> Time:
 def refuted(why: Why, decided: Any, clock: Clock) -> str:
     """A false verdict's witness, led by the decision: when it was decided, then the reason
     for the value at the formula's first state (a link only restating it left out)."""
-    reason = why.cause if why.plain and why.cause is not None else why
-    return f"violated at {clock.at(decided)}: {reason.render()}"
+    return f"violated at {clock.at(decided)}: {_told(why).render()}"
+
+
+def _told(why: Why) -> Why:
+    """The reason a witness tells: a first link only restating the formula is left out."""
+    return why.cause if why.plain and why.cause is not None else why
 
 
 def undecided(
