@@ -794,7 +794,8 @@ def test_an_object_joining_the_live_federation_is_monitored_from_its_arrival(
             if isinstance(event, Change) and (event.event, event.topic) == (
                 "subscribed",
                 "topic2",
-            ):
+            ):  # once the subscription reached the node (on a loaded machine: seconds later)
+                heard(sessions[1].declare_publisher("dkreason/platform1/topic/topic2")).undeclare()
                 altitudes(1, uav1=100.0, uav2=100.0)
                 altitudes(1.5, uav1=100.0, uav2=100.0)
                 node.add_object("uav3", "UAV")

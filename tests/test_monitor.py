@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from dkreason import FeatureKey, KnowledgeManager
@@ -623,6 +623,18 @@ FEEDS = {"topic1": 1, "topic2": 1, "topic3": 1, "topic4": 2, "topic5": 3}  # top
     st.sampled_from([Fraction(0), Fraction(1, 5)]),
     st.booleans(),
     st.sampled_from([(None, None), (Fraction(1, 2), None), (None, Fraction(2))]),
+)
+@example(  # a late sample of car1 goes stale at the instant car2 does
+    [
+        ("topic1", 0, 0, 10.0),
+        ("topic3", 1, 7, 10.0),
+        ("topic3", 7, 0, 10.0),
+        ("topic4", 1, 0, 10.0),
+    ],
+    Fraction(1, 2),
+    Fraction(1, 5),
+    False,
+    (None, None),
 )
 def test_states_made_from_what_changed_equal_states_read_in_full(
     single: KnowledgeManager,

@@ -57,6 +57,7 @@ MAX_STATES = 10**7  # states a sample period may make over a stream (a few µs e
 _NO_EXPIRY: tuple[list[FeatureKey], list[int]] = ([], [])  # read, never changed
 _NO_QS: list[int] = []
 _VALID_RANK = itemgetter(0, 1)  # a history entry's order: (valid, rank), never its value
+_VALID = itemgetter(0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -425,6 +426,9 @@ class StreamProcessor:
                         ):
                             bisect.insort(hist, (valid, rank, value), key=_VALID_RANK)
                             newest = hist[-1][0] == valid
+                            if expiring and not newest:
+                                self._stale_before_next(q, valid)
+                                quiet = self.quiet_until
                         else:
                             hist.append((valid, rank, value))
                             newest = True
@@ -529,6 +533,15 @@ class StreamProcessor:
             self.queued[q] = True
             heapq.heappush(self.expiries, (due[q], q, False))
             self.quiet_until = min(self.quiet_until, due[q] + self.delay)
+
+    def _stale_before_next(self, q: int, valid: int) -> None:
+        """A sample of feature q came after a newer one: if the next sample is more than the
+        maximum age later, q goes stale between them, at an instant no expiry waits for."""
+        hist = self.hist[q]
+        after = bisect.bisect_right(hist, valid, key=_VALID)
+        if after < len(hist) and hist[after][0] > valid + self.stale_after:
+            heapq.heappush(self.expiries, (valid + self.stale_after, q, True))
+            self.quiet_until = min(self.quiet_until, valid + self.stale_after + self.delay)
 
     def _constrain(self, route: _Route, available: int, valid: int) -> None:
         """The constraints on a sample (`strict`: a policy sets one)."""
