@@ -221,9 +221,10 @@ def readable_rows(chunk: Chunk) -> tuple[Row, ...] | None:
         return chunk.rows
     if chunk.compression != "" or chunk.data is None:
         return None
-    if chunk.declared not in (None, len(chunk.data)):
+    raw = records(chunk.rows)  # what a header field left None says
+    if (len(raw) if chunk.declared is None else chunk.declared) != len(chunk.data):
         return None
-    if chunk.crc not in (None, 0, zlib.crc32(chunk.data)):
+    if (zlib.crc32(raw) if chunk.crc is None else chunk.crc) not in (0, zlib.crc32(chunk.data)):
         return None
     kept = [k for k in range(len(chunk.rows)) if records(chunk.rows[:k]) == chunk.data]
     return chunk.rows[: kept[0]] if kept else None
