@@ -79,12 +79,15 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
     """A platform's knowledge from its files and what they import: parsed and resolved once,
     then from the cache (dkreason.cache) for as long as every file read keeps its bytes."""
     from . import cache
-    from .parse.owl import ontology_of, read_sources
+    from .parse.config import ADAPTER_SCHEMA
+    from .parse.owl import ontology_of, read_sources, triples
     from .parse.sslt import is_xml, parse_specs
 
     specs = files.specs
     xml = specs is not None and is_xml(specs)
     spec_data = read_bytes(specs) if specs else b""
+    adapters = (ADAPTER_SCHEMA, *files.adapters) if files.adapters else ()
+    rule_data = [(path, read_bytes(path)) for path in adapters]
 
     def build() -> tuple[Platform, tuple[tuple[str, str | None], ...]]:
         sources = read_sources(files.ontology, imports, files.skip_imports)
@@ -94,10 +97,16 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
             from .reason.entail import entail
 
             ontology = entail(sources.graph, ontology)
+        notes: tuple[str, ...] = ()
+        if files.adapters:
+            from .adapt import adapt
+
+            adapted = adapt(ontology, triples(sources.graph), files.adapters)
+            ontology, notes = adapted.ontology, adapted.warnings
         platform = make_platform(ontology, parsed, specs)
-        platform.notes = sources.skipped
+        platform.notes = (*sources.skipped, *notes)
         return platform, (
-            *((str(p), cache.digest(d)) for p, d in sources.read),
+            *((str(p), cache.digest(d)) for p, d in (*sources.read, *rule_data)),
             *((str(p), None) for p in sources.absent),
         )
 
@@ -117,6 +126,7 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
         str(files.skip_imports),
         files.reasoning,
         *(f"{k}={resolved(v)}" for k, v in sorted(imports.items())),
+        *(part for path, data in rule_data for part in (str(resolved(path)), data)),
     ]
     platform, _ = cache.cached("platform", parts, parsed, lambda found: cache.unchanged(found[1]))
     return platform

@@ -76,6 +76,15 @@ class Signature:
 
 
 @dataclass(frozen=True, slots=True)
+class Adapted:
+    """Where a feature an adapter made came from: the adapter rule that derived it
+    (file:line) and the told triples it rests on, (subject, predicate, object) as IRIs."""
+
+    rule: Span
+    axioms: tuple[tuple[str, str, str], ...]
+
+
+@dataclass(frozen=True, slots=True)
 class Ontology:
     """One platform's told axioms, read without inference (signatures must stay as asserted);
     with `reasoning = "owl-rl"`, `types` and `same_as` also hold what OWL 2 RL entails, each
@@ -98,6 +107,11 @@ class Ontology:
     # object_property/4)
     data_values: tuple[tuple[str, str, IdValue], ...] = ()
     object_values: tuple[tuple[str, str, str], ...] = ()
+    # the features adapters made (rules/adapters/), by IRI; any other is the class pattern's
+    adapted: Mapping[str, Adapted] = field(default_factory=dict)
+    # (sensor, feature, object): what each sensor observes, as its adapters say (SSL_T
+    # `observations of SENSOR`)
+    observations: tuple[tuple[str, str, str], ...] = ()
 
     @property
     def sorts(self) -> frozenset[str]:
