@@ -42,9 +42,7 @@ def signature(km: KnowledgeManager, name: str) -> tuple[tuple[str, ...], ...]:
 
 def test_a_data_property_with_a_domain_is_a_unary_feature(props: KnowledgeManager) -> None:
     assert signature(props, "altitude") == (("UAV",),)
-    assert topics(props, "always (altitude[uav1] > 10)") == {
-        "altitude[uav1]": {("uav", "msg.alt")}
-    }
+    assert topics(props, "always (altitude[uav1] > 10)") == {"altitude[uav1]": {("uav", "msg.alt")}}
 
 
 def test_an_object_property_with_a_domain_and_a_range_is_a_binary_feature(
