@@ -218,7 +218,8 @@ KEYWORDS = (
     [
         ("note[uav1]", [("note", (("uav1", None),))]),
         ("always nextX[me]", [("nextX", (("me", None),))]),
-        ("alwaysOn[uav1] and onceFlag[uav1]", [("alwaysOn", (("uav1", None),)), ("onceFlag", (("uav1", None),))]),
+        ("alwaysOn[uav1] and onceFlag[uav1]",
+         [("alwaysOn", (("uav1", None),)), ("onceFlag", (("uav1", None),))]),
         ("Uav[x] Until[x]", None),
     ],
 )  # fmt: skip
