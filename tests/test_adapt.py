@@ -4,15 +4,18 @@ through rule files (rules/adapters/), chosen per platform by `adapters = [...]`.
 from __future__ import annotations
 
 import json
+import tomllib
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
+from dkreason.workloads import property_style
 
-from .conftest import REPO
+from .conftest import REPO, SCENARIOS, formulas
 
 DATA = REPO / "tests" / "data" / "adapters"
 EX = "http://www.example.com/props#"
@@ -137,3 +140,75 @@ def test_an_adapter_is_part_of_the_cache_key(tmp_path: Path) -> None:
     )
     second = KnowledgeManager.from_config(config).kb.platforms["uav"].ontology.features
     assert first.keys() != second.keys()
+
+
+def property_config(tmp_path: Path, scenario: str, only: tuple[str, ...] = ()) -> Path:
+    """The thesis scenario with each platform's ontology (or `only` those) converted into the
+    property style (ternary features stay classes), read back through the `properties`
+    adapter; the others stay in the class style."""
+    config = tomllib.loads((SCENARIOS / scenario).read_text(encoding="utf-8"))
+    for name, table in config["platforms"].items():
+        table["specs"] = str(SCENARIOS / table["specs"])
+        table["ontology"] = str(SCENARIOS / table["ontology"])
+        if only and name not in only:
+            continue
+        converted = tmp_path / f"{name}.ttl"
+        converted.write_text(property_style(Path(table["ontology"])), encoding="utf-8")
+        table |= {"ontology": str(converted), "adapters": ["properties"]}
+    for mapping in config.get("mappings", []):
+        mapping["file"] = str(SCENARIOS / mapping["file"])
+    out = tmp_path / scenario
+    out.write_text(toml(config), encoding="utf-8")
+    return out
+
+
+def toml(config: dict[str, Any]) -> str:
+    lines = [f"local = {json.dumps(config['local'])}"] if "local" in config else []
+    for name, table in config["platforms"].items():
+        lines.append(f"[platforms.{name}]")
+        lines += [f"{k} = {json.dumps(v)}" for k, v in table.items()]
+    for mapping in config.get("mappings", []):
+        lines.append("[[mappings]]")
+        lines += [f"{k} = {json.dumps(v)}" for k, v in mapping.items()]
+    return "\n".join(lines) + "\n"
+
+
+def requests(km: KnowledgeManager) -> dict[str, object]:
+    """Every thesis formula's stream request as JSON, or the error it raises."""
+    out: dict[str, object] = {}
+    for key, formula in formulas().items():
+        try:
+            out[key] = km.check_formula(formula).to_json()
+        except DkError as exc:
+            out[key] = type(exc).__name__
+    return out
+
+
+@pytest.mark.parametrize(
+    "scenario", ["single.toml", "federation.toml", "chapter4.toml", "federation-xml.toml"]
+)
+def test_the_thesis_ontologies_in_the_property_style_give_the_same_requests(
+    tmp_path: Path, scenario: str
+) -> None:
+    """Acceptance: every formula of the thesis scenarios, local and federated."""
+    classes = requests(KnowledgeManager.from_config(SCENARIOS / scenario))
+    properties = requests(KnowledgeManager.from_config(property_config(tmp_path, scenario)))
+    assert properties == classes
+    assert sum(isinstance(r, dict) for r in classes.values()) >= 6
+
+
+@pytest.mark.parametrize("converted", [("platform1",), ("platform2", "platform3")])
+def test_a_property_style_platform_federates_with_class_style_ones_through_cowl(
+    tmp_path: Path, converted: tuple[str, ...]
+) -> None:
+    """The COWL files join a property (platform3's Alt, an owl:DatatypeProperty) to a class
+    (platform1's Altitude) by `equiv`, and objects by `same`, as between two classes."""
+    classes = requests(KnowledgeManager.from_config(SCENARIOS / "federation.toml"))
+    km = KnowledgeManager.from_config(property_config(tmp_path, "federation.toml", converted))
+    assert requests(km) == classes
+    remote = {
+        t["platform"]
+        for f in km.check_formula(formulas()["F1"]).to_json()["features"]
+        for t in f["topics"]
+    }
+    assert remote == {"platform1", "platform3"}

@@ -18,6 +18,7 @@ from .datalog import Datalog
 from .model import Adapted, Ontology, Signature
 from .names import NameIndex, local_name
 from .parse.config import ADAPTER_SCHEMA, SHIPPED_RULES
+from .parse.owl import ARG, ARITY
 from .policy.load import shown
 from .policy.resolve import Names, resolve
 from .policy.syntax import Comparison, Condition, Row, Rule, Term, Value, Var
@@ -48,9 +49,11 @@ class Adaptation:
     warnings: tuple[str, ...]
 
 
-def adapt(ont: Ontology, told: Sequence[Row], adapters: Sequence[Path]) -> Adaptation:
-    """Run `adapters` over the ontology's triples `told` (subject, predicate, object); a rule
-    file the checker refuses raises its one RuleError."""
+def adapt(
+    ont: Ontology, told: Sequence[Row], adapters: Sequence[Path], reasoning: str = "none"
+) -> Adaptation:
+    """Run `adapters` over the ontology's triples `told` (subject, predicate, object) under the
+    platform's `reasoning`; a rule file the checker refuses raises its one RuleError."""
     p = ont.platform
     names = Names([NameIndex(p, {**ont.prefixes, **PREFIXES}, {})])
     files = [
@@ -60,6 +63,15 @@ def adapt(ont: Ontology, told: Sequence[Row], adapters: Sequence[Path]) -> Adapt
     engine = Datalog()
     notes = [str(d) for d in engine.load(files)]
     engine.assert_rows("triple", [(p, *t) for t in told])
+    engine.assert_rows("reasoning", [(p, reasoning)])
+    engine.assert_rows(
+        "class_pattern",
+        [
+            (p, x)
+            for x in {x for t in told for x in t if isinstance(x, str)}
+            if ARG.search(x) or local_name(x) in ARITY
+        ],
+    )
     engine.materialize()
 
     def rows(relation: str, arity: int) -> list[Row]:

@@ -101,7 +101,7 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
         if files.adapters:
             from .adapt import adapt
 
-            adapted = adapt(ontology, triples(sources.graph), files.adapters)
+            adapted = adapt(ontology, triples(sources.graph), files.adapters, files.reasoning)
             ontology, notes = adapted.ontology, adapted.warnings
         platform = make_platform(ontology, parsed, specs)
         platform.notes = (*sources.skipped, *notes)
