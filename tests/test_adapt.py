@@ -212,3 +212,19 @@ def test_a_property_style_platform_federates_with_class_style_ones_through_cowl(
         for t in f["topics"]
     }
     assert remote == {"platform1", "platform3"}
+
+
+def test_an_adapter_of_ones_own_reads_a_vocabulary_not_shipped() -> None:
+    """schema.org's domainIncludes/rangeIncludes, by a rule file beside the config: no Python."""
+    km = KnowledgeManager.from_config(DATA / "schema-org.toml")
+    assert topics(km, "always (speed[drone1] < 30 or follows[drone1, drone2])") == {
+        "speed[drone1]": {("/drones", "msg.speed")},
+        "follows[drone1, drone2]": {("/follow", "msg.follows")},
+    }
+    ont = km.kb.platforms["fleet"].ontology
+    speed = ont.features["https://schema.org/speed"]
+    assert sorted(speed.arg_sorts[0]) == [
+        "http://www.example.com/fleet#Drone",
+        "https://schema.org/Vehicle",
+    ]
+    assert str(ont.adapted["https://schema.org/speed"].rule).endswith("schema-org.dl:12")
