@@ -13,6 +13,7 @@ import pytest
 from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
+from dkreason.stream.recording import write_recording
 from dkreason.workloads import property_style
 
 from .conftest import REPO, SCENARIOS, formulas
@@ -228,3 +229,90 @@ def test_an_adapter_of_ones_own_reads_a_vocabulary_not_shipped() -> None:
         "https://schema.org/Vehicle",
     ]
     assert str(ont.adapted["https://schema.org/speed"].rule).endswith("schema-org.dl:12")
+
+
+SOSA = REPO / "tests" / "data" / "sosa-ssn"
+ROOMS = "http://example.org/rooms#"
+ROOM_TEMP = {"building_msgs/msg/RoomTemp": "int32 id\nfloat64 temperature\n"}
+
+
+@pytest.fixture(scope="module")
+def rooms() -> KnowledgeManager:
+    return KnowledgeManager.from_config(SOSA / "rooms.toml")
+
+
+def test_classes_of_observable_properties_are_features_of_their_features_of_interest(
+    rooms: KnowledgeManager,
+) -> None:
+    """SOSA/SSN as written, importing sosa.ttl and ssn.ttl: tied by ∀isPropertyOf (Temperature),
+    ∃hasProperty (Openness) or property individuals of objects (Noise)."""
+    features = rooms.kb.platforms["building"].ontology.features
+    assert {f.removeprefix(ROOMS): s.arg_sorts for f, s in features.items()} == {
+        "Temperature": ((ROOMS + "Room",),),
+        "Openness": ((ROOMS + "Door",),),
+        "Noise": ((ROOMS + "Room",),),
+    }
+    assert topics(rooms, "always Openness[door1]") == {"Openness[door1]": {("/door", "msg.open")}}
+
+
+def test_a_topic_named_by_its_sensor_carries_what_the_sensor_observes(
+    rooms: KnowledgeManager,
+) -> None:
+    assert topics(rooms, "always (Temperature[room1] < 30 and Noise[room1] < 3)") == {
+        "Temperature[room1]": {("/rooms", "msg.temperature"), ("/th1", "msg.temperature")},
+        "Noise[room1]": {("/mic", "msg.level")},
+    }
+    assert topics(rooms, "always (Temperature[room2] < 30)") == {
+        "Temperature[room2]": {("/rooms", "msg.temperature")}
+    }
+
+
+def test_untied_classes_and_untyped_property_individuals_are_one_warning_each(
+    rooms: KnowledgeManager,
+) -> None:
+    warnings = rooms.check_formula("always Openness[door1]").warnings
+    assert [w.split(" (")[0] for w in warnings] == ["building: Humidity", "building: room1_light"]
+    assert "tied to no sort: add C ⊑ ∀ssn:isPropertyOf.S" in warnings[0]
+    assert "typed by no class of observable properties" in warnings[1]
+
+
+def test_a_sensor_that_observes_nothing_known_is_one_line_naming_the_spec(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    specs = tmp_path / "idle.sslt"
+    specs.write_text(
+        "topic /t:RoomTemp contains Temperature(room1) = msg.temperature\n"
+        "topic /idle:RoomTemp contains observations of idle1 = msg.temperature\n",
+        encoding="utf-8",
+    )
+    config = tmp_path / "c.toml"
+    config.write_text(
+        f'[platforms.b]\nontology = "{SOSA / "rooms.ttl"}"\nspecs = "{specs}"\n'
+        'adapters = ["sosa"]\n',
+        encoding="utf-8",
+    )
+    assert main(["match", "--config", str(config), "Temperature[room1] > 1"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert f"{specs}:2:" in err and "sensor idle1 observes nothing known" in err
+
+
+def room_recording(path: Path) -> Path:
+    """thermo1's room warms from 20 to 34 degrees over 15 s (/th1, no id field needed)."""
+    rows = [
+        ("/th1", "building_msgs/msg/RoomTemp", t * 10**9, {"id": 1, "temperature": 20.0 + t})
+        for t in range(15)
+    ]
+    write_recording(path, "bare-mcap", ROOM_TEMP, rows)
+    return path
+
+
+@pytest.mark.parametrize("config", [SOSA / "rooms.toml", DATA / "rooms-saref.toml"])
+def test_sosa_and_saref_models_are_monitored_on_a_recording(tmp_path: Path, config: Path) -> None:
+    """A spec naming the sensor (text for SOSA, XML for SAREF, saref:measuresProperty)."""
+    km = KnowledgeManager.from_config(config)
+    source = room_recording(tmp_path / "rooms.mcap")
+    [verdict] = [
+        e for e in km.monitor(["always (Temperature[room1] < 30)"], source) if hasattr(e, "verdict")
+    ]
+    assert (verdict.verdict, verdict.t) == (False, 10)

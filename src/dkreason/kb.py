@@ -30,7 +30,7 @@ from .facts import (
     spec_facts,
 )
 from .inputs.files import read_bytes, resolved
-from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
+from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicFeature, TopicSpec
 from .names import Kind, NameIndex, article, local_name
 from .parse.config import Config, MappingFiles, PlatformFiles, read_config, shipped_policy
 from .parse.sslt import without_spans
@@ -287,6 +287,7 @@ class KnowledgeBase:
         p = self.platform(platform)
         if spec.name in p.specs:
             raise DkError(f"topic {spec.name} already exists on {platform}")
+        spec = with_observations(p, spec)
         resolved = resolve_spec(p, spec)
         self._change(spec_facts(platform, resolved), self.engine.assert_rows)
         p.put(spec, resolved)
@@ -617,6 +618,7 @@ def make_platform(
     """A platform's knowledge, each spec's names resolved (a bad one raises, naming it)."""
     platform = Platform(ontology, _name_index(ontology), specs_path=specs_path)
     for spec in specs:
+        spec = with_observations(platform, spec)
         platform.put(spec, resolve_spec(platform, spec))
     return platform
 
@@ -634,8 +636,39 @@ def _name_index(ont: Ontology) -> NameIndex:
     )
 
 
+def with_observations(p: Platform, spec: TopicSpec) -> TopicSpec:
+    """`spec` with each `observations of SENSOR` entry as the feature of the one object the
+    sensor observes, as the platform's adapters tell it (sosa:observes)."""
+    if not any(f.observations for f in spec.features):
+        return spec
+    features = []
+    for f in spec.features:
+        if not f.observations:
+            features.append(f)
+            continue
+        sensor = p.names.resolve(f.name, ("object",), f.span)
+        seen = sorted({(g, o) for s, g, o in p.ontology.observations if s == sensor})
+        if len(seen) != 1:
+            shown = ", ".join(f"{local_name(g)}[{local_name(o)}]" for g, o in seen)
+            raise NameError_(
+                f"topic {spec.name}: sensor {f.name} observes "
+                + (
+                    f"several features ({shown}): name the feature instead"
+                    if seen
+                    else "nothing known (its platform's adapters, such as adapters = "
+                    '["sosa"], read sosa:observes of a property of an object)'
+                ),
+                f.span,
+            )
+        ((feature, obj),) = seen
+        arg = TopicArg("object", f"<{obj}>", None, f.span)
+        features.append(TopicFeature(f"<{feature}>", f.field, (arg,), f.span))
+    return replace(spec, features=tuple(features))
+
+
 def resolve_spec(p: Platform, spec: TopicSpec) -> ResolvedSpec:
     """Names → IRIs and arity check; well-sortedness is left to the rules."""
+    spec = with_observations(p, spec)
 
     def arg(a: TopicArg) -> ResolvedArg:
         kind: tuple[Kind, ...] = ("object",) if a.kind == "object" else ("sort",)

@@ -36,10 +36,15 @@ class TopicArg:
 
 @dataclass(frozen=True, slots=True)
 class TopicFeature:
+    """A feature a topic's field carries; with `observations`, `name` is a sensor instead and
+    the field carries what it observes (`observations of thermo1 = msg.temperature`), which
+    the platform's adapters tell (sosa:observes): a feature of one object, no arguments here."""
+
     name: str
     field: str
     args: tuple[TopicArg, ...]
     span: Span = dataclasses.field(default=Span("<api>"), compare=False)
+    observations: bool = False
 
 
 @dataclass(frozen=True, slots=True)
