@@ -13,6 +13,7 @@ import pytest
 from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.errors import DkError
+from dkreason.explain import to_text
 from dkreason.stream.recording import write_recording
 from dkreason.workloads import property_style
 
@@ -316,3 +317,59 @@ def test_sosa_and_saref_models_are_monitored_on_a_recording(tmp_path: Path, conf
         e for e in km.monitor(["always (Temperature[room1] < 30)"], source) if hasattr(e, "verdict")
     ]
     assert (verdict.verdict, verdict.t) == (False, 10)
+
+
+def test_explanations_cite_the_adapter_rule_and_the_told_axiom(props: KnowledgeManager) -> None:
+    rule = next(
+        n
+        for n, line in enumerate(
+            (REPO / "rules" / "adapters" / "properties.dl")
+            .read_text(encoding="utf-8")
+            .splitlines(),
+            1,
+        )
+        if line.startswith("adapted_feature(P, X, 1)")
+    )
+    text = to_text(props.explain("always (altitude[uav1] > 10)"))
+    assert (
+        f"altitude on uav: adapter rule rules/adapters/properties.dl:{rule}, from altitude "
+        f"rdfs:domain UAV ({DATA / 'uav-properties.ttl'})"
+    ) in text
+
+
+@pytest.mark.parametrize(
+    ("name", "why"),
+    [
+        ("battery", "battery is no feature on uav: it has no rdfs:domain: add one"),
+        ("comment", "comment is no feature on uav: it is an annotation property"),
+        ("id", "id is no feature on uav: it is the id property"),
+    ],
+)
+def test_a_formula_naming_a_property_that_became_no_feature_is_told_why(
+    props: KnowledgeManager, name: str, why: str
+) -> None:
+    with pytest.raises(DkError, match=why):
+        props.check_formula(f"always ({name}[uav1] > 1)")
+
+
+def test_info_lists_each_platforms_features_with_signature_and_origin(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    config = property_config(tmp_path, "federation.toml", ("platform3",))
+    assert main(["info", "--json", "--config", str(config)]) == 0
+    found = {
+        (f["platform"], f["feature"]): f for f in json.loads(capsys.readouterr().out)["features"]
+    }
+    assert found["platform1", "Close"]["origin"].startswith("class pattern (")
+    assert found["platform3", "Near"]["signature"] == ["Aircraft", "Aircraft"]
+    assert found["platform3", "Near"]["origin"].startswith(
+        "adapter rule rules/adapters/properties.dl:"
+    )
+    assert (
+        "from Near rdfs:domain Aircraft; Near rdfs:range Aircraft"
+        in (found["platform3", "Near"]["origin"])
+    )
+    assert main(["info", "--config", str(config)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "platform platform3:" in lines
+    assert any(line.split()[0] == "Near(Aircraft," for line in lines)

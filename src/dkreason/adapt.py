@@ -10,7 +10,7 @@ quantifiers, federation, explanations, the cache).  No Python per vocabulary.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -86,8 +86,11 @@ def adapt(
     makers = [r for f in files for r in f.rules if r.head.predicate == "adapted_feature"]
     features = dict(ont.features)
     adapted = dict(ont.adapted)
+    ids: list[str] = []
     for row in rows("adapted_feature", 3):
         _, f, arity = (str(row[0]), str(row[1]), int(row[2]))
+        if local_name(f) == "id":  # the id policy's
+            ids.append(f)
         if f in features or local_name(f) == "id":  # the class pattern's, or the id policy's
             continue
         features[f] = Signature(
@@ -97,11 +100,17 @@ def adapt(
         adapted[f] = Adapted(rule.span, tuple(axioms[f]))
     new = features.keys() - ont.features.keys()
     equivalent = [(str(a), str(b)) for _, a, b in rows("adapted_equivalent", 3)]
+    warned = [(str(x), str(why)) for _, x, why in rows("adapter_warning", 3)]
     notes += [
-        f"{p}: {local_name(str(x))} ({ont.file}) becomes no feature: {advice}"
-        for _, x, advice in rows("adapter_warning", 3)
-        if str(x) not in features
+        f"{p}: {local_name(x)} ({ont.file}) becomes no feature: {why}"
+        for x, why in warned
+        if x not in features
     ]
+    unadapted = {
+        **{str(x): str(why) for _, x, why in rows("no_feature", 3)},
+        **{f: "it is the id property (objects' ids, never a feature)" for f in ids},
+        **dict(warned),
+    }
     adapted_ont = replace(
         ont,
         classes=ont.classes | new,
@@ -110,11 +119,36 @@ def adapt(
         individuals=ont.individuals - new,
         types=tuple(t for t in ont.types if t[0] not in new),
         adapted=adapted,
+        unadapted={x: why for x, why in unadapted.items() if x not in features},
         observations=tuple(
             sorted({(str(s), str(f), str(o)) for _, s, f, o in rows("observes", 4)})
         ),
     )
     return Adaptation(adapted_ont, tuple(dict.fromkeys(notes)))
+
+
+def axiom_text(axiom: tuple[str, str, str], prefixes: Mapping[str, str]) -> str:
+    """A told triple as explanations show it: `altitude rdfs:domain UAV`."""
+    s, p, o = axiom
+    short = next(
+        (
+            f"{k}:{p.removeprefix(ns)}"
+            for k, ns in {**prefixes, **PREFIXES}.items()
+            if k and p.startswith(ns)
+        ),
+        local_name(p),
+    )
+    return f"{local_name(s)} {short} {local_name(o)}"
+
+
+def origin(ont: Ontology, feature: str) -> str:
+    """Where a feature comes from, in words: the class pattern, or the adapter rule that made
+    it (file:line) and the told axioms it rests on."""
+    made = ont.adapted.get(feature)
+    if made is None:
+        return f"class pattern ({ont.file})"
+    told = "; ".join(axiom_text(a, ont.prefixes) for a in made.axioms)
+    return f"adapter rule {made.rule}" + (f", from {told} ({ont.file})" if told else "")
 
 
 def _shipped(path: Path) -> bool:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform, check_config, read_mapping, read_platform
-from .model import StreamRequest, TopicSpec
+from .model import FeatureInfo, StreamRequest, TopicSpec
 from .parse.config import MappingFiles, PlatformFiles, read_config
 from .plan import Parsed, Plan, plan
 from .policy.check import Diagnostic
@@ -307,6 +307,26 @@ class KnowledgeManager:
         return sorted(
             {local_name(s) for s in self.kb.platform(platform or self.local).ontology.sorts}
         )
+
+    def list_features(self, platform: str | None = None) -> list[FeatureInfo]:
+        """Every platform's features (or one platform's), with signatures and where each came
+        from: the class pattern or an adapter rule (`dkreason info --config C`)."""
+        from .adapt import origin
+        from .names import local_name
+
+        return [
+            FeatureInfo(
+                p.name,
+                local_name(iri),
+                iri,
+                tuple(" ∪ ".join(sorted(map(local_name, s))) for s in sig.arg_sorts),
+                origin(p.ontology, iri),
+            )
+            for p in (
+                [self.kb.platform(platform)] if platform else list(self.kb.platforms.values())
+            )
+            for iri, sig in sorted(p.ontology.features.items(), key=lambda f: local_name(f[0]))
+        ]
 
     def list_objects(self, sort: str | None = None, platform: str | None = None) -> list[str]:
         """Local names of a platform's objects, or of those of `sort` (as `list_sort`)."""

@@ -114,6 +114,8 @@ class Ontology:
     object_values: tuple[tuple[str, str, str], ...] = ()
     # the features adapters made (rules/adapters/), by IRI; any other is the class pattern's
     adapted: Mapping[str, Adapted] = field(default_factory=dict)
+    # what adapters found to be no feature, and why (a formula naming one is told)
+    unadapted: Mapping[str, str] = field(default_factory=dict)
     # (sensor, feature, object): what each sensor observes, as its adapters say (SSL_T
     # `observations of SENSOR`)
     observations: tuple[tuple[str, str, str], ...] = ()
@@ -126,6 +128,30 @@ class Ontology:
     def properties(self) -> frozenset[str]:
         """The properties its assertions use."""
         return frozenset(p for _, p, _ in (*self.data_values, *self.object_values))
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureInfo:
+    """A feature as `dkreason info --config C` lists it: its signature (local names, a union's
+    sorts joined by ∪) and where it came from (the class pattern, or an adapter rule)."""
+
+    platform: str
+    name: str
+    iri: str
+    signature: tuple[str, ...]
+    origin: str
+
+    def __str__(self) -> str:
+        return f"{self.name}({', '.join(self.signature)})"
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "platform": self.platform,
+            "feature": self.name,
+            "iri": self.iri,
+            "signature": list(self.signature),
+            "origin": self.origin,
+        }
 
 
 BridgeType = Literal["equiv", "into", "onto", "incompat", "compat", "same"]

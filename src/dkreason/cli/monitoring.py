@@ -128,6 +128,10 @@ def progress(args: argparse.Namespace) -> int:
 
 
 def info(args: argparse.Namespace) -> int:
+    if not args.source:
+        if not args.config:
+            raise DkError("info needs recordings, or --config to list the features")
+        return _features(KnowledgeManager.from_config(args.config), args.json)
     km = KnowledgeManager.from_config(args.config) if args.config else None
     recordings = open_recordings(
         args.source,
@@ -153,4 +157,18 @@ def info(args: argparse.Namespace) -> int:
         )
     else:
         print(render_info(infos, binds))
+    return 0
+
+
+def _features(km: KnowledgeManager, as_json: bool) -> int:
+    """Each platform's features: signature and origin (class pattern or adapter rule)."""
+    found = km.list_features()
+    if as_json:
+        print(json.dumps({"features": [f.to_json() for f in found]}, ensure_ascii=False))
+        return 0
+    width = max((len(str(f)) for f in found), default=0)
+    for name in km.platforms:
+        print(f"platform {name}:")
+        for f in (f for f in found if f.platform == name):
+            print(f"  {str(f):<{width}}  {f.origin}")
     return 0

@@ -420,11 +420,15 @@ def _specs(sub: a.Sub) -> None:
 
 
 def _info(sub: a.Sub) -> None:
-    p = sub.add_parser("info", help="what recordings hold, and which spec topics they bind")
+    p = sub.add_parser(
+        "info",
+        help="what recordings hold, and which spec topics they bind; with a config alone, "
+        "each platform's features, their signatures and where each came from",
+    )
     p.add_argument("--config", type=Path, help="TOML config: show which spec topics bind")
     p.add_argument("--json", action="store_true", help="one JSON document")
     a.definitions(p)
-    p.add_argument("source", nargs="+", metavar="[PLATFORM=]PATH")
+    p.add_argument("source", nargs="*", metavar="[PLATFORM=]PATH")
     p.set_defaults(run="monitoring:info")
 
 
