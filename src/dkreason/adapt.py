@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from .datalog import Datalog
+from .errors import Span
 from .model import Adapted, Ontology, Signature
 from .names import NameIndex, local_name
 from .parse.config import ADAPTER_SCHEMA, SHIPPED_RULES
@@ -89,15 +90,17 @@ def adapt(
     ids: list[str] = []
     for row in rows("adapted_feature", 3):
         _, f, arity = (str(row[0]), str(row[1]), int(row[2]))
-        if local_name(f) == "id":  # the id policy's
+        if local_name(f) == "id":  # the id policy's, never a feature
             ids.append(f)
-        if f in features or local_name(f) == "id":  # the class pattern's, or the id policy's
+            continue
+        if f in features:  # the class pattern's
             continue
         features[f] = Signature(
             f, tuple(tuple(sorts[f][i]) or (THING,) for i in range(1, arity + 1))
         )
-        rule = next((r for r in makers if _made(engine, r, row)), makers[0])
-        adapted[f] = Adapted(rule.span, tuple(axioms[f]))
+        rule = next((r.span for r in makers if _made(engine, r, row)), None)
+        fact = engine.told.get(("adapted_feature", *row), Span(ADAPTER_SCHEMA.name))
+        adapted[f] = Adapted(rule or fact, tuple(axioms[f]))
     new = features.keys() - ont.features.keys()
     equivalent = [(str(a), str(b)) for _, a, b in rows("adapted_equivalent", 3)]
     warned = [(str(x), str(why)) for _, x, why in rows("adapter_warning", 3)]
