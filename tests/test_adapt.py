@@ -373,3 +373,22 @@ def test_info_lists_each_platforms_features_with_signature_and_origin(
     lines = capsys.readouterr().out.splitlines()
     assert "platform platform3:" in lines
     assert any(line.split()[0] == "Near(Aircraft," for line in lines)
+
+
+def test_a_platform_added_through_the_facade_takes_its_adapters(tmp_path: Path) -> None:
+    """Its adapter runs in an engine of its own while the knowledge base's is loaded."""
+    km = KnowledgeManager.from_config(SCENARIOS / "single.toml")
+    converted = tmp_path / "platform3.ttl"
+    converted.write_text(
+        property_style(SCENARIOS / "ontologies" / "platform3.owl"), encoding="utf-8"
+    )
+    specs = SCENARIOS / "specs" / "platform3.sslt"
+    with pytest.raises(DkError, match="unknown adapter 'sosaa'"):
+        km.add_platform("platform3", converted, specs, adapters=["sosaa"])
+    km.add_platform("platform3", converted, specs, adapters=["properties"])
+    km.add_mapping(
+        "platform1", "platform3", SCENARIOS / "mappings" / "platform1-platform3.cowl.xml"
+    )
+    assert ("uastopic4", "msg.height") in topics(km, "always (Altitude[uav1] > 1)")[
+        "Altitude[uav1]"
+    ]

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform, check_config, read_mapping, read_platform
 from .model import FeatureInfo, StreamRequest, TopicSpec
-from .parse.config import MappingFiles, PlatformFiles, read_config
+from .parse.config import MappingFiles, PlatformFiles, adapter_paths, read_config
 from .plan import Parsed, Plan, plan
 from .policy.check import Diagnostic
 from .policy.load import check_files
@@ -244,11 +244,13 @@ class KnowledgeManager:
         *,
         reasoning: str = "none",
         skip_imports: bool = False,
+        adapters: Sequence[str] = (),
     ) -> None:
         """Add a platform from its files, as a config's `[platforms.NAME]` table names them
-        (paths as given; `reasoning="owl-rl"`, `skip_imports` as `imports = "skip"`): its
-        specs checked against its ontology, the mappings waiting for it made active, its
-        topics used at once."""
+        (paths as given; `reasoning="owl-rl"`, `skip_imports` as `imports = "skip"`,
+        `adapters` as `adapters = [...]`: shipped names or rule file paths): its specs checked
+        against its ontology, the mappings waiting for it made active, its topics used at
+        once."""
         if reasoning not in ("none", "owl-rl"):
             raise DkError(f'reasoning must be "none" or "owl-rl", not {reasoning!r}')
         files = (ontology,) if isinstance(ontology, str | Path) else tuple(ontology)
@@ -258,6 +260,7 @@ class KnowledgeManager:
             Path(specs) if specs is not None else None,
             skip_imports=skip_imports,
             reasoning=reasoning,
+            adapters=adapter_paths(adapters, Path.cwd()),
         )
         imports = self.kb.config.imports if self.kb.config else {}
         self.kb.add_platform(read_platform(platform, imports))

@@ -36,6 +36,7 @@ import importlib.resources
 import os
 import re
 import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -215,22 +216,29 @@ def shipped_adapters() -> tuple[str, ...]:
 
 
 def _adapters(base: Path, written: Any, section: str, fail: Any) -> tuple[Path, ...]:
-    """`adapters = [...]`: a shipped adapter by name, or a rule file of one's own by path."""
     if not isinstance(written, list) or not all(
         isinstance(a, str) and a and a.isprintable() for a in written
     ):
         raise fail(f"{section}: adapters must be a list of adapter names or rule file paths")
+    try:
+        return adapter_paths(written, base)
+    except DkError as exc:
+        raise fail(f"{section}: {exc}") from None
+
+
+def adapter_paths(written: Sequence[str], base: Path) -> tuple[Path, ...]:
+    """`adapters = [...]`: a shipped adapter by name, or a rule file of one's own by path
+    (relative to `base`); anything else is one error naming it."""
     found = []
     for name in written:
-        shipped = ADAPTERS / f"{name}.dl"
         if name in shipped_adapters():
-            found.append(shipped)
+            found.append(ADAPTERS / f"{name}.dl")
         elif name.endswith(".dl") and (base / name).is_file():
             found.append(Path(os.path.normpath(base / name)))
         else:
-            raise fail(
-                f"{section}: unknown adapter {name!r} (shipped: "
-                f"{', '.join(shipped_adapters())}; or the path of a .dl rule file)"
+            raise DkError(
+                f"unknown adapter {name!r} (shipped: {', '.join(shipped_adapters())}; or the "
+                f"path of a .dl rule file)"
             )
     return tuple(dict.fromkeys(found))
 
