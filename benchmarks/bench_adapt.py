@@ -25,7 +25,7 @@ from pathlib import Path
 
 from dkreason.workloads import COLUMNS, SETUPS, property_style, write
 
-ROUNDS = 3
+ROUNDS = 5
 POINTS = [("1.1", COLUMNS["1.1"] - 1), ("1.3", COLUMNS["1.3"] // 2), ("1.3", COLUMNS["1.3"] - 1)]
 
 
@@ -73,29 +73,23 @@ def measure() -> dict[str, dict[str, float]]:
             folder = Path(tmp) / f"{case}-{i}"
             folder.mkdir()
             classes, properties, formula = _configs(folder, case, i)
-            row: dict[str, float] = {}
-            for style, config in (("classes", classes), ("properties", properties)):
-                runs = [
-                    json.loads(
-                        subprocess.run(
-                            [
-                                sys.executable,
-                                "-m",
-                                "benchmarks.bench_adapt",
-                                "--point",
-                                str(config),
-                                formula,
-                            ],
-                            capture_output=True,
-                            text=True,
-                            env=env,
-                            check=True,
-                        ).stdout
+            runs: dict[str, list[dict[str, float]]] = {"classes": [], "properties": []}
+            for _ in range(ROUNDS):  # interleaved: both styles share the machine's moods
+                for style, config in (("classes", classes), ("properties", properties)):
+                    done = subprocess.run(
+                        [sys.executable, "-m", "benchmarks.bench_adapt", "--point"]
+                        + [str(config), formula],
+                        capture_output=True,
+                        text=True,
+                        env=env,
+                        check=True,
                     )
-                    for _ in range(ROUNDS)
-                ]
-                row[f"{style} load"] = min(r["load"] for r in runs)
-                row[f"{style} match"] = min(r["match"] for r in runs)
+                    runs[style].append(json.loads(done.stdout))
+            row = {
+                f"{style} {what}": min(r[what] for r in found)
+                for style, found in runs.items()
+                for what in ("load", "match")
+            }
             row["load ratio"] = row["properties load"] / row["classes load"]
             out[f"chapter 7 case {case}, point {i}"] = row
     return out
