@@ -71,6 +71,7 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks.bench_fleet
 	$(BIN)/python -m benchmarks.bench_owlrl
 	$(BIN)/python -m benchmarks.bench_owl_memory
+	$(BIN)/python -m benchmarks.bench_adapt
 
 clean:
 	rm -rf $(VENV) build src/*.egg-info

@@ -6,6 +6,7 @@ import dkreason
 def test_public_names_are_pinned() -> None:
     assert dkreason.__all__ == [
         "DkError",
+        "FeatureInfo",
         "FeatureKey",
         "FeatureRequest",
         "FormulaPlan",

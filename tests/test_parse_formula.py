@@ -202,3 +202,51 @@ def test_a_name_before_a_minus_is_a_feature_not_a_quantified_sort() -> None:
         ">", Arith("-", Ref(FeatureRef("Y", ())), Num(1)), Num(0)
     )
     assert unparse(parse_formula("forall x in S -X[x] > 1")) == "forall x in S: -X[x] > 1"
+
+
+# Issue 34, item 7: property names often begin with a keyword (note, nextWaypoint, alwaysOn,
+# onceFlag); a keyword is a keyword only as a whole word.
+KEYWORDS = (
+    "not", "always", "eventually", "next", "historically", "once", "previous", "until",
+    "since", "U", "and", "or", "true", "false", "forall", "exists", "for", "all", "in",
+    "abs", "observed", "inf", "oo",
+)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("formula", "names"),
+    [
+        ("note[uav1]", [("note", (("uav1", None),))]),
+        ("always nextX[me]", [("nextX", (("me", None),))]),
+        ("alwaysOn[uav1] and onceFlag[uav1]",
+         [("alwaysOn", (("uav1", None),)), ("onceFlag", (("uav1", None),))]),
+        ("Uav[x] Until[x]", None),
+    ],
+)  # fmt: skip
+def test_a_name_beginning_with_a_keyword_is_a_name(
+    formula: str, names: list[tuple[str, tuple[tuple[str, str | None], ...]]] | None
+) -> None:
+    if names is None:
+        with pytest.raises(ParseError):  # two atoms side by side: not `Uav[x] U ntil[x]`
+            parse_formula(formula)
+        return
+    assert shape(formula) == names
+
+
+def test_keywords_prefixing_names_in_a_quantified_formula_stay_names() -> None:
+    assert shape("forall x in UAV (inflow[x] > 1 or orbit[x] > trueValue[x])") == [
+        ("inflow", (("x", "UAV"),)),
+        ("orbit", (("x", "UAV"),)),
+        ("trueValue", (("x", "UAV"),)),
+    ]
+
+
+@given(
+    st.sampled_from(KEYWORDS),
+    st.from_regex(r"[A-Za-z0-9_]{1,6}", fullmatch=True),
+    st.sampled_from(["", "not ", "always ", "next "]),
+)
+@settings(max_examples=300, deadline=None)
+def test_any_name_a_keyword_begins_is_one_feature(keyword: str, rest: str, before: str) -> None:
+    name = keyword + rest
+    assert shape(f"{before}{name}[uav1] > 1") == [(name, (("uav1", None),))]

@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from dkreason.errors import ParseError
 from dkreason.model import TopicArg
@@ -180,3 +182,23 @@ def test_topic_names_are_ros_names_or_quoted_and_types_may_name_their_package() 
 def test_bad_ros_names_are_syntax_errors(line: str, says: str) -> None:
     with pytest.raises(ParseError, match=says):
         parse_text(line + "\n", "ros.sslt")
+
+
+SSLT_KEYWORDS = ("some", "every", "sort", "for", "as", "contains", "topic")
+
+
+@given(
+    st.sampled_from(SSLT_KEYWORDS),
+    st.from_regex(r"[A-Za-z0-9_]{1,6}", fullmatch=True),
+)
+@settings(max_examples=200, deadline=None)
+def test_a_name_beginning_with_an_sslt_keyword_is_a_name(keyword: str, rest: str) -> None:
+    """Issue 34, item 7: `someValue(uav1)` is a feature, not `some Value(…)`, wherever a
+    name stands (feature, object, sort, alias)."""
+    name = keyword + rest
+    (spec,) = parse_text(
+        f"topic t:M contains {name}(uav1) = msg.a, {name}({name} as {name}) = msg.b "
+        f"for some {name} = msg.id, Other({name}) = msg.c for {name} = msg.id"
+    ).specs
+    assert [f.name for f in spec.features] == [name, name, "Other"]
+    assert spec.features[1].args[0].name == name

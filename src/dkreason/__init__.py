@@ -18,6 +18,7 @@ from .errors import DkError, ParseError, SourceError, Span
 if TYPE_CHECKING:
     from .manager import KnowledgeManager
     from .model import (
+        FeatureInfo,
         FeatureKey,
         FeatureRequest,
         GroundFeature,
@@ -38,6 +39,7 @@ _LAZY = {
     "KnowledgeManager": "manager",
     **dict.fromkeys(
         (
+            "FeatureInfo",
             "FeatureKey",
             "FeatureRequest",
             "GroundFeature",
@@ -70,6 +72,7 @@ def __getattr__(name: str) -> Any:
 
 __all__ = [
     "DkError",
+    "FeatureInfo",
     "FeatureKey",
     "FeatureRequest",
     "FormulaPlan",

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .errors import SortError
+from .errors import NameError_, SortError
 from .facts import ResolvedArg
 from .kb import KnowledgeBase
 from .model import Arg, FeatureRef
@@ -29,7 +29,15 @@ def check_formula(kb: KnowledgeBase, formula: Formula) -> list[CheckedFeature]:
         local.names.resolve(q.sort, ("sort",), q.span)
     checked: list[CheckedFeature] = []
     for ref in features(formula):
-        iri = local.names.resolve(ref.name, ("feature",), ref.span)
+        try:
+            iri = local.names.resolve(ref.name, ("feature",), ref.span)
+        except NameError_:  # an adapter may know why it is none
+            why = [w for x, w in local.ontology.unadapted.items() if local_name(x) == ref.name]
+            if why:
+                raise NameError_(
+                    f"{ref.name} is no feature on {kb.local}: {why[0]}", ref.span
+                ) from None
+            raise
         arity = local.ontology.features[iri].arity
         if len(ref.args) != arity:
             raise SortError(

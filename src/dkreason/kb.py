@@ -30,7 +30,7 @@ from .facts import (
     spec_facts,
 )
 from .inputs.files import read_bytes, resolved
-from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicSpec
+from .model import BridgeRule, IdValue, Mapping_, Ontology, TopicArg, TopicFeature, TopicSpec
 from .names import Kind, NameIndex, article, local_name
 from .parse.config import Config, MappingFiles, PlatformFiles, read_config, shipped_policy
 from .parse.sslt import without_spans
@@ -79,12 +79,15 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
     """A platform's knowledge from its files and what they import: parsed and resolved once,
     then from the cache (dkreason.cache) for as long as every file read keeps its bytes."""
     from . import cache
-    from .parse.owl import ontology_of, read_sources
+    from .parse.config import ADAPTER_SCHEMA
+    from .parse.owl import ontology_of, read_sources, triples
     from .parse.sslt import is_xml, parse_specs
 
     specs = files.specs
     xml = specs is not None and is_xml(specs)
     spec_data = read_bytes(specs) if specs else b""
+    adapters = (ADAPTER_SCHEMA, *files.adapters) if files.adapters else ()
+    rule_data = [(path, read_bytes(path)) for path in adapters]
 
     def build() -> tuple[Platform, tuple[tuple[str, str | None], ...]]:
         sources = read_sources(files.ontology, imports, files.skip_imports)
@@ -94,10 +97,16 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
             from .reason.entail import entail
 
             ontology = entail(sources.graph, ontology)
+        notes: tuple[str, ...] = ()
+        if files.adapters:
+            from .adapt import adapt
+
+            adapted = adapt(ontology, triples(sources.graph), files.adapters, files.reasoning)
+            ontology, notes = adapted.ontology, adapted.warnings
         platform = make_platform(ontology, parsed, specs)
-        platform.notes = sources.skipped
+        platform.notes = (*sources.skipped, *notes)
         return platform, (
-            *((str(p), cache.digest(d)) for p, d in sources.read),
+            *((str(p), cache.digest(d)) for p, d in (*sources.read, *rule_data)),
             *((str(p), None) for p in sources.absent),
         )
 
@@ -117,6 +126,7 @@ def read_platform(files: PlatformFiles, imports: dict[str, Path]) -> Platform:
         str(files.skip_imports),
         files.reasoning,
         *(f"{k}={resolved(v)}" for k, v in sorted(imports.items())),
+        *(part for path, data in rule_data for part in (str(resolved(path)), data)),
     ]
     platform, _ = cache.cached("platform", parts, parsed, lambda found: cache.unchanged(found[1]))
     return platform
@@ -277,6 +287,7 @@ class KnowledgeBase:
         p = self.platform(platform)
         if spec.name in p.specs:
             raise DkError(f"topic {spec.name} already exists on {platform}")
+        spec = with_observations(p, spec)
         resolved = resolve_spec(p, spec)
         self._change(spec_facts(platform, resolved), self.engine.assert_rows)
         p.put(spec, resolved)
@@ -607,6 +618,7 @@ def make_platform(
     """A platform's knowledge, each spec's names resolved (a bad one raises, naming it)."""
     platform = Platform(ontology, _name_index(ontology), specs_path=specs_path)
     for spec in specs:
+        spec = with_observations(platform, spec)
         platform.put(spec, resolve_spec(platform, spec))
     return platform
 
@@ -624,8 +636,39 @@ def _name_index(ont: Ontology) -> NameIndex:
     )
 
 
+def with_observations(p: Platform, spec: TopicSpec) -> TopicSpec:
+    """`spec` with each `observations of SENSOR` entry as the feature of the one object the
+    sensor observes, as the platform's adapters tell it (sosa:observes)."""
+    if not any(f.observations for f in spec.features):
+        return spec
+    features = []
+    for f in spec.features:
+        if not f.observations:
+            features.append(f)
+            continue
+        sensor = p.names.resolve(f.name, ("object",), f.span)
+        seen = sorted({(g, o) for s, g, o in p.ontology.observations if s == sensor})
+        if len(seen) != 1:
+            shown = ", ".join(f"{local_name(g)}[{local_name(o)}]" for g, o in seen)
+            raise NameError_(
+                f"topic {spec.name}: sensor {f.name} observes "
+                + (
+                    f"several features ({shown}): name the feature instead"
+                    if seen
+                    else "nothing known (its platform's adapters, such as adapters = "
+                    '["sosa"], read sosa:observes of a property of an object)'
+                ),
+                f.span,
+            )
+        ((feature, obj),) = seen
+        arg = TopicArg("object", f"<{obj}>", None, f.span)
+        features.append(TopicFeature(f"<{feature}>", f.field, (arg,), f.span))
+    return replace(spec, features=tuple(features))
+
+
 def resolve_spec(p: Platform, spec: TopicSpec) -> ResolvedSpec:
     """Names → IRIs and arity check; well-sortedness is left to the rules."""
+    spec = with_observations(p, spec)
 
     def arg(a: TopicArg) -> ResolvedArg:
         kind: tuple[Kind, ...] = ("object",) if a.kind == "object" else ("sort",)

@@ -9,8 +9,8 @@ from typing import TYPE_CHECKING, Any
 
 from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform, check_config, read_mapping, read_platform
-from .model import StreamRequest, TopicSpec
-from .parse.config import MappingFiles, PlatformFiles, read_config
+from .model import FeatureInfo, StreamRequest, TopicSpec
+from .parse.config import MappingFiles, PlatformFiles, adapter_paths, read_config
 from .plan import Parsed, Plan, plan
 from .policy.check import Diagnostic
 from .policy.load import check_files
@@ -367,11 +367,13 @@ class KnowledgeManager:
         *,
         reasoning: str = "none",
         skip_imports: bool = False,
+        adapters: Sequence[str] = (),
     ) -> None:
         """Add a platform from its files, as a config's `[platforms.NAME]` table names them
-        (paths as given; `reasoning="owl-rl"`, `skip_imports` as `imports = "skip"`): its
-        specs checked against its ontology, the mappings waiting for it made active, its
-        topics used at once."""
+        (paths as given; `reasoning="owl-rl"`, `skip_imports` as `imports = "skip"`,
+        `adapters` as `adapters = [...]`: shipped names or rule file paths): its specs checked
+        against its ontology, the mappings waiting for it made active, its topics used at
+        once."""
         if reasoning not in ("none", "owl-rl"):
             raise DkError(f'reasoning must be "none" or "owl-rl", not {reasoning!r}')
         files = (ontology,) if isinstance(ontology, str | Path) else tuple(ontology)
@@ -381,6 +383,7 @@ class KnowledgeManager:
             Path(specs) if specs is not None else None,
             skip_imports=skip_imports,
             reasoning=reasoning,
+            adapters=adapter_paths(adapters, Path.cwd()),
         )
         imports = self.kb.config.imports if self.kb.config else {}
         self.kb.add_platform(read_platform(platform, imports))
@@ -430,6 +433,26 @@ class KnowledgeManager:
         return sorted(
             {local_name(s) for s in self.kb.platform(platform or self.local).ontology.sorts}
         )
+
+    def list_features(self, platform: str | None = None) -> list[FeatureInfo]:
+        """Every platform's features (or one platform's), with signatures and where each came
+        from: the class pattern or an adapter rule (`dkreason info --config C`)."""
+        from .adapt import origin
+        from .names import local_name
+
+        return [
+            FeatureInfo(
+                p.name,
+                local_name(iri),
+                iri,
+                tuple(" ∪ ".join(sorted(map(local_name, s))) for s in sig.arg_sorts),
+                origin(p.ontology, iri),
+            )
+            for p in (
+                [self.kb.platform(platform)] if platform else list(self.kb.platforms.values())
+            )
+            for iri, sig in sorted(p.ontology.features.items(), key=lambda f: local_name(f[0]))
+        ]
 
     def list_objects(self, sort: str | None = None, platform: str | None = None) -> list[str]:
         """Local names of a platform's objects, or of those of `sort` (as `list_sort`)."""

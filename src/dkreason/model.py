@@ -36,10 +36,15 @@ class TopicArg:
 
 @dataclass(frozen=True, slots=True)
 class TopicFeature:
+    """A feature a topic's field carries; with `observations`, `name` is a sensor instead and
+    the field carries what it observes (`observations of thermo1 = msg.temperature`), which
+    the platform's adapters tell (sosa:observes): a feature of one object, no arguments here."""
+
     name: str
     field: str
     args: tuple[TopicArg, ...]
     span: Span = dataclasses.field(default=Span("<api>"), compare=False)
+    observations: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,6 +81,15 @@ class Signature:
 
 
 @dataclass(frozen=True, slots=True)
+class Adapted:
+    """Where a feature an adapter made came from: the adapter rule that derived it
+    (file:line) and the told triples it rests on, (subject, predicate, object) as IRIs."""
+
+    rule: Span
+    axioms: tuple[tuple[str, str, str], ...]
+
+
+@dataclass(frozen=True, slots=True)
 class Ontology:
     """One platform's told axioms, read without inference (signatures must stay as asserted);
     with `reasoning = "owl-rl"`, `types` and `same_as` also hold what OWL 2 RL entails, each
@@ -98,6 +112,13 @@ class Ontology:
     # object_property/4)
     data_values: tuple[tuple[str, str, IdValue], ...] = ()
     object_values: tuple[tuple[str, str, str], ...] = ()
+    # the features adapters made (rules/adapters/), by IRI; any other is the class pattern's
+    adapted: Mapping[str, Adapted] = field(default_factory=dict)
+    # what adapters found to be no feature, and why (a formula naming one is told)
+    unadapted: Mapping[str, str] = field(default_factory=dict)
+    # (sensor, feature, object): what each sensor observes, as its adapters say (SSL_T
+    # `observations of SENSOR`)
+    observations: tuple[tuple[str, str, str], ...] = ()
 
     @property
     def sorts(self) -> frozenset[str]:
@@ -107,6 +128,30 @@ class Ontology:
     def properties(self) -> frozenset[str]:
         """The properties its assertions use."""
         return frozenset(p for _, p, _ in (*self.data_values, *self.object_values))
+
+
+@dataclass(frozen=True, slots=True)
+class FeatureInfo:
+    """A feature as `dkreason info --config C` lists it: its signature (local names, a union's
+    sorts joined by ∪) and where it came from (the class pattern, or an adapter rule)."""
+
+    platform: str
+    name: str
+    iri: str
+    signature: tuple[str, ...]
+    origin: str
+
+    def __str__(self) -> str:
+        return f"{self.name}({', '.join(self.signature)})"
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "platform": self.platform,
+            "feature": self.name,
+            "iri": self.iri,
+            "signature": list(self.signature),
+            "origin": self.origin,
+        }
 
 
 BridgeType = Literal["equiv", "into", "onto", "incompat", "compat", "same"]

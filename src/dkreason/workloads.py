@@ -377,3 +377,49 @@ def owl_rl_world(kind: str, n: int) -> str:
             f":o{i} a owl:NamedIndividual .\n:hub :has :o{i} .\n" for i in range(n)
         )
     return _RL_HEAD + body
+
+
+def property_style(path: Path) -> str:
+    """The ontology at `path` (class pattern) rewritten as its properties would say it, as
+    Turtle: a unary feature becomes an owl:DatatypeProperty with the rdfs:domain of its arg1,
+    a binary one an owl:ObjectProperty with a domain and a range, owl:equivalentClass between
+    features owl:equivalentProperty; ternary features stay feature classes (properties relate
+    two things), so the result mixes both styles.  `adapters = ["properties"]` reads it back
+    into the same features (rules/adapters/properties.dl)."""
+    import re
+
+    from rdflib import BNode, Graph, URIRef
+    from rdflib.collection import Collection
+    from rdflib.namespace import OWL, RDF, RDFS
+
+    graph = Graph()
+    graph.parse(path)
+    arities = {"UnaryRelation": 1, "BinaryRelation": 2}
+    features = set()
+    for cls, sup in list(graph.subject_objects(RDFS.subClassOf)):
+        parts_at = graph.value(sup, OWL.intersectionOf) if isinstance(sup, BNode) else None
+        if not isinstance(cls, URIRef) or parts_at is None:
+            continue
+        parts = list(Collection(graph, parts_at))
+        arity = next(
+            (arities[str(p).split("#")[-1]] for p in parts if str(p).split("#")[-1] in arities), 0
+        )
+        if not arity:
+            continue
+        fillers = {
+            int(m.group(1)): graph.value(part, OWL.allValuesFrom)
+            for part in parts
+            if (m := re.search(r"arg([12])$", str(graph.value(part, OWL.onProperty))))
+        }
+        graph.remove((cls, RDFS.subClassOf, sup))
+        graph.remove((cls, RDF.type, OWL.Class))
+        graph.add((cls, RDF.type, OWL.DatatypeProperty if arity == 1 else OWL.ObjectProperty))
+        graph.add((cls, RDFS.domain, fillers.get(1) or OWL.Thing))
+        if arity == 2:
+            graph.add((cls, RDFS.range, fillers.get(2) or OWL.Thing))
+        features.add(cls)
+    for a, b in list(graph.subject_objects(OWL.equivalentClass)):
+        if a in features and b in features:
+            graph.remove((a, OWL.equivalentClass, b))
+            graph.add((a, OWL.equivalentProperty, b))
+    return str(graph.serialize(format="turtle"))

@@ -161,6 +161,10 @@ def progress(args: argparse.Namespace) -> int:
 
 
 def info(args: argparse.Namespace) -> int:
+    if not args.source:
+        if not args.config:
+            raise DkError("info needs recordings, or --config to list the features")
+        return _features(KnowledgeManager.from_config(args.config), args.json)
     if args.config:
         infos, binds = KnowledgeManager.from_config(args.config).info(
             args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
@@ -184,4 +188,18 @@ def info(args: argparse.Namespace) -> int:
         )
     else:
         print(render_info(infos, binds))
+    return 0
+
+
+def _features(km: KnowledgeManager, as_json: bool) -> int:
+    """Each platform's features: signature and origin (class pattern or adapter rule)."""
+    found = km.list_features()
+    if as_json:
+        print(json.dumps({"features": [f.to_json() for f in found]}, ensure_ascii=False))
+        return 0
+    width = max((len(str(f)) for f in found), default=0)
+    for name in km.platforms:
+        print(f"platform {name}:")
+        for f in (f for f in found if f.platform == name):
+            print(f"  {str(f):<{width}}  {f.origin}")
     return 0

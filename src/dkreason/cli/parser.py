@@ -439,7 +439,11 @@ def _specs(sub: a.Sub) -> None:
 
 
 def _info(sub: a.Sub) -> None:
-    p = sub.add_parser("info", help="what recordings hold, and which spec topics they bind")
+    p = sub.add_parser(
+        "info",
+        help="what recordings hold, and which spec topics they bind; with a config alone, "
+        "each platform's features, their signatures and where each came from",
+    )
     p.add_argument("--config", type=Path, help="TOML config: show which spec topics bind")
     p.add_argument("--json", action="store_true", help="one JSON document")
     p.add_argument(
@@ -451,9 +455,10 @@ def _info(sub: a.Sub) -> None:
     a.definitions(p)
     p.add_argument(
         "source",
-        nargs="+",
+        nargs="*",
         metavar="[PLATFORM=]PATH",
-        help="a recording, or a folder of recordings (each described)",
+        help="a recording, or a folder of recordings (each described); none: with --config, "
+        "the platforms' features",
     )
     p.set_defaults(run="monitoring:info")
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Any
 
+from ..adapt import origin
 from ..facts import THING, told_types
 from ..kb import KnowledgeBase
 from ..model import GroundFeature
@@ -182,6 +183,8 @@ class Reader:
         if owner is None:
             return "knowledge base"
         file = owner.ontology.file
+        if pred in ("feature", "feature_arg") and str(args[1]) in owner.ontology.adapted:
+            return origin(owner.ontology, str(args[1]))
         if pred == "class_type":  # told of the class's member that has that type
             pred, args = "type_of", [args[0], self.typed_member(*(str(a) for a in args)), args[2]]
             c = {"Object": args[1], "Sort": args[2]}

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
+from ..adapt import origin
 from ..kb import KnowledgeBase
 from ..match import Match, padded
 from ..policy.syntax import Row, Value
@@ -98,6 +99,10 @@ def _summary(reader: Reader, proof: Proof) -> tuple[str, ...]:
             ("equivalent_class", "bridge", "subclass_of"),
         )
         lines.append(f"feature: {chain}")
+        owner = reader.kb.platforms.get(str(c["Platform"]))
+        if owner is not None and str(c["Feature"]) in owner.ontology.adapted:
+            made = origin(owner.ontology, str(c["Feature"]))
+            lines.append(f"{reader.name(c['Feature'])} on {owner.name}: {made}")
     seen = set()
     for node, c in _worded(reader, proof, "arg_candidate"):
         start, end = str(c["LocalObject"]), str(c["Object"])

@@ -11,6 +11,9 @@
                                                     # warning, not an error
     reasoning = "owl-rl"                            # optional: OWL 2 RL memberships and
                                                     # sameAs become facts (default "none")
+    adapters = ["properties", "sosa"]               # optional: features from properties
+                                                    # (rules/adapters/NAME.dl, or a path to
+                                                    # a rule file of one's own)
     specs = "specs/platform1.sslt"                  # .sslt or .xml; optional
     namespace = "/robot1"                           # optional: relative topic names resolve
                                                     # under it, as ROS resolves them
@@ -33,6 +36,7 @@ import importlib.resources
 import os
 import re
 import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -43,6 +47,8 @@ from ..inputs.files import read_text
 _NAMESPACE = re.compile(r"/|(/[A-Za-z_][A-Za-z0-9_]*)+/?")
 SHIPPED_RULES = Path(str(importlib.resources.files("dkreason.rules")))
 SCHEMA = SHIPPED_RULES / "schema.dl"
+ADAPTERS = SHIPPED_RULES / "adapters"
+ADAPTER_SCHEMA = ADAPTERS / "schema.dl"  # what Python and adapters share
 
 
 def shipped_policy() -> tuple[Path, ...]:
@@ -58,6 +64,8 @@ class PlatformFiles:
     namespace: str | None = None  # ROS namespace of the platform's relative topic names
     skip_imports: bool = False  # an owl:imports found nowhere is a warning, not an error
     reasoning: str = "none"  # "owl-rl": OWL 2 RL memberships and sameAs become facts
+    # adapter rule files (rules/adapters/NAME.dl, or one's own), run over its triples
+    adapters: tuple[Path, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -123,7 +131,7 @@ def read_config(path: Path) -> Config:
             raise fail(f"platforms.{name} must be a table")
         _only(
             table,
-            {"ontology", "specs", "namespace", "imports", "reasoning"},
+            {"ontology", "specs", "namespace", "imports", "reasoning", "adapters"},
             f"[platforms.{name}]",
             fail,
         )
@@ -149,7 +157,10 @@ def read_config(path: Path) -> Config:
         reasoning = table.get("reasoning", "none")
         if reasoning not in ("none", "owl-rl"):
             raise fail(f'{section}: reasoning must be "none" or "owl-rl", not {reasoning!r}')
-        platforms.append(PlatformFiles(name, ontology, specs, namespace, skip == "skip", reasoning))
+        adapters = _adapters(base, table.get("adapters", []), section, fail)
+        platforms.append(
+            PlatformFiles(name, ontology, specs, namespace, skip == "skip", reasoning, adapters)
+        )
     names = [p.name for p in platforms]
     local = data.get("local", names[0] if len(names) == 1 else None)
     if local not in names:
@@ -197,6 +208,39 @@ def _only(table: dict[str, Any], allowed: set[str], where: str, fail: Any) -> No
         raise fail(
             f"{where}: unknown key {unknown[0]!r} (expected one of {', '.join(sorted(allowed))})"
         )
+
+
+def shipped_adapters() -> tuple[str, ...]:
+    """The names of the shipped adapters (rules/adapters/NAME.dl)."""
+    return tuple(sorted(p.stem for p in ADAPTERS.glob("*.dl") if p != ADAPTER_SCHEMA))
+
+
+def _adapters(base: Path, written: Any, section: str, fail: Any) -> tuple[Path, ...]:
+    if not isinstance(written, list) or not all(
+        isinstance(a, str) and a and a.isprintable() for a in written
+    ):
+        raise fail(f"{section}: adapters must be a list of adapter names or rule file paths")
+    try:
+        return adapter_paths(written, base)
+    except DkError as exc:
+        raise fail(f"{section}: {exc}") from None
+
+
+def adapter_paths(written: Sequence[str], base: Path) -> tuple[Path, ...]:
+    """`adapters = [...]`: a shipped adapter by name, or a rule file of one's own by path
+    (relative to `base`); anything else is one error naming it."""
+    found = []
+    for name in written:
+        if name in shipped_adapters():
+            found.append(ADAPTERS / f"{name}.dl")
+        elif name.endswith(".dl") and (base / name).is_file():
+            found.append(Path(os.path.normpath(base / name)))
+        else:
+            raise DkError(
+                f"unknown adapter {name!r} (shipped: {', '.join(shipped_adapters())}; or the "
+                f"path of a .dl rule file)"
+            )
+    return tuple(dict.fromkeys(found))
 
 
 def _rule_path(base: Path, written: str, fail: Any) -> Path:

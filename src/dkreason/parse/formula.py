@@ -363,7 +363,7 @@ def _syntax_error(exc: UnexpectedInput, text: str) -> ParseError:
         return ParseError(f"syntax error: unexpected character {exc.char!r}", span)
     token = getattr(exc, "token", "")
     expected = sorted(getattr(exc, "expected", ()) or ())
-    names = [_EXPECTED[e] for e in expected if e in _EXPECTED]
+    names = [_EXPECTED[e.lstrip("_")] for e in expected if e.lstrip("_") in _EXPECTED]
     hint = f", expected {', '.join(dict.fromkeys(names))}" if names else ""
     return ParseError(f"syntax error at {str(token)!r}{hint}", span)
 

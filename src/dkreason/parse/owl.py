@@ -449,6 +449,19 @@ def ontology_of(graph: Any, file: str, platform: str) -> Ontology:
     )
 
 
+def triples(graph: Any) -> list[tuple[IdValue, IdValue, IdValue]]:
+    """Every triple of a graph as adapter rules read it (rules/adapters/schema.dl): an IRI as
+    such, a blank node as '_:' and its id, a literal as a fact holds it."""
+    from rdflib import BNode, Literal
+
+    def term(node: Any) -> IdValue:
+        if isinstance(node, Literal):
+            return _plain(node)
+        return f"_:{node}" if isinstance(node, BNode) else str(node)
+
+    return [(term(s), term(p), term(o)) for s, p, o in graph]
+
+
 _BUILT_IN = (
     "http://www.w3.org/1999/02/22-rdf-syntax-ns#",
     "http://www.w3.org/2000/01/rdf-schema#",

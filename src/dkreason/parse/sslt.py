@@ -68,6 +68,7 @@ class _Feature:
     field: str
     span: Span
     end: int  # offset just past the feature's field
+    observations: bool = False  # `observations of NAME`: name is a sensor's
 
 
 _FILE: ContextVar[str] = ContextVar("sslt_file", default="<sslt>")  # the file being parsed
@@ -115,6 +116,10 @@ class _ToModel(Transformer[Token, Any]):
         field = next(c for c in rest if isinstance(c, Token))
         entries = [c for c in rest if isinstance(c, _Entry)]
         return [_Feature(str(name), args, str(field), _span(name), field.end_pos or 0), *entries]
+
+    def observations(self, children: list[Any]) -> list[Any]:
+        name, field = children
+        return [_Feature(str(name), (), str(field), _span(name), field.end_pos or 0, True)]
 
     def topic(self, children: list[Any]) -> tuple[TopicSpec, int, int]:
         keyword, name, msgtype, *items = children
@@ -172,7 +177,9 @@ def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
             if found
             else TopicArg("object", a.name, None, a.span)
         )
-    return TopicFeature(feature.name, feature.field, tuple(args), feature.span)
+    return TopicFeature(
+        feature.name, feature.field, tuple(args), feature.span, feature.observations
+    )
 
 
 def parse_text(text: str, file: str = "<sslt>") -> SpecFile:
@@ -191,7 +198,7 @@ def parse_text(text: str, file: str = "<sslt>") -> SpecFile:
 def _syntax_error(exc: UnexpectedInput, file: str) -> ParseError:
     span = Span(file, getattr(exc, "line", 0) or 0, getattr(exc, "column", 0) or 0)
     expected = sorted(getattr(exc, "expected", None) or getattr(exc, "allowed", None) or ())
-    wanted = ", ".join(_TERMINALS.get(e, e.lower()) for e in expected[:8])
+    wanted = ", ".join(_TERMINALS.get(e.lstrip("_"), e.lstrip("_").lower()) for e in expected[:8])
     if isinstance(exc, UnexpectedEOF):
         return ParseError(f"syntax error: unexpected end of input, expected {wanted}", span)
     if isinstance(exc, UnexpectedCharacters):
@@ -220,6 +227,7 @@ _TERMINALS = {
     "FOR": "'for'",
     "AS": "'as'",
     "SORT": "'sort'",
+    "OBSERVATIONS": "'observations of'",
     "$END": "end of input",
 }
 
@@ -257,6 +265,9 @@ def format_spec(spec: TopicSpec) -> str:
         )
     parts = []
     for f in spec.features:
+        if f.observations:
+            parts.append(f"observations of {f.name} = {f.field}")
+            continue
         repeated = {a.name for a in f.args if sum(b.name == a.name for b in f.args) > 1}
         labels = [f"arg{i + 1}" if a.name in repeated else a.name for i, a in enumerate(f.args)]
         args = ", ".join(
@@ -307,6 +318,12 @@ def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
                 features.append(
                     TopicFeature(
                         _attr(child, "name", cspan), _attr(child, "value", cspan), args, cspan
+                    )
+                )
+            elif child.tag == "observations":
+                features.append(
+                    TopicFeature(
+                        _attr(child, "sensor", cspan), _attr(child, "value", cspan), (), cspan, True
                     )
                 )
             elif child.tag not in ("sort", "object"):
@@ -364,6 +381,11 @@ def format_xml_topic(spec: TopicSpec, indent: str = "  ") -> str:
     if spec.entity is not None:
         lines.append(arg(spec.entity, indent * 2))
     for f in spec.features:
+        if f.observations:
+            lines.append(
+                f"{indent * 2}<observations sensor={quoteattr(f.name)} value={quoteattr(f.field)}/>"
+            )
+            continue
         lines.append(f"{indent * 2}<feature name={quoteattr(f.name)} value={quoteattr(f.field)}>")
         lines += [arg(a, indent * 3) for a in f.args]
         lines.append(f"{indent * 2}</feature>")

@@ -1,0 +1,1 @@
+"""Adapters: rule files deriving features from an ontology's triples (adapters = [...])."""
