@@ -25,11 +25,12 @@ from .model import FeatureKey, StreamRequest
 from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
-from .progress.state import USE, feature_uses
+from .progress.state import USE, feature_uses, terms
 from .progress.witness import Clock, Time, undecided
 from .stream.policy import StreamPolicy
 from .stream.processor import StreamProcessor, Violation
 from .stream.sources import Source
+from .stream.terms import term_key
 from .stream.units import NS, seconds
 
 Event = Verdict | Violation
@@ -92,6 +93,9 @@ class Monitor:
         self.units: dict[str, Unit] = {}  # an instance's name in its progressor → its unit
         self.waiting: dict[Unit, Instance] = {}  # not begun: some feature had no value yet
         self.waits_on: dict[FeatureKey, list[Unit]] = {}  # the waiting units reading each
+        # what a waiting unit needs known to begin: its features, and its terms over samples
+        # (`rate(X)` waits for X's second sample)
+        self.needs: dict[Unit, tuple[FeatureKey, ...]] = {}
         for n, f in enumerate(plan.formulas):
             self._wait(n, range(len(f.instances)), f.instances)
             self._time(n, f)
@@ -117,6 +121,7 @@ class Monitor:
             self._on_state,
             self.pending.append,
             frozenset(k for k, (use, _) in used.items() if use == "string"),
+            self._terms(),
         )
         for k, (use, text) in used.items():
             for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
@@ -131,9 +136,17 @@ class Monitor:
     def _uses(self) -> dict[FeatureKey, tuple[str, str]]:
         return feature_uses((f.text, i.tree) for f in self.plan.formulas for i in f.instances)
 
+    def _terms(self) -> set[tuple[str, FeatureKey]]:
+        """The terms over samples the formulas read (`prev(X)`): the states carry them."""
+        return {t for f in self.plan.formulas for i in f.instances for t in terms(i.tree)}
+
     def _wait(self, n: int, indices: Iterable[int], instances: Sequence[Instance]) -> None:
         for i, instance in zip(indices, instances, strict=True):
             self.waiting[(n, i)] = instance
+            self.needs[(n, i)] = (
+                *instance.keys,
+                *(term_key(op, k) for op, k in sorted(terms(instance.tree)) if op != "age"),
+            )
             for k in instance.keys:
                 self.waits_on.setdefault(k, []).append((n, i))
 
@@ -150,6 +163,7 @@ class Monitor:
     def _begin(self, units: list[Unit]) -> None:
         for unit in sorted(units):
             instance = self.waiting.pop(unit)
+            del self.needs[unit]
             keys = frozenset(instance.keys)
             quantified = unit[0] if unit[0] in self.timers else None
             at: Any = keys if quantified is None else (quantified, keys)
@@ -199,7 +213,7 @@ class Monitor:
         ready = [
             u
             for u in candidates
-            if u in self.waiting and all(values[k] is not None for k in self.waiting[u].keys)
+            if u in self.waiting and all(values[k] is not None for k in self.needs[u])
         ]
         if ready:
             read = {k for u in ready for k in self.waiting[u].keys}
@@ -359,6 +373,7 @@ class Monitor:
             k for k, (use, _) in self._uses().items() if use == "string"
         )
         self.processor.reroute(self.request, source)
+        self.processor.want(self._terms())
         return self.request
 
     def finish(self, end: int | None = None) -> list[Event]:

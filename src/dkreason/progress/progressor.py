@@ -35,11 +35,12 @@ from ..inputs.numbers import exact
 from ..model import FeatureKey
 from ..parse.formula import Connective, Formula, feature_key, parse_formula, quantifiers
 from ..stream.policy import END_OF_DATA
+from ..stream.terms import Samples
 from .compile import scaled
 from .engine import Engine, Held, Report, Stepper, Timer
 from .fused import FusedSet
 from .general import General
-from .state import features, is_state
+from .state import base_features, features, is_state, terms
 from .verdict import UnknownSpan, Verdict
 from .witness import Clock, Time, Why, cut_of, refuted, undecided
 
@@ -152,7 +153,8 @@ class Progressor:
         self.formulas: list[_Formula] = []
         self.unstarted: list[_Formula] = []
         self.decided: list[_Formula] = []
-        self.keys: set[FeatureKey] = set()
+        self.keys: set[FeatureKey] = set()  # what `step` reads from the caller's states
+        self.samples = Samples(unit)  # the terms over samples `step` writes into them
         self.pos = -1
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
@@ -182,7 +184,8 @@ class Progressor:
             next(e for e in self.engines if e.add(part, report))
         self.formulas.append(judged)
         self.unstarted.append(judged)
-        self.keys.update(judged.keys)
+        self.keys.update(base_features(parsed))
+        self.samples.want(terms(parsed))
         self.spelling = _UNSEEN
 
     def step(
@@ -190,7 +193,8 @@ class Progressor:
     ) -> list[Verdict]:
         """Feed one state; return the verdicts it decides.  Values are keyed by `FeatureKey`
         (as the stream processor makes them); keys written as text (`"Close[uav1, uav2]"`) are
-        read at this boundary, once per spelling."""
+        read at this boundary, once per spelling.  Each state where a feature has a value is a
+        sample of it (`prev(X)` is its value at the last such state before)."""
         t = time if type(time) is int else exact_time(time)
         if not t > self.stepped[0]:
             raise DkError(
@@ -205,6 +209,8 @@ class Progressor:
         except KeyError:
             self.spelling = _spelling(values, self.keys, time)
             typed = {k: values[s] for k, s in self.spelling}
+        if self.samples.terms:
+            self.samples.fill(t, typed)
         return [*self.stepper(t, typed, time)]
 
     def step_state(
