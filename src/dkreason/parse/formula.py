@@ -121,8 +121,9 @@ class Observed:
 
 @dataclass(frozen=True, slots=True)
 class Fresh:
-    """`fresh(X, 500ms)`: X's last sample is at most `limit` old (seconds as written; stream
-    units once compiled).  Two-valued: false before X's first sample."""
+    """`fresh(X, 500ms)`: X's last sample is at most `limit` seconds old (`age(X) <= limit`,
+    ages being seconds whatever the stream's unit).  Two-valued: false before X's first
+    sample."""
 
     arg: Ref
     limit: Fraction
@@ -529,7 +530,7 @@ def _unparse(n: Any, unit: Fraction | int) -> tuple[str, int]:
     if isinstance(n, Sampled):
         return f"{n.op}({feature_text(n.arg.feature)})", FACTOR
     if isinstance(n, Fresh):
-        return f"fresh({feature_text(n.arg.feature)}, {decimal(n.limit * unit)}s)", FACTOR
+        return f"fresh({feature_text(n.arg.feature)}, {decimal(n.limit)}s)", FACTOR
     if isinstance(n, Func):
         return f"{n.op}({_unparse(n.left, unit)[0]}, {_unparse(n.right, unit)[0]})", FACTOR
     if isinstance(n, Unary):

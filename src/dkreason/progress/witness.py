@@ -98,9 +98,14 @@ def state_was(
     clock: Clock,
 ) -> Why:
     """A state formula's value at t, with the values it read: `X > 1 was false at 3 (X = 0)`."""
-    shown = ", ".join(f"{k} = {values[k]}" for k in keys)
+    shown = ", ".join(f"{k} = {value_text(values[k])}" for k in keys)
     said = {True: "held", False: "was false", None: "was unknown"}[value]
     return Why(text, t, f"{said} at {clock.at(t)}" + (f" ({shown})" if shown else ""))
+
+
+def value_text(value: Any) -> str:
+    """A value as a witness shows it: an exact one as a decimal (`2.000000001`, an age)."""
+    return decimal(value) if type(value) is Fraction else str(value)
 
 
 def settled(text: str, t: Time, value: Any, cause: Why | None, clock: Clock) -> Why:

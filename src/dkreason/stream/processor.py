@@ -222,7 +222,11 @@ class StreamProcessor:
         it (the newest of an earlier valid time)."""
         for k, (op, q) in self.terms.items():
             hist = self.hist[q]
-            i = len(hist) - 1 if hist and hist[-1][0] <= s else bisect.bisect_right(hist, (s, 1)) - 1
+            i = (
+                len(hist) - 1
+                if hist and hist[-1][0] <= s
+                else bisect.bisect_right(hist, (s, 1)) - 1
+            )
             last = prev = None
             if i >= 0:
                 valid = hist[i][0]

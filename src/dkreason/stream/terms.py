@@ -67,7 +67,7 @@ class Samples:
     def fill(self, now: Any, values: dict[FeatureKey, Any]) -> None:
         """A state at `now`: a feature with a value is sampled at it; its terms are written in."""
         kept = self.kept
-        for feature, (last, prev) in kept.items():
+        for feature, (last, _) in kept.items():
             v = values[feature]
             if v is not None and (last is None or last[0] != now):
                 kept[feature] = ((now, v), last)
