@@ -272,3 +272,49 @@ def test_a_state_file_samples_each_feature_where_it_has_a_value(
     code = main(["progress", "--states", str(states), "--json", "always (rate(X) < 1)"])
     (verdict,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert (code, verdict["verdict"], verdict["time"]) == (1, False, 2.5)
+
+
+# ---- no silent misreadings ----------------------------------------------------------------
+
+MISREAD = "always (CmdLin[r1] > 0.1 -> eventually[0, 1] (previous (PoseX[r1]) != PoseX[r1]))"
+WARNING = (
+    "<formula>:1:57: PoseX[r1] != PoseX[r1] compares a term with itself (always false); its "
+    "value at the previous sample is prev(PoseX[r1]) (previous applies to the whole "
+    "comparison: `previous (X) != X` reads as `previous (X != X)`)"
+)
+
+
+def test_a_term_compared_with_itself_is_one_warning_from_the_api(robot: Path) -> None:
+    km = KnowledgeManager.from_config(robot)
+    assert km.plan(MISREAD).warnings == (WARNING,)
+    assert km.check_formula(MISREAD).warnings[0] == WARNING
+    assert (
+        km.check_formula("always (X[r1] == X[r1])")
+        .warnings[0]
+        .startswith(
+            "<formula>:1:9: X[r1] == X[r1] compares a term with itself (always true); its value at "
+            "the previous sample is prev(X[r1])"
+        )
+    )
+    assert km.plan(MOVES).warnings == ()
+
+
+def test_a_term_compared_with_itself_is_a_warning_from_match_monitor_and_progress(
+    robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["match", "--config", str(robot), MISREAD]) == 0
+    assert f"Warning: {WARNING}" in capsys.readouterr().out.splitlines()
+    stuck = recording(tmp_path / "stuck.jsonl", turtle(moves_at=None))
+    code, (warning, verdict) = monitor_json(capsys, robot, stuck, MISREAD)
+    assert warning == {"warning": WARNING} and verdict["verdict"] is False
+    states = tmp_path / "states.jsonl"
+    states.write_text('{"time": 0, "values": {"X": 1}}\n')
+    assert main(["progress", "--states", str(states), "always (X != X)"]) == 1
+    assert capsys.readouterr().err == (
+        "warning: <formula>:1:9: X != X compares a term with itself (always false); its value "
+        "at the previous sample is prev(X)\n"
+    )
+    main(["progress", "--states", str(states), "--json", "always (X != X)"])
+    assert json.loads(capsys.readouterr().out.splitlines()[0])["warning"].startswith(
+        "<formula>:1:9: X != X"
+    )

@@ -353,7 +353,7 @@ class Monitor:
                 )
                 for b, c in zip(old.prefix, new.prefix, strict=True)
             )
-            grown = FormulaPlan(old.text, prefix, (*old.instances, *fresh))
+            grown = FormulaPlan(old.text, prefix, (*old.instances, *fresh), old.warnings)
             formulas.append(grown)
             self._time(n, grown)
             indices = judged.extend(grown)
@@ -450,6 +450,11 @@ class MonitorRun:
     @property
     def request(self) -> StreamRequest:
         return self.monitor.request
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the formulas probably do not mean, one line each (the request's first)."""
+        return self.monitor.plan.warnings
 
     @property
     def absent(self) -> dict[str, tuple[str, ...]]:

@@ -67,6 +67,8 @@ def monitor(args: argparse.Namespace) -> int:
         print(f"note: {note}", file=sys.stderr)
     if not args.json:
         print(render.request(run.request), flush=True)
+    if args.json:  # (the request said them otherwise)
+        render.formula_warnings(run.warnings, args.json)
     events: list[Any] = []
     error = None
     with render.progress_bar(run.count() if not args.json else None, not args.json) as tick:
@@ -95,16 +97,15 @@ def monitor(args: argparse.Namespace) -> int:
 
 def progress(args: argparse.Namespace) -> int:
     progressor = Progressor(end_of_data=args.end_of_data or DEFAULT.end_of_data)
+    planned = KnowledgeManager.from_config(args.config).plan(args.formulas) if args.config else None
     trees = (
-        [
-            (f.text, f.tree)
-            for f in KnowledgeManager.from_config(args.config).plan(args.formulas).formulas
-        ]
-        if args.config
+        [(f.text, f.tree) for f in planned.formulas]
+        if planned
         else [(f, parse_formula(f)) for f in args.formulas]
     )
     for text, tree in trees:
-        progressor.add(text, tree if args.config else None)
+        progressor.add(text, tree if planned else None)
+    render.formula_warnings(planned.warnings if planned else progressor.warnings, args.json)
     used = {k: use for k, (use, _) in feature_uses(trees).items()}
     verdicts = []
 

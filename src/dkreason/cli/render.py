@@ -8,7 +8,7 @@ import datetime
 import json
 import sys
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
@@ -166,6 +166,16 @@ def request(request: StreamRequest) -> str:
             )
     lines += [f"Warning: {w}" for w in request.warnings]
     return "\n".join(lines)
+
+
+def formula_warnings(found: Sequence[str], as_json: bool) -> None:
+    """What formulas probably do not mean (`X != X`): JSON lines `{"warning": …}` before the
+    verdicts, or lines on stderr."""
+    for w in found:
+        if as_json:
+            print(json.dumps({"warning": w}, ensure_ascii=False), flush=True)
+        else:
+            print(f"warning: {w}", file=sys.stderr)
 
 
 def warnings(found: list[Diagnostic]) -> None:

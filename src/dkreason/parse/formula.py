@@ -473,6 +473,30 @@ def _feature_refs(node: Any) -> Iterator[FeatureRef]:
         todo += reversed(children(n))
 
 
+def self_comparisons(formula: Formula) -> list[str]:
+    """One warning line per comparison of a term with itself (`X != X`: its value never
+    changes), naming where it is and suggesting `prev(X)`; under `previous`, saying that the
+    operator took the whole comparison (`previous (X) != X` reads as `previous (X != X)`)."""
+    out: list[str] = []
+    todo: list[tuple[Any, bool]] = [(formula, False)]
+    while todo:
+        n, past = todo.pop()
+        if isinstance(n, Compare) and n.left == n.right:
+            said = "always true" if n.op in ("==", "<=", ">=") else "always false"
+            line = f"{_where(n)}: {unparse(n)} compares a term with itself ({said})"
+            for ref in list(_feature_refs(n.left))[:1]:
+                line += f"; its value at the previous sample is prev({feature_text(ref)})"
+            if past:
+                line += (
+                    " (previous applies to the whole comparison: "
+                    "`previous (X) != X` reads as `previous (X != X)`)"
+                )
+            out.append(line)
+        is_previous = isinstance(n, Temporal) and n.op == "previous"
+        todo += [(c, past or is_previous) for c in reversed(children(n))]
+    return out
+
+
 def quantifiers(formula: Formula) -> Iterator[Quant]:
     if isinstance(formula, Quant):
         yield formula

@@ -33,7 +33,14 @@ from typing import Any
 from ..errors import DkError
 from ..inputs.numbers import exact
 from ..model import FeatureKey
-from ..parse.formula import Connective, Formula, feature_key, parse_formula, quantifiers
+from ..parse.formula import (
+    Connective,
+    Formula,
+    feature_key,
+    parse_formula,
+    quantifiers,
+    self_comparisons,
+)
 from ..stream.policy import END_OF_DATA
 from ..stream.terms import Samples
 from .compile import scaled
@@ -151,6 +158,7 @@ class Progressor:
             (self.fused, self.general) if engine == "auto" else (self.general,)
         )
         self.formulas: list[_Formula] = []
+        self.warnings: list[str] = []  # of the formulas added as text (parse.self_comparisons)
         self.unstarted: list[_Formula] = []
         self.decided: list[_Formula] = []
         self.keys: set[FeatureKey] = set()  # what `step` reads from the caller's states
@@ -176,6 +184,7 @@ class Progressor:
                 raise DkError(
                     f"{q.span}: quantifier over {q.sort} needs a knowledge base (give --config)"
                 )
+            self.warnings += self_comparisons(tree)
         parsed = scaled(tree, Fraction(1) / self.unit)
         self._general()  # the general step while this one is new
         judged = _Formula(formula, features(parsed), self.decided)
