@@ -195,7 +195,7 @@ def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) 
         if is_text(f):
             left, right = _text(f.left, values, time), _text(f.right, values, time)
         else:
-            left, right = _number(f.left, values, time), _number(f.right, values, time)
+            left, right = number(f.left, values, time), number(f.right, values, time)
         return None if left is None or right is None else bool(_CMP[f.op](left, right))
     if isinstance(f, Not):
         v = evaluate(f.arg, values, time)
@@ -237,7 +237,7 @@ def _text(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> str | None
     raise DkError(f"only a feature compares with a string, not {unparse(e)}")
 
 
-def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
+def number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
     if isinstance(e, Num):
         return e.value
     if isinstance(e, Str):
@@ -253,15 +253,15 @@ def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
     if isinstance(e, Sampled):
         return values[read_key(e)]
     if isinstance(e, Unary):
-        v = _number(e.arg, values, time)
+        v = number(e.arg, values, time)
         if v is None or e.op == "sqrt" and v < 0:
             return None  # out of its domain: unknown, never a violation
         return -v if e.op == "-" else FUNCTIONS[e.op](v)
     if isinstance(e, Func):
-        a, b = _number(e.left, values, time), _number(e.right, values, time)
+        a, b = number(e.left, values, time), number(e.right, values, time)
         return None if a is None or b is None else FUNCTIONS[e.op](a, b)
     if isinstance(e, Arith):
-        a, b = _number(e.left, values, time), _number(e.right, values, time)
+        a, b = number(e.left, values, time), number(e.right, values, time)
         if a is None or b is None:
             return None
         if e.op == "/" and b == 0:

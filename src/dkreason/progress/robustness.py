@@ -1,0 +1,310 @@
+"""How much a formula held or failed by: discrete-time STL space robustness over the states
+judged, each margin naming its critical atom (the comparison whose value it is) and where
+that atom's values came from.
+
+The usual semantics (Donzé and Maler; rtamt's discrete-time offline evaluator): `a > b` and
+`a >= b` are a − b, `a < b` and `a <= b` b − a, `a == b` −|a − b|, `a != b` |a − b|; `and`,
+`always` and `historically` take the minimum, `or`, `eventually` and `once` the maximum,
+windows over the states inside them, `not` negates, `a -> b` is `not a or b`; `until` and
+`since` the max-min of their definition.  A condition (`P[x]`, `observed(X)`, a string
+comparison, `true`) is ±∞; `fresh(X, d)` is d − age(X).  An empty window is +∞ for `always`
+and −∞ for `eventually`, as rtamt's.
+
+Unknown values give no margin: an unknown part of a minimum leaves it unknown unless a known
+part is negative (the formula fails whatever it is), and dually for a maximum, so a margin's
+sign is always its Boolean verdict's, and a window that the end of the data cuts off (with
+`end`, the data's end) is unknown in its unseen part.  This is a separate path from Boolean
+monitoring: it reads the states a monitor kept for it, once a verdict is decided.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..inputs.numbers import decimal
+from ..model import FeatureKey
+from ..parse.formula import (
+    Atom,
+    BoolConst,
+    Compare,
+    Connective,
+    Formula,
+    Fresh,
+    Not,
+    Observed,
+    Temporal,
+    Until,
+    feature_key,
+    unparse,
+)
+from .state import evaluate, features, is_text, number, read_key
+from .witness import Clock, Time, value_text
+
+INF = float("inf")
+Crit = tuple[int, int]  # (atom, position)
+Rho = tuple[Any, Crit | None] | None  # (margin, critical atom) or None: unknown
+Trace = Sequence[tuple[Time, Mapping[FeatureKey, Any]]]
+
+
+@dataclass(frozen=True, slots=True)
+class Margin:
+    """By how much a formula held (> 0) or failed (< 0): `value`, the margin of its critical
+    atom `atom` at time `time`, which read `values`, each from `sources` (feature → where its
+    values are read: topic, field, and the match that chose it)."""
+
+    value: Any
+    atom: str | None
+    time: Any = None
+    t: Any = None
+    values: tuple[tuple[str, Any], ...] = ()
+    sources: tuple[tuple[str, str], ...] = ()
+
+    def text(self) -> str:
+        """`violated by 3.2 at t+41 s: Altitude[uav2] > 10 (Altitude[uav2] = 6.8, read from
+        platform3/uastopic5 msg.height as Alt[uas21])`."""
+        said = "held" if self.value > 0 else "violated"
+        size = _number_text(abs(self.value))
+        if self.atom is None:
+            return f"{said} by {size}"
+        when = f"t+{_number_text(self.t)} s" if self.t is not None else str(self.time)
+        sources = dict(self.sources)
+        read = ", ".join(
+            f"{k} = {value_text(v)}" + (f" read from {sources[k]}" if k in sources else "")
+            for k, v in self.values
+        )
+        return f"{said} by {size} at {when}: {self.atom}" + (f" ({read})" if read else "")
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"value": _json_number(self.value), "atom": self.atom}
+        if self.atom is not None:
+            out |= {"time": _json_number(self.time), "t": _json_number(self.t)}
+            out["values"] = {k: _json_number(v) for k, v in self.values}
+            out["sources"] = dict(self.sources)
+        return out
+
+
+def _json_number(v: Any) -> Any:
+    if isinstance(v, bool) or v is None or isinstance(v, str):
+        return v
+    if v in (INF, -INF):
+        return str(v)
+    return int(v) if v == int(v) else float(v)
+
+
+def _number_text(v: Any) -> str:
+    if v in (INF, -INF):
+        return "∞" if v > 0 else "-∞"
+    try:
+        return decimal(v) if not isinstance(v, float) else f"{v:.6g}"
+    except (TypeError, ValueError):
+        return str(v)
+
+
+def lower(a: Rho, b: Rho) -> Rho:
+    """Minimum (and): unknown unless a known part fails."""
+    if a is None:
+        return b if b is not None and b[0] < 0 else None
+    if b is None:
+        return a if a[0] < 0 else None
+    return a if a[0] <= b[0] else b
+
+
+def upper(a: Rho, b: Rho) -> Rho:
+    """Maximum (or): unknown unless a known part holds."""
+    if a is None:
+        return b if b is not None and b[0] > 0 else None
+    if b is None:
+        return a if a[0] > 0 else None
+    return a if a[0] >= b[0] else b
+
+
+def _neg(a: Rho) -> Rho:
+    return None if a is None else (-a[0], a[1])
+
+
+def _margin(op: str, a: Any, b: Any) -> Any:
+    if op in (">", ">="):
+        return a - b
+    if op in ("<", "<="):
+        return b - a
+    return -abs(a - b) if op == "==" else abs(a - b)
+
+
+class _Evaluation:
+    """One formula over one trace: each subformula's margin at every position, once."""
+
+    def __init__(self, trace: Trace, end: Time | None) -> None:
+        self.trace, self.end = trace, end
+        self.times = [t for t, _ in trace]
+        self.atoms: list[Formula] = []
+        self.memo: dict[int, list[Rho]] = {}
+
+    def rho(self, f: Formula) -> list[Rho]:
+        found = self.memo.get(id(f))
+        if found is None:
+            found = self.memo[id(f)] = self._rho(f)
+        return found
+
+    def _rho(self, f: Formula) -> list[Rho]:
+        n = len(self.trace)
+        if isinstance(f, Compare) and not is_text(f):
+            atom = len(self.atoms)
+            self.atoms.append(f)
+            out: list[Rho] = []
+            for j, (t, values) in enumerate(self.trace):
+                a, b = number(f.left, values, t), number(f.right, values, t)
+                out.append(None if a is None or b is None else (_margin(f.op, a, b), (atom, j)))
+            return out
+        if isinstance(f, Fresh):
+            atom = len(self.atoms)
+            self.atoms.append(f)
+            key = read_key(f)
+            return [
+                (-INF if values[key] is None else f.limit - values[key], (atom, j))
+                for j, (_, values) in enumerate(self.trace)
+            ]
+        if isinstance(f, BoolConst | Atom | Observed | Compare):
+            atom = len(self.atoms)
+            self.atoms.append(f)
+            out = []
+            for j, (t, values) in enumerate(self.trace):
+                v = evaluate(f, values, t)
+                out.append(None if v is None else (INF if v else -INF, (atom, j)))
+            return out
+        if isinstance(f, Not):
+            return [_neg(r) for r in self.rho(f.arg)]
+        if isinstance(f, Connective):
+            a, b = self.rho(f.left), self.rho(f.right)
+            if f.op == "and":
+                return [lower(x, y) for x, y in zip(a, b, strict=True)]
+            if f.op == "or":
+                return [upper(x, y) for x, y in zip(a, b, strict=True)]
+            if f.op == "->":
+                return [upper(_neg(x), y) for x, y in zip(a, b, strict=True)]
+            return [lower(upper(_neg(x), y), upper(x, _neg(y))) for x, y in zip(a, b, strict=True)]
+        if isinstance(f, Temporal):
+            return self._temporal(f, self.rho(f.arg), n)
+        assert isinstance(f, Until)
+        return self._until(f, self.rho(f.left), self.rho(f.right), n)
+
+    def _cut(self, ti: Time, hi: Time | None) -> bool:
+        return self.end is not None and hi is not None and ti + hi > self.end
+
+    def _temporal(self, f: Temporal, child: list[Rho], n: int) -> list[Rho]:
+        lo, hi, times = f.interval.lo, f.interval.hi, self.times
+        out: list[Rho] = []
+        if f.op in ("always", "eventually"):
+            fold = lower if f.op == "always" else upper
+            empty: Rho = (INF if f.op == "always" else -INF, None)
+            for i in range(n):
+                acc: Rho = empty
+                for j in range(i, n):
+                    d = times[j] - times[i]
+                    if hi is not None and d > hi:
+                        break
+                    if d >= lo:
+                        acc = fold(acc, child[j])
+                if self._cut(times[i], hi):
+                    acc = fold(acc, None)
+                out.append(acc)
+            return out
+        if f.op in ("historically", "once"):
+            fold = lower if f.op == "historically" else upper
+            empty = (INF if f.op == "historically" else -INF, None)
+            for i in range(n):
+                acc = empty
+                for j in range(i, -1, -1):
+                    d = times[i] - times[j]
+                    if hi is not None and d > hi:
+                        break
+                    if d >= lo:
+                        acc = fold(acc, child[j])
+                out.append(acc)
+            return out
+        false: Rho = (-INF, None)
+        for i in range(n):
+            j = i + 1 if f.op == "next" else i - 1
+            if not 0 <= j < n:
+                open_ = f.op == "next" and self._cut(times[i], hi)
+                out.append(None if open_ else false)
+                continue
+            gap = abs(times[j] - times[i])
+            out.append(child[j] if lo <= gap and (hi is None or gap <= hi) else false)
+        return out
+
+    def _until(self, f: Until, left: list[Rho], right: list[Rho], n: int) -> list[Rho]:
+        lo, hi, times = f.interval.lo, f.interval.hi, self.times
+        out: list[Rho] = []
+        for i in range(n):
+            acc: Rho = (-INF, None)
+            phi: Rho = (INF, None)
+            steps = range(i, n) if f.op == "until" else range(i, -1, -1)
+            for j in steps:
+                d = abs(times[j] - times[i])
+                if hi is not None and d > hi:
+                    break
+                if d >= lo:
+                    acc = upper(acc, lower(right[j], phi))
+                phi = lower(phi, left[j])
+            else:
+                if f.op == "until" and self._cut(times[i], hi):
+                    acc = upper(acc, lower(None, phi))
+            out.append(acc)
+        return out
+
+
+def margins(f: Formula, trace: Trace, end: Time | None = None) -> list[Any]:
+    """The margin of `f` at every state of the trace (None: unknown), as rtamt's offline
+    evaluator gives them."""
+    return [None if r is None else r[0] for r in _Evaluation(trace, end).rho(f)]
+
+
+def robustness(
+    f: Formula,
+    trace: Trace,
+    end: Time | None = None,
+    clock: Clock | None = None,
+    sources: Mapping[FeatureKey, str] | None = None,
+    seconds: Callable[[Any], Any] | None = None,
+) -> Margin | None:
+    """The margin of `f` (quantifier-free, bounds in the trace's units) at the trace's first
+    state; None when unknown values leave it undecided.  `end`: where the data ends (a
+    window reaching past it is unknown in its unseen part); None: every window closes at the
+    last state (the finite-trace semantics, rtamt's).  `clock` says the critical atom's time
+    as `t+…` from the run's start; `seconds` turns a trace time into what a verdict's `time`
+    says; `sources` names each feature's source."""
+    if not trace:
+        return None
+    run = _Evaluation(trace, end)
+    found = run.rho(f)[0]
+    if found is None:
+        return None
+    value, crit = found
+    if crit is None:
+        return Margin(value, None)
+    atom, j = crit
+    t, values = trace[j]
+    node = run.atoms[atom]
+    unit = 1 if clock is None else clock.unit
+    start = None if clock is None or clock.origin is None else clock.origin()
+    keys = features(node)
+    return Margin(
+        value,
+        unparse(node, unit),
+        t if seconds is None else seconds(t),
+        None if start is None else (t - start) * unit,
+        tuple((str(k), values[k]) for k in keys),
+        tuple((str(k), s) for k in keys if (s := (sources or {}).get(_base(k))) is not None),
+    )
+
+
+def _base(k: FeatureKey) -> FeatureKey:
+    """The feature a term's key is over (`rate(Yaw[r1])` → Yaw[r1]); a feature's own key."""
+    if k.args or not k.name.endswith(")") or "(" not in k.name:
+        return k
+    return feature_key(k.name[k.name.index("(") + 1 : -1]) or k
+
+
+__all__ = ["Margin", "lower", "margins", "robustness", "upper"]
