@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from dkreason.model import FeatureKey
 from dkreason.parse.formula import parse_formula
-from dkreason.progress.robustness import margins, robustness
+from dkreason.progress.robustness import margins
 
 SETTINGS = settings(
     max_examples=int(os.environ.get("DKREASON_EXAMPLES", "150")),
@@ -76,7 +76,10 @@ def test_margins_equal_rtamts_discrete_time_offline_evaluation(
     formula: str, signal: tuple[list[int], list[int]]
 ) -> None:
     xs, ys = signal
-    trace = [(t, {FeatureKey("x"): x, FeatureKey("y"): y}) for t, (x, y) in enumerate(zip(xs, ys))]
+    trace = [
+        (t, {FeatureKey("x"): x, FeatureKey("y"): y})
+        for t, (x, y) in enumerate(zip(xs, ys, strict=True))
+    ]
     ours = margins(parse_formula(formula), trace)
     theirs = rtamt_margins(formula, xs, ys)
     assert len(ours) == len(theirs)
