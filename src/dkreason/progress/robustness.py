@@ -230,7 +230,7 @@ class _Evaluation:
                 open_ = f.op == "next" and self._cut(times[i], hi)
                 out.append(None if open_ else false)
                 continue
-            gap = abs(times[j] - times[i])
+            gap: Any = abs(times[j] - times[i])
             out.append(child[j] if lo <= gap and (hi is None or gap <= hi) else false)
         return out
 
@@ -242,7 +242,7 @@ class _Evaluation:
             phi: Rho = (INF, None)
             steps = range(i, n) if f.op == "until" else range(i, -1, -1)
             for j in steps:
-                d = abs(times[j] - times[i])
+                d: Any = abs(times[j] - times[i])
                 if hi is not None and d > hi:
                     break
                 if d >= lo:
