@@ -109,12 +109,15 @@ class KnowledgeManager:
         msg: Sequence[str | Path] = (),
         typestore: str | None = None,
         keep_states: bool = False,
+        robustness: bool = False,
     ) -> MonitorRun:
         """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
         recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
         lines; `remap`, `clock`, `msg` files and `typestore` as the CLI's options) or any
         other `Source` (e.g. a `PushSource`).  Iterate it for verdicts and stream-constraint
-        violations as they happen; all times are seconds."""
+        violations as they happen; all times are seconds.  `robustness`: each verdict, and
+        each instance's, says by how much it held or failed and what decided it (its
+        `robustness`: progress.robustness)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
         from .stream.binding import open_recordings
@@ -135,7 +138,11 @@ class KnowledgeManager:
             else source
         )
         engine = Monitor(
-            self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
+            self.plan(formulas),
+            self.request,
+            policy or StreamPolicy(),
+            keep_states=keep_states,
+            robustness=robustness,
         )
         return MonitorRun(engine, opened)
 

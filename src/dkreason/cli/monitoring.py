@@ -44,6 +44,8 @@ def monitor(args: argparse.Namespace) -> int:
         raise DkError(f"{ros2_only[0]} is for --ros2")
     if args.publish_verdicts and not (args.live or args.ros2):
         raise DkError("--publish-verdicts is for --live or --ros2")
+    if args.robustness and (args.live or args.ros2):
+        raise DkError("--robustness is for recordings (--source)")
     if args.ros2:
         return live.monitor_ros2(args, stream_policy)
     if args.live:
@@ -60,6 +62,7 @@ def monitor(args: argparse.Namespace) -> int:
         msg=args.msg,
         typestore=args.typestore,
         keep_states=args.plot is not None,
+        robustness=args.robustness,
     )
     for topic, features in run.absent.items():
         print(f"warning: {topic} (for {', '.join(features)}) is in no recording", file=sys.stderr)
@@ -96,7 +99,9 @@ def monitor(args: argparse.Namespace) -> int:
 
 
 def progress(args: argparse.Namespace) -> int:
-    progressor = Progressor(end_of_data=args.end_of_data or DEFAULT.end_of_data)
+    progressor = Progressor(
+        end_of_data=args.end_of_data or DEFAULT.end_of_data, robustness=args.robustness
+    )
     planned = KnowledgeManager.from_config(args.config).plan(args.formulas) if args.config else None
     trees = (
         [(f.text, f.tree) for f in planned.formulas]
@@ -118,7 +123,8 @@ def progress(args: argparse.Namespace) -> int:
                 when = "at end" if v.at_end else "at"
                 print(
                     f"{when} {v.time}: {render.shout(v.verdict)}  {v.formula}"
-                    + (f"\n    {v.witness}" if v.witness else ""),
+                    + (f"\n    {v.witness}" if v.witness else "")
+                    + (f"\n    robustness: {v.robustness.text()}" if v.robustness else ""),
                     flush=True,
                 )
 

@@ -55,6 +55,8 @@ def event(event: Event, as_json: bool) -> None:
             lines = [f"{said}: {shout(event.verdict)}  {event.formula}"]
             if event.witness:
                 lines.append(event.witness)
+            if event.robustness is not None:
+                lines.append(f"robustness: {event.robustness.text()}")
         if event.pending and event.witness is None:
             lines.append(f"pending: {event.pending}")
         if event.instances is not None:

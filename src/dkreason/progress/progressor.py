@@ -47,8 +47,9 @@ from .compile import scaled
 from .engine import Engine, Held, Report, Stepper, Timer
 from .fused import FusedSet
 from .general import General
+from .robustness import robustness
 from .state import base_features, features, is_state, terms
-from .verdict import UnknownSpan, Verdict
+from .verdict import Margin, UnknownSpan, Verdict
 from .witness import Clock, Time, Why, cut_of, refuted, undecided
 
 ENGINES = ("auto", "general")
@@ -136,7 +137,8 @@ class Progressor:
     (module docstring).  `origin`: when given, witnesses say times as `t+…` seconds from the
     stream time it returns (the run's start).  `timer`: told by when a window will have ended
     (in the stream's times), so a caller that sees the stream pass it without a state of these
-    formulas can `advance` to it."""
+    formulas can `advance` to it.  `robustness`: each verdict of a state given to `step` says
+    by how much (progress.robustness), from the states `step` keeps for it."""
 
     def __init__(
         self,
@@ -145,6 +147,7 @@ class Progressor:
         end_of_data: str = "open",
         origin: Callable[[], Time | None] | None = None,
         timer: Timer | None = None,
+        robustness: bool = False,
     ) -> None:
         if engine not in ENGINES:
             raise DkError(f"unknown engine {engine!r} ({' or '.join(ENGINES)})")
@@ -163,6 +166,9 @@ class Progressor:
         self.decided: list[_Formula] = []
         self.keys: set[FeatureKey] = set()  # what `step` reads from the caller's states
         self.samples = Samples(unit)  # the terms over samples `step` writes into them
+        # robustness: the states `step` was given, and each formula's tree and first state
+        self.trace: list[tuple[Time, dict[FeatureKey, Any]]] | None = [] if robustness else None
+        self.trees: dict[int, tuple[Formula, int]] = {}
         self.pos = -1
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
@@ -191,6 +197,8 @@ class Progressor:
         for n, part in enumerate(conjuncts(parsed)):
             report = judged.report(n)
             next(e for e in self.engines if e.add(part, report))
+        if self.trace is not None:
+            self.trees[id(judged)] = (parsed, len(self.trace))
         self.formulas.append(judged)
         self.unstarted.append(judged)
         self.keys.update(base_features(parsed))
@@ -220,6 +228,8 @@ class Progressor:
             typed = {k: values[s] for k, s in self.spelling}
         if self.samples.terms:
             self.samples.fill(t, typed)
+        if self.trace is not None:
+            self.trace.append((t, typed))
         return [*self.stepper(t, typed, time)]
 
     def step_state(
@@ -318,8 +328,32 @@ class Progressor:
                 )
                 pending = None if m.cut is None else m.cut[1].render()
                 witness = undecided(unknown, m.started, self.clock, pending)
-            out.append(Verdict(m.text, m.value, time, at_end, witness, unknown, pending=pending))
+            margin = None if self.trace is None else self._margin(m, time, at_end)
+            out.append(
+                Verdict(
+                    m.text,
+                    m.value,
+                    time,
+                    at_end,
+                    witness,
+                    unknown,
+                    pending=pending,
+                    robustness=margin,
+                )
+            )
         return out
+
+    def _margin(self, m: _Formula, time: Any, at_end: bool) -> Margin:
+        """A formula's robustness over the states from its first to its verdict's; a window
+        reaching past the data then seen (at the end: past its end, with end of data "open")
+        unknown in its unseen part."""
+        assert self.trace is not None
+        tree, start = self.trees[id(m)]
+        end = None if time is None else exact_time(time)
+        trace = [s for s in self.trace[start:] if end is None or s[0] <= end]
+        if at_end and self.end_of_data != "open":
+            end = None
+        return robustness(tree, trace, end, self.clock)
 
     def note_unknown(self, keys: Iterable[FeatureKey], pos: int, given: Any) -> None:
         """The engines' `Unknown`: these features were unknown at the state at `pos`."""

@@ -20,10 +20,8 @@ monitoring: it reads the states a monitor kept for it, once a verdict is decided
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
-from ..inputs.numbers import decimal
 from ..model import FeatureKey
 from ..parse.formula import (
     Atom,
@@ -40,66 +38,15 @@ from ..parse.formula import (
     unparse,
 )
 from .state import evaluate, features, is_text, number, read_key
-from .witness import Clock, Time, value_text
+from .verdict import INF, Margin
+from .witness import Clock, Time
 
-INF = float("inf")
 Crit = tuple[int, int]  # (atom, position)
-Rho = tuple[Any, Crit | None] | None  # (margin, critical atom) or None: unknown
+Rho = tuple[Any, Any] | None  # (margin, what decided it: a Crit, or None) or None: unknown
 Trace = Sequence[tuple[Time, Mapping[FeatureKey, Any]]]
 
 
-@dataclass(frozen=True, slots=True)
-class Margin:
-    """By how much a formula held (> 0) or failed (< 0): `value`, the margin of its critical
-    atom `atom` at time `time`, which read `values`, each from `sources` (feature → where its
-    values are read: topic, field, and the match that chose it)."""
-
-    value: Any
-    atom: str | None
-    time: Any = None
-    t: Any = None
-    values: tuple[tuple[str, Any], ...] = ()
-    sources: tuple[tuple[str, str], ...] = ()
-
-    def text(self) -> str:
-        """`violated by 3.2 at t+41 s: Altitude[uav2] > 10 (Altitude[uav2] = 6.8, read from
-        platform3/uastopic5 msg.height as Alt[uas21])`."""
-        said = "held" if self.value > 0 else "violated"
-        size = _number_text(abs(self.value))
-        if self.atom is None:
-            return f"{said} by {size}"
-        when = f"t+{_number_text(self.t)} s" if self.t is not None else str(self.time)
-        sources = dict(self.sources)
-        read = ", ".join(
-            f"{k} = {value_text(v)}" + (f" read from {sources[k]}" if k in sources else "")
-            for k, v in self.values
-        )
-        return f"{said} by {size} at {when}: {self.atom}" + (f" ({read})" if read else "")
-
-    def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"value": _json_number(self.value), "atom": self.atom}
-        if self.atom is not None:
-            out |= {"time": _json_number(self.time), "t": _json_number(self.t)}
-            out["values"] = {k: _json_number(v) for k, v in self.values}
-            out["sources"] = dict(self.sources)
-        return out
-
-
-def _json_number(v: Any) -> Any:
-    if isinstance(v, bool) or v is None or isinstance(v, str):
-        return v
-    if v in (INF, -INF):
-        return str(v)
-    return int(v) if v == int(v) else float(v)
-
-
-def _number_text(v: Any) -> str:
-    if v in (INF, -INF):
-        return "∞" if v > 0 else "-∞"
-    try:
-        return decimal(v) if not isinstance(v, float) else f"{v:.6g}"
-    except (TypeError, ValueError):
-        return str(v)
+UNKNOWN = Margin(None, None)
 
 
 def lower(a: Rho, b: Rho) -> Rho:
@@ -268,19 +215,19 @@ def robustness(
     clock: Clock | None = None,
     sources: Mapping[FeatureKey, str] | None = None,
     seconds: Callable[[Any], Any] | None = None,
-) -> Margin | None:
+) -> Margin:
     """The margin of `f` (quantifier-free, bounds in the trace's units) at the trace's first
-    state; None when unknown values leave it undecided.  `end`: where the data ends (a
+    state (value None when unknown values leave it undecided).  `end`: where the data ends (a
     window reaching past it is unknown in its unseen part); None: every window closes at the
     last state (the finite-trace semantics, rtamt's).  `clock` says the critical atom's time
     as `t+…` from the run's start; `seconds` turns a trace time into what a verdict's `time`
     says; `sources` names each feature's source."""
     if not trace:
-        return None
+        return UNKNOWN
     run = _Evaluation(trace, end)
     found = run.rho(f)[0]
     if found is None:
-        return None
+        return UNKNOWN
     value, crit = found
     if crit is None:
         return Margin(value, None)
@@ -307,4 +254,4 @@ def _base(k: FeatureKey) -> FeatureKey:
     return feature_key(k.name[k.name.index("(") + 1 : -1]) or k
 
 
-__all__ = ["Margin", "lower", "margins", "robustness", "upper"]
+__all__ = ["UNKNOWN", "lower", "margins", "robustness", "upper"]

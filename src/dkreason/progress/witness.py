@@ -17,7 +17,7 @@ from typing import Any
 
 from ..inputs.numbers import decimal
 from ..model import FeatureKey
-from .verdict import UnknownSpan
+from .verdict import UnknownSpan, value_text
 
 Time = int | Fraction
 SHOWN = 10  # spans a witness names; the rest are counted
@@ -101,11 +101,6 @@ def state_was(
     shown = ", ".join(f"{k} = {value_text(values[k])}" for k in keys)
     said = {True: "held", False: "was false", None: "was unknown"}[value]
     return Why(text, t, f"{said} at {clock.at(t)}" + (f" ({shown})" if shown else ""))
-
-
-def value_text(value: Any) -> str:
-    """A value as a witness shows it: an exact one as a decimal (`2.000000001`, an age)."""
-    return decimal(value) if type(value) is Fraction else str(value)
 
 
 def settled(text: str, t: Time, value: Any, cause: Why | None, clock: Clock) -> Why:
