@@ -142,6 +142,8 @@ class _Evaluation:
     def _temporal(self, f: Temporal, child: list[Rho], n: int) -> list[Rho]:
         lo, hi, times = f.interval.lo, f.interval.hi, self.times
         out: list[Rho] = []
+        if hi is None and f.op in ("always", "eventually", "historically", "once"):
+            return self._unbounded(f, child, n)
         if f.op in ("always", "eventually"):
             fold = lower if f.op == "always" else upper
             empty: Rho = (INF if f.op == "always" else -INF, None)
@@ -181,9 +183,42 @@ class _Evaluation:
             out.append(child[j] if lo <= gap and (hi is None or gap <= hi) else false)
         return out
 
+    def _unbounded(self, f: Temporal, child: list[Rho], n: int) -> list[Rho]:
+        """A window [lo, oo) in linear time: the folds of every suffix (future) or prefix
+        (past) of the child's margins, each window one of them (the fold is associative)."""
+        future = f.op in ("always", "eventually")
+        fold = lower if f.op in ("always", "historically") else upper
+        empty: Rho = (INF if fold is lower else -INF, None)
+        order = range(n - 1, -1, -1) if future else range(n)
+        folds: list[Rho] = [empty] * (n + 1)  # folds[j]: from j to the end (or the start)
+        prev = n if future else -1
+        for j in order:
+            folds[j] = fold(child[j], folds[prev] if 0 <= prev < n else empty)
+            prev = j
+        lo, times, out = f.interval.lo, self.times, []
+        j = 0 if future else -1
+        for i in range(n):  # the first state at least lo after i (before i: the last)
+            if future:
+                j = max(j, i)
+                while j < n and times[j] - times[i] < lo:
+                    j += 1
+                out.append(folds[j] if j < n else empty)
+            else:
+                while j + 1 <= i and times[i] - times[j + 1] >= lo:
+                    j += 1
+                out.append(folds[j] if j >= 0 else empty)
+        return out
+
     def _until(self, f: Until, left: list[Rho], right: list[Rho], n: int) -> list[Rho]:
         lo, hi, times = f.interval.lo, f.interval.hi, self.times
         out: list[Rho] = []
+        if lo == 0 and hi is None:  # φ U ψ = ψ or (φ and next-state φ U ψ), in linear time
+            order = range(n - 1, -1, -1) if f.op == "until" else range(n)
+            later: Rho = (-INF, None)
+            by: list[Rho] = [None] * n
+            for j in order:
+                later = by[j] = upper(right[j], lower(left[j], later))
+            return by
         for i in range(n):
             acc: Rho = (-INF, None)
             phi: Rho = (INF, None)
