@@ -31,7 +31,9 @@ from ..parse.formula import (
     Formula,
     Fresh,
     Not,
+    Num,
     Observed,
+    Ref,
     Temporal,
     Until,
     feature_key,
@@ -71,6 +73,9 @@ def _neg(a: Rho) -> Rho:
     return None if a is None else (-a[0], a[1])
 
 
+_SIGN = {">": 1, ">=": 1, "<": -1, "<=": -1}
+
+
 def _margin(op: str, a: Any, b: Any) -> Any:
     if op in (">", ">="):
         return a - b
@@ -100,6 +105,13 @@ class _Evaluation:
             atom = len(self.atoms)
             self.atoms.append(f)
             out: list[Rho] = []
+            if isinstance(f.left, Ref) and isinstance(f.right, Num):  # `X > c`: no interpreter
+                k, c, sign = read_key(f.left), f.right.value, _SIGN.get(f.op)
+                if sign is not None:
+                    for j, (_, values) in enumerate(self.trace):
+                        v = values[k]
+                        out.append(None if v is None else (sign * (v - c), (atom, j)))
+                    return out
             for j, (t, values) in enumerate(self.trace):
                 a, b = number(f.left, values, t), number(f.right, values, t)
                 out.append(None if a is None or b is None else (_margin(f.op, a, b), (atom, j)))
