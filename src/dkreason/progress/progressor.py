@@ -169,6 +169,10 @@ class Progressor:
         # robustness: the states `step` was given, and each formula's tree and first state
         self.trace: list[tuple[Time, dict[FeatureKey, Any]]] | None = [] if robustness else None
         self.trees: dict[int, tuple[Formula, int]] = {}
+        # what `step` does with a state besides judging it (one test a state when nothing)
+        self.keeping: Callable[[Time, dict[FeatureKey, Any]], None] | None = (
+            self._keep if robustness else None
+        )
         self.pos = -1
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
@@ -203,6 +207,8 @@ class Progressor:
         self.unstarted.append(judged)
         self.keys.update(base_features(parsed))
         self.samples.want(terms(parsed))
+        if self.samples.terms:
+            self.keeping = self._keep
         self.spelling = _UNSEEN
 
     def step(
@@ -226,11 +232,17 @@ class Progressor:
         except KeyError:
             self.spelling = _spelling(values, self.keys, time)
             typed = {k: values[s] for k, s in self.spelling}
-        if self.samples.terms:
-            self.samples.fill(t, typed)
-        if self.trace is not None:
-            self.trace.append((t, typed))
+        if self.keeping is not None:
+            self.keeping(t, typed)
         return [*self.stepper(t, typed, time)]
+
+    def _keep(self, t: Time, values: dict[FeatureKey, Any]) -> None:
+        """A state given to `step`: its terms over samples written in, and kept for
+        robustness."""
+        if self.samples.terms:
+            self.samples.fill(t, values)
+        if self.trace is not None:
+            self.trace.append((t, values))
 
     def step_state(
         self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
