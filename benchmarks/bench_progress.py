@@ -11,10 +11,16 @@ their own hand-written past-time forms (rtamt's pastify() mistranslates P3; reel
 only) and, being slower, fewer states per run: the count is printed with each figure.  Reelay's
 atoms compare a field with a constant only, so its P2 trace carries D = B - C precomputed.
 
+Then robustness (issue 30), beside rtamt's discrete-time offline evaluator on the same traces
+and formulas (the margin at every state, as rtamt gives it; 1 and 100 formulas):
+
+R1 always (x > c)      R2 always (a > c and b > c)      R3 always (x > c -> eventually[0,w] y > c)
+
 Last, memory over a 1,000,000-state run of P3 (bounded windows): traced memory after 10%, 50%
 and 100% of the states.
 
     python -m benchmarks.bench_progress [--json] [--states N]   (peers: pip install rtamt reelay)
+    python -m benchmarks.bench_progress --robustness-only       (the robustness rows alone)
 """
 
 from __future__ import annotations
@@ -28,7 +34,10 @@ import tracemalloc
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+from dkreason.model import FeatureKey
+from dkreason.parse.formula import parse_formula
 from dkreason.progress import Progressor
+from dkreason.progress.robustness import margins
 
 ROUNDS = 3
 TARGET_RTAMT = 10.0  # at least 10x rtamt on every row
@@ -184,6 +193,133 @@ def with_reelay(kind: str, n: int, states: list[dict[str, Any]]) -> tuple[float,
     return best(lambda: run)
 
 
+def robust_spec(kind: str, k: int, past: bool = False) -> tuple[str, list[str]]:
+    """The k-th formula of a robustness row, in the spelling dkreason and rtamt both read;
+    `past`: its past-time form, for rtamt's online monitor."""
+    c, w = 10 - k / 10, 5 + k % 10
+    if kind == "R1":
+        return f"{'historically' if past else 'always'} (x > {c})", ["x"]
+    if kind == "R2":
+        return f"{'historically' if past else 'always'} (a > {c} and b > c)", ["a", "b", "c"]
+    if past:
+        return f"historically((once[{w},{w}] (x > {c})) -> once[0,{w}] (y > {c}))", ["x", "y"]
+    return f"always (x > {c} -> eventually[0,{w}] (y > {c}))", ["x", "y"]
+
+
+def robust_trace(n: int, seed: int = 7) -> list[dict[str, float]]:
+    rnd = random.Random(seed)
+    return [{v: rnd.uniform(0, 20) for v in ("x", "y", "a", "b", "c")} for _ in range(n)]
+
+
+def robust_ours(kind: str, n: int, rows: list[dict[str, float]]) -> tuple[float, int]:
+    def prepare() -> Callable[[], int]:
+        trees = [parse_formula(robust_spec(kind, k)[0]) for k in range(n)]
+        trace = [(t, {FeatureKey(v): x for v, x in row.items()}) for t, row in enumerate(rows)]
+
+        def run() -> int:
+            for tree in trees:
+                margins(tree, trace)
+            return len(trace)
+
+        return run
+
+    return best(prepare)
+
+
+def robust_rtamt(kind: str, n: int, rows: list[dict[str, float]]) -> tuple[float, int] | None:
+    try:
+        import rtamt
+    except ImportError:
+        return None
+    monitors = []
+    for k in range(n):
+        text, variables = robust_spec(kind, k)
+        monitor = rtamt.StlDiscreteTimeOfflineSpecification()
+        for v in variables:
+            monitor.declare_var(v, "float")
+        monitor.spec = text
+        monitor.parse()
+        monitors.append((monitor, variables))
+    times = list(range(len(rows)))
+    columns = {v: [r[v] for r in rows] for v in rows[0]}
+
+    def run() -> int:
+        for monitor, variables in monitors:
+            monitor.evaluate({"time": times, **{v: columns[v] for v in variables}})
+        return len(rows)
+
+    return best(lambda: run)
+
+
+def robust_rtamt_online(
+    kind: str, n: int, rows: list[dict[str, float]]
+) -> tuple[float, int] | None:
+    try:
+        import rtamt
+    except ImportError:
+        return None
+    monitors = []
+    for k in range(n):
+        text, variables = robust_spec(kind, k, past=True)
+        monitor = rtamt.StlDiscreteTimeSpecification()
+        for v in variables:
+            monitor.declare_var(v, "float")
+        monitor.spec = text
+        monitor.parse()
+        monitors.append((monitor, variables))
+    given = [[[(v, r[v]) for v in variables] for r in rows] for _, variables in monitors]
+
+    def run() -> int:
+        for (monitor, _), samples in zip(monitors, given, strict=True):
+            for t, sample in enumerate(samples):
+                monitor.update(t, sample)
+        return len(rows)
+
+    return best(lambda: run)
+
+
+def robustness_rows(states: int) -> list[dict[str, Any]]:
+    out = []
+    full = robust_trace(states)
+    for kind in ("R1", "R2", "R3"):
+        for n in (1, 100):
+            mine, count = robust_ours(kind, n, full[: max(states // n, 1_000)])
+            row: dict[str, Any] = {"row": kind, "formulas": n, "ours": round(mine)}
+            row["ours_states"] = count
+            peer_states = max(200, min(states, int(PEER_BUDGET / (40e-6 * n))))
+            got = robust_rtamt(kind, n, full[:peer_states])
+            if got is not None:
+                row["rtamt"], row["rtamt_states"] = round(got[0]), got[1]
+                row["x_rtamt"] = round(mine / got[0], 2)
+            online_states = max(200, min(states, int(PEER_BUDGET / (100e-6 * n))))
+            got = robust_rtamt_online(kind, n, full[:online_states])
+            if got is not None:
+                row["rtamt_online"], row["rtamt_online_states"] = round(got[0]), got[1]
+                row["x_rtamt_online"] = round(mine / got[0], 2)
+            out.append(row)
+    return out
+
+
+def print_robustness(rows: list[dict[str, Any]]) -> None:
+    print(
+        "robustness: states/s (CPU, best of 3), every state's margin; beside rtamt's offline "
+        "evaluator (the same formulas) and its online monitor (their past-time forms)"
+    )
+    print(
+        f"{'row':<4}{'n':>4}{'dkreason':>12}{'offline':>10}{'x':>7}{'online':>10}{'x':>7}"
+        "  target (offline)"
+    )
+    for r in rows:
+        ok = r.get("x_rtamt", TARGET_RTAMT) >= TARGET_RTAMT
+        print(
+            f"{r['row']:<4}{r['formulas']:>4}{r['ours']:>12,}{r.get('rtamt', 0):>10,}"
+            f"{r.get('x_rtamt', '-'):>7}{r.get('rtamt_online', 0):>10,}"
+            f"{r.get('x_rtamt_online', '-'):>7}  {'met' if ok else 'MISSED'}  "
+            f"[{r['ours_states']:,} / {r.get('rtamt_states', '-')} / "
+            f"{r.get('rtamt_online_states', '-')}]"
+        )
+
+
 def memory(states: int) -> list[tuple[int, int]]:
     """Traced memory (bytes) after 10%, 50% and 100% of a P3 run."""
     rows = trace("P3", 20_000)
@@ -206,7 +342,16 @@ def main() -> None:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--states", type=int, default=100_000)
     parser.add_argument("--memory-states", type=int, default=1_000_000)
+    parser.add_argument("--robustness-states", type=int, default=20_000)
+    parser.add_argument("--robustness-only", action="store_true")
     args = parser.parse_args()
+    robust = robustness_rows(args.robustness_states)
+    if args.robustness_only:
+        if args.json:
+            print(json.dumps({"robustness": robust}, indent=1))
+        else:
+            print_robustness(robust)
+        return
     results = []
     for kind in ("P1", "P2", "P3", "P4", "P5"):
         full = trace(kind, args.states)
@@ -230,7 +375,7 @@ def main() -> None:
             results.append(row)
     mem = memory(args.memory_states)
     if args.json:
-        print(json.dumps({"rows": results, "memory": mem}, indent=1))
+        print(json.dumps({"rows": results, "robustness": robust, "memory": mem}, indent=1))
         return
     print("states/s (CPU, best of 3); ours/peer ratio; [states per run]")
     print(
@@ -247,6 +392,7 @@ def main() -> None:
             f"  {verdict}  [{r['ours_states']:,} / {r.get('rtamt_states', '-')} / "
             f"{r.get('reelay_states', '-')}]"
         )
+    print_robustness(robust)
     print(
         "memory of P3 over a long run (states: traced bytes): "
         + ", ".join(f"{n:,}: {b:,}" for n, b in mem)

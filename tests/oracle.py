@@ -9,6 +9,7 @@ unknown), which is the three-valued prefix evaluation the engine must be at leas
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from typing import Any
 
@@ -21,11 +22,14 @@ from dkreason.parse.formula import (
     Connective,
     Expr,
     Formula,
+    Fresh,
+    Func,
     Interval,
     Not,
     Num,
     Observed,
     Ref,
+    Sampled,
     Temporal,
     Unary,
     Until,
@@ -52,16 +56,41 @@ def key(ref: FeatureRef) -> str:
     return ref.name + (f"[{','.join(a.name for a in ref.args)}]" if ref.args else "")
 
 
-def num(e: Expr, values: dict[str, Any]) -> Any:
+def samples(ref: FeatureRef, tr: Trace, i: int) -> list[tuple[Fraction, Any]]:
+    """The feature's samples up to position i, newest first: each state where it has a value."""
+    return [(t, v[key(ref)]) for t, v in reversed(tr[: i + 1]) if v[key(ref)] is not None]
+
+
+def sampled(e: Sampled, tr: Trace, i: int) -> Any:
+    found = samples(e.arg.feature, tr, i)
+    if e.op == "age":
+        return tr[i][0] - found[0][0] if found else None
+    if len(found) < 2:
+        return None
+    (t1, v1), (t0, v0) = found[:2]
+    return {"prev": v0, "delta": v1 - v0, "rate": (v1 - v0) / (t1 - t0)}[e.op]
+
+
+def num(e: Expr, tr: Trace, i: int) -> Any:
+    values = tr[i][1]
     if isinstance(e, Num):
         return e.value
     if isinstance(e, Ref):
         return values[key(e.feature)]
+    if isinstance(e, Sampled):
+        return sampled(e, tr, i)
+    if isinstance(e, Func):
+        a, b = num(e.left, tr, i), num(e.right, tr, i)
+        if a is None or b is None:
+            return None
+        return {"min": min(a, b), "max": max(a, b), "hypot": math.hypot(a, b)}[e.op]
     if isinstance(e, Unary):
-        v = num(e.arg, values)
-        return None if v is None else -v if e.op == "-" else abs(v)
+        v = num(e.arg, tr, i)
+        if v is None or (e.op == "sqrt" and v < 0):
+            return None
+        return {"-": -v, "abs": abs(v), "sqrt": math.sqrt(v)}[e.op]
     if isinstance(e, Arith):
-        a, b = num(e.left, values), num(e.right, values)
+        a, b = num(e.left, tr, i), num(e.right, tr, i)
         if a is None or b is None or (e.op == "/" and b == 0):
             return None
         return {"+": a + b, "-": a - b, "*": a * b, "/": a / b}[e.op]
@@ -81,8 +110,11 @@ def holds(f: Formula, tr: Trace, i: int, prefix: bool = False, finite: bool = Fa
         return value
     if isinstance(f, Observed):
         return tr[i][1][key(f.feature)] is not None
+    if isinstance(f, Fresh):
+        found = samples(f.arg.feature, tr, i)
+        return bool(found) and t - found[0][0] <= f.limit
     if isinstance(f, Compare):
-        a, b = num(f.left, tr[i][1]), num(f.right, tr[i][1])
+        a, b = num(f.left, tr, i), num(f.right, tr, i)
         if a is None or b is None:
             return None
         return bool(

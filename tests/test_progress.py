@@ -36,7 +36,25 @@ intervals = st.one_of(
     st.integers(0, 3).map(lambda a: f"[{a}, oo]"),
     st.integers(0, 3).map(lambda a: f"[{a}, {a}]"),
 )
-atoms = st.sampled_from(["P", "Q", "X > 2", "X <= 1", "true", "false", "X + 1 >= 3"])
+atoms = st.sampled_from(
+    [
+        "P",
+        "Q",
+        "X > 2",
+        "X <= 1",
+        "true",
+        "false",
+        "X + 1 >= 3",
+        "rate(X) > 1",
+        "delta(X) < 0",
+        "prev(X) == 2",
+        "age(X) <= 1",
+        "fresh(X, 1500ms)",
+        "max(X, prev(X)) >= 3",
+        "sqrt(X - 1) < 1.5",
+        "min(hypot(X, 1), 2) < 2",
+    ]
+)
 UNARY = ["not", "always", "eventually", "next", "historically", "once", "previous"]
 BINARY = ["and", "or", "->", "<->", "until", "since"]
 

@@ -20,6 +20,8 @@ from .expand import Binder
 from .model import FeatureKey
 from .plan import Bindings, FormulaPlan, fold
 from .progress import InstanceVerdict, UnknownSpan, Verdict
+from .progress.robustness import UNKNOWN, Rho, lower, upper
+from .progress.verdict import INF, Margin
 from .progress.witness import SHOWN, UNDECIDED
 from .stream.units import seconds
 
@@ -92,8 +94,41 @@ class Judged:
             return InstanceVerdict(self.names[n], None, None, False, "open")
         status = NEVER if v.verdict is None and v.time is None else STATUS[v.verdict]
         return InstanceVerdict(
-            self.names[n], v.verdict, v.time, v.at_end, status, v.witness, v.pending, v.t
+            self.names[n],
+            v.verdict,
+            v.time,
+            v.at_end,
+            status,
+            v.witness,
+            v.pending,
+            v.t,
+            v.robustness,
         )
+
+    def margin(self) -> Margin | None:
+        """The formula's robustness from its instances' (when asked): the least of them for
+        `forall`, the greatest for `exists`, an unknown or open one as robustness.lower and
+        upper take it."""
+        if not any(v.robustness is not None for v in self.settled.values()):
+            return None
+
+        def leaf(bindings: Bindings) -> Rho:
+            v = self.settled.get(self.index[bindings])
+            m = None if v is None else v.robustness
+            return None if m is None or m.value is None else (m.value, m)
+
+        def join(op: str, parts: list[Rho]) -> Rho:
+            acc: Rho = (INF, None) if op == "forall" else (-INF, None)
+            fold = lower if op == "forall" else upper
+            for part in parts:
+                acc = fold(acc, part)
+            return acc
+
+        found = fold(self.prefix, leaf, join)
+        if found is None:
+            return UNKNOWN
+        m = found[1]
+        return m if isinstance(m, Margin) else Margin(found[0], None)
 
     def _verdict(
         self,
@@ -140,6 +175,7 @@ class Judged:
             pending=pending,
             instances=instances,
             window=window,
+            robustness=self.margin(),
         )
 
 

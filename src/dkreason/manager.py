@@ -115,6 +115,7 @@ class KnowledgeManager:
         record: str | Path | None = None,
         clips: str | Path | None = None,
         margin: float | Fraction = 2,
+        robustness: bool = False,
     ) -> MonitorRun:
         """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
         recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
@@ -123,7 +124,9 @@ class KnowledgeManager:
         violations as they happen; all times are seconds.  Over ROS recordings, once iterated
         it writes `record` (an MCAP file: the relevant topics byte for byte, the events as
         `foxglove.Log` and JSON) and into the folder `clips` one MCAP file per violation
-        (`margin` s around its witness window; `run.written` names them)."""
+        (`margin` s around its witness window; `run.written` names them).  `robustness`: each
+        verdict, and each instance's, says by how much it held or failed and what decided it
+        (its `robustness`: progress.robustness)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
         from .stream.binding import open_recordings
@@ -144,7 +147,11 @@ class KnowledgeManager:
             else source
         )
         engine = Monitor(
-            self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
+            self.plan(formulas),
+            self.request,
+            policy or StreamPolicy(),
+            keep_states=keep_states,
+            robustness=robustness,
         )
         if record is None and clips is None:
             return MonitorRun(engine, opened)

@@ -25,11 +25,14 @@ from .model import FeatureKey, StreamRequest
 from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
-from .progress.state import USE, feature_uses
+from .progress.compile import scaled
+from .progress.robustness import UNKNOWN, robustness
+from .progress.state import USE, feature_uses, features, terms
 from .progress.witness import Clock, Time, undecided
 from .stream.policy import StreamPolicy
 from .stream.processor import StreamProcessor, Violation
 from .stream.sources import Source
+from .stream.terms import term_key
 from .stream.units import NS, seconds
 
 Event = Verdict | Violation
@@ -44,6 +47,9 @@ class _Group:
     def __init__(self, keys: frozenset[FeatureKey], formula: int | None) -> None:
         self.keys, self.formula = keys, formula
         self.progressor: Progressor
+        # with robustness: the states it was judged at, with what its formulas read
+        self.trace: list[tuple[int, dict[FeatureKey, Any]]] = []
+        self.reads: set[FeatureKey] = set()
 
 
 Unit = tuple[int, int]  # an instance being judged: (formula, instance) in the plan
@@ -69,8 +75,14 @@ class Monitor:
         policy: StreamPolicy,
         *,
         keep_states: bool = False,
+        robustness: bool = False,
     ) -> None:
         self.plan, self.match, self.policy, self.keep_states = plan, match, policy, keep_states
+        # robustness: each group keeps its states, and each instance where it began in them
+        # and its tree in stream units (`_margin`); Boolean monitoring does none of it
+        self.robust = robustness
+        self.begun: dict[str, tuple[_Group, int, Any]] = {}
+        self._sources: dict[FeatureKey, str] | None = None
         self.request = match(plan)
         self.judged = [Judged(f) for f in plan.formulas]
         self.groups: dict[frozenset[FeatureKey], _Group] = {}
@@ -92,6 +104,9 @@ class Monitor:
         self.units: dict[str, Unit] = {}  # an instance's name in its progressor → its unit
         self.waiting: dict[Unit, Instance] = {}  # not begun: some feature had no value yet
         self.waits_on: dict[FeatureKey, list[Unit]] = {}  # the waiting units reading each
+        # what a waiting unit needs known to begin: its features, and its terms over samples
+        # (`rate(X)` waits for X's second sample)
+        self.needs: dict[Unit, tuple[FeatureKey, ...]] = {}
         for n, f in enumerate(plan.formulas):
             self._wait(n, range(len(f.instances)), f.instances)
             self._time(n, f)
@@ -117,6 +132,7 @@ class Monitor:
             self._on_state,
             self.pending.append,
             frozenset(k for k, (use, _) in used.items() if use == "string"),
+            self._terms(),
         )
         for k, (use, text) in used.items():
             for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
@@ -131,9 +147,17 @@ class Monitor:
     def _uses(self) -> dict[FeatureKey, tuple[str, str]]:
         return feature_uses((f.text, i.tree) for f in self.plan.formulas for i in f.instances)
 
+    def _terms(self) -> set[tuple[str, FeatureKey]]:
+        """The terms over samples the formulas read (`prev(X)`): the states carry them."""
+        return {t for f in self.plan.formulas for i in f.instances for t in terms(i.tree)}
+
     def _wait(self, n: int, indices: Iterable[int], instances: Sequence[Instance]) -> None:
         for i, instance in zip(indices, instances, strict=True):
             self.waiting[(n, i)] = instance
+            self.needs[(n, i)] = (
+                *instance.keys,
+                *(term_key(op, k) for op, k in sorted(terms(instance.tree)) if op != "age"),
+            )
             for k in instance.keys:
                 self.waits_on.setdefault(k, []).append((n, i))
 
@@ -150,6 +174,7 @@ class Monitor:
     def _begin(self, units: list[Unit]) -> None:
         for unit in sorted(units):
             instance = self.waiting.pop(unit)
+            del self.needs[unit]
             keys = frozenset(instance.keys)
             quantified = unit[0] if unit[0] in self.timers else None
             at: Any = keys if quantified is None else (quantified, keys)
@@ -169,6 +194,10 @@ class Monitor:
             name = f"{unit[0]}:{unit[1]}"
             self.units[name] = unit
             group.progressor.add(name, instance.tree)
+            if self.robust:
+                group.reads.update(features(instance.tree))
+                tree = scaled(instance.tree, Fraction(NS))
+                self.begun[name] = (group, len(group.trace), tree)
         self.steps.clear()
 
     def _arm(self, group: _Group, deadline: Time) -> None:
@@ -199,7 +228,7 @@ class Monitor:
         ready = [
             u
             for u in candidates
-            if u in self.waiting and all(values[k] is not None for k in self.waiting[u].keys)
+            if u in self.waiting and all(values[k] is not None for k in self.needs[u])
         ]
         if ready:
             read = {k for u in ready for k in self.waiting[u].keys}
@@ -231,6 +260,9 @@ class Monitor:
             if len(self.steps) >= 1024:  # many features sampled in many combinations
                 self.steps.clear()
             steps = self.steps[fresh] = [g.progressor for g in self._due(fresh)]
+        if self.robust:
+            for g in self._due(fresh):
+                g.trace.append((time, {k: values[k] for k in g.reads}))
         decided: Sequence[Verdict] = self._timers(fresh, time, steps) if self.timers else ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
@@ -283,12 +315,51 @@ class Monitor:
         batches: dict[int, list[tuple[int, Verdict]]] = {}
         for v, last in decided:
             n, i = self.units[v.formula]
+            if self.robust:
+                v = dataclasses.replace(v, robustness=self._margin(v, at_end))
             batches.setdefault(n, []).append((i, self._seconds(v, last)))
         for n in sorted(batches) if not at_end else range(len(self.judged)):
             judged = self.judged[n]
             if n in batches or judged.said is None:
                 batch = sorted(batches.get(n, ()), key=itemgetter(0))
                 self.pending.extend(judged.settle(batch, now, at_end))
+
+    def _margin(self, v: Verdict, at_end: bool) -> Any:
+        """An instance's robustness over the states it was judged at, up to its verdict's;
+        a window reaching past the data seen then (or past the end of the data, unless every
+        window closes at the last state) unknown in its unseen part."""
+        if v.formula not in self.begun:
+            return UNKNOWN  # never observed
+        group, start, tree = self.begun[v.formula]
+        upto = v.time
+        trace = group.trace[start:]
+        if upto is not None:
+            trace = [s for s in trace if s[0] <= upto]
+        end = upto
+        if at_end:
+            assert self.processor is not None
+            end = self.processor.horizon() if self.policy.end_of_data == "open" else None
+        clock = Clock(Fraction(1, NS), self.origin)
+        return robustness(tree, trace, end, clock, self.sources(), seconds)
+
+    def sources(self) -> dict[FeatureKey, str]:
+        """Where each feature's values are read, as a margin names it: `platform/topic field`,
+        and what the topic's specification calls it when that differs (an equivalent
+        feature, another platform's names: `via Alt[uas21]`); merged topics joined by `or`."""
+        if self._sources is None:
+            self._sources = {}
+            for f in self.request.features:
+                k = f.feature.key
+                self._sources[k] = " or ".join(
+                    f"{t.platform}/{t.topic} {t.field}"
+                    + (
+                        ""
+                        if (t.as_feature, t.as_args) == (k.name, k.args)
+                        else f" via {t.as_feature}[{', '.join(t.as_args)}]"
+                    )
+                    for t in f.topics
+                )
+        return self._sources
 
     def _seconds(self, v: Verdict, last: int | None) -> Verdict:
         """A progressor's verdict in seconds, on the recording's clock (`time`) and from its
@@ -340,7 +411,7 @@ class Monitor:
                 )
                 for b, c in zip(old.prefix, new.prefix, strict=True)
             )
-            grown = FormulaPlan(old.text, prefix, (*old.instances, *fresh))
+            grown = FormulaPlan(old.text, prefix, (*old.instances, *fresh), old.warnings)
             formulas.append(grown)
             self._time(n, grown)
             indices = judged.extend(grown)
@@ -356,10 +427,12 @@ class Monitor:
         """The plan's features matched again (the knowledge changed); the streams follow."""
         assert self.processor is not None
         self.request = self.match(self.plan)
+        self._sources = None
         self.processor.texts = frozenset(
             k for k, (use, _) in self._uses().items() if use == "string"
         )
         self.processor.reroute(self.request, source)
+        self.processor.want(self._terms())
         return self.request
 
     def finish(self, end: int | None = None) -> list[Event]:
@@ -436,6 +509,11 @@ class MonitorRun:
     @property
     def request(self) -> StreamRequest:
         return self.monitor.request
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the formulas probably do not mean, one line each (the request's first)."""
+        return self.monitor.plan.warnings
 
     @property
     def absent(self) -> dict[str, tuple[str, ...]]:

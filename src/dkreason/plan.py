@@ -13,7 +13,7 @@ from .check import check_formula
 from .expand import Binder, Instance, expand, union
 from .kb import KnowledgeBase
 from .model import FeatureKey, GroundFeature
-from .parse.formula import BoolConst, Formula, chain, parse_formula
+from .parse.formula import BoolConst, Formula, chain, parse_formula, self_comparisons
 
 T = TypeVar("T")
 Bindings = tuple[tuple[str, str], ...]
@@ -36,11 +36,13 @@ def parse(formulas: Sequence[str | Parsed]) -> tuple[Parsed, ...]:
 class FormulaPlan:
     """One formula as written: its outermost quantifiers (`prefix`, each with the objects it
     ranges over) and an instance per binding of their variables (a formula without them is
-    its one instance, with no bindings)."""
+    its one instance, with no bindings).  `warnings`: what it probably does not mean, one
+    line each (a comparison of a term with itself)."""
 
     text: str
     prefix: tuple[Binder, ...]
     instances: tuple[Instance, ...]
+    warnings: tuple[str, ...] = ()
 
     @property
     def tree(self) -> Formula:
@@ -94,10 +96,15 @@ class Plan:
     def text(self) -> str:
         return "; ".join(f.text for f in self.formulas)
 
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        return tuple(w for f in self.formulas for w in f.warnings)
+
 
 def plan(kb: KnowledgeBase, formulas: Sequence[str | Parsed]) -> Plan:
     out = []
     for f in parse(formulas):
         expansion = expand(kb, f.tree, check_formula(kb, f.tree))
-        out.append(FormulaPlan(f.text, expansion.prefix, expansion.instances))
+        warnings = tuple(self_comparisons(f.tree))
+        out.append(FormulaPlan(f.text, expansion.prefix, expansion.instances, warnings))
     return Plan(tuple(out))

@@ -4,6 +4,7 @@ field to read and the id filter that selects the feature's objects in the topic'
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Sequence
 
 from .kb import KnowledgeBase
 from .match import Match, Rejected, match
@@ -16,7 +17,7 @@ def request(kb: KnowledgeBase, plan: Plan) -> StreamRequest:
     """The topics of every ground feature of the plan, matched in one query."""
     ground = list(plan.ground)
     matches, rejected = match(kb, ground)
-    return build_request(kb, plan.text, ground, matches, rejected)
+    return build_request(kb, plan.text, ground, matches, rejected, plan.warnings)
 
 
 def build_request(
@@ -25,7 +26,9 @@ def build_request(
     ground: list[GroundFeature],
     matches: list[Match],
     rejected: list[Rejected],
+    notes: Sequence[str] = (),
 ) -> StreamRequest:
+    """`notes`: warnings about the formula itself (plan.FormulaPlan.warnings), said first."""
     per_feature: dict[int, dict[TopicMatch, int]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
@@ -49,7 +52,7 @@ def build_request(
         )
         for q, g in enumerate(ground)
     )
-    warnings = [*kb.warnings, *_warnings(kb, ground, rejected)]
+    warnings = [*notes, *kb.warnings, *_warnings(kb, ground, rejected)]
     namespaces = tuple(
         (p.name, p.namespace)
         for p in (kb.config.platforms if kb.config else ())

@@ -46,6 +46,8 @@ def monitor(args: argparse.Namespace) -> int:
         raise DkError("--record is for recordings and --ros2 (--live samples are no ROS messages)")
     if args.clips is not None and (args.live or args.ros2):
         raise DkError("--clips is for recordings (--source)")
+    if args.robustness and (args.live or args.ros2):
+        raise DkError("--robustness is for recordings (--source)")
     if args.ros2:
         return live.monitor_ros2(args, stream_policy)
     if args.live:
@@ -65,6 +67,7 @@ def monitor(args: argparse.Namespace) -> int:
         record=args.record,
         clips=args.clips,
         margin=args.clip_margin,
+        robustness=args.robustness,
     )
     for topic, features in run.absent.items():
         print(f"warning: {topic} (for {', '.join(features)}) is in no recording", file=sys.stderr)
@@ -72,6 +75,8 @@ def monitor(args: argparse.Namespace) -> int:
         print(f"note: {note}", file=sys.stderr)
     if not args.json:
         print(render.request(run.request), flush=True)
+    if args.json:  # (the request said them otherwise)
+        render.formula_warnings(run.warnings, args.json)
     events: list[Any] = []
     error = None
     with render.progress_bar(run.count() if not args.json else None, not args.json) as tick:
@@ -127,17 +132,18 @@ def plot(args: argparse.Namespace) -> int:
 
 
 def progress(args: argparse.Namespace) -> int:
-    progressor = Progressor(end_of_data=args.end_of_data or DEFAULT.end_of_data)
+    progressor = Progressor(
+        end_of_data=args.end_of_data or DEFAULT.end_of_data, robustness=args.robustness
+    )
+    planned = KnowledgeManager.from_config(args.config).plan(args.formulas) if args.config else None
     trees = (
-        [
-            (f.text, f.tree)
-            for f in KnowledgeManager.from_config(args.config).plan(args.formulas).formulas
-        ]
-        if args.config
+        [(f.text, f.tree) for f in planned.formulas]
+        if planned
         else [(f, parse_formula(f)) for f in args.formulas]
     )
     for text, tree in trees:
-        progressor.add(text, tree if args.config else None)
+        progressor.add(text, tree if planned else None)
+    render.formula_warnings(planned.warnings if planned else progressor.warnings, args.json)
     used = {k: use for k, (use, _) in feature_uses(trees).items()}
     verdicts = []
 
@@ -150,7 +156,8 @@ def progress(args: argparse.Namespace) -> int:
                 when = "at end" if v.at_end else "at"
                 print(
                     f"{when} {v.time}: {render.shout(v.verdict)}  {v.formula}"
-                    + (f"\n    {v.witness}" if v.witness else ""),
+                    + (f"\n    {v.witness}" if v.witness else "")
+                    + (f"\n    robustness: {v.robustness.text()}" if v.robustness else ""),
                     flush=True,
                 )
 

@@ -80,9 +80,19 @@ def _progress(sub: a.Sub) -> None:
     )
     p.add_argument("--config", type=Path, help="TOML config: quantifiers range over its objects")
     p.add_argument("--json", action="store_true", help="one JSON line per formula")
+    _robustness(p)
     _end_of_data(p)
     p.add_argument("formulas", nargs="+", metavar="FORMULA")
     p.set_defaults(run="monitoring:progress")
+
+
+def _robustness(p: Any) -> None:
+    p.add_argument(
+        "--robustness",
+        action="store_true",
+        help="with each verdict, by how much it held or failed (STL space robustness), its "
+        "critical atom and where that atom's values came from",
+    )
 
 
 def _monitor(sub: a.Sub) -> None:
@@ -111,6 +121,7 @@ def _monitor(sub: a.Sub) -> None:
     )
     out = p.add_argument_group("output")
     out.add_argument("--json", action="store_true", help="JSON lines: verdicts and violations")
+    _robustness(out)
     out.add_argument(
         "--plot",
         type=Path,

@@ -8,7 +8,7 @@ import datetime
 import json
 import sys
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
@@ -55,6 +55,8 @@ def event(event: Event, as_json: bool) -> None:
             lines = [f"{said}: {shout(event.verdict)}  {event.formula}"]
             if event.witness:
                 lines.append(event.witness)
+            if event.robustness is not None:
+                lines.append(f"robustness: {event.robustness.text()}")
         if event.pending and event.witness is None:
             lines.append(f"pending: {event.pending}")
         if event.instances is not None:
@@ -166,6 +168,16 @@ def request(request: StreamRequest) -> str:
             )
     lines += [f"Warning: {w}" for w in request.warnings]
     return "\n".join(lines)
+
+
+def formula_warnings(found: Sequence[str], as_json: bool) -> None:
+    """What formulas probably do not mean (`X != X`): JSON lines `{"warning": …}` before the
+    verdicts, or lines on stderr."""
+    for w in found:
+        if as_json:
+            print(json.dumps({"warning": w}, ensure_ascii=False), flush=True)
+        else:
+            print(f"warning: {w}", file=sys.stderr)
 
 
 def warnings(found: list[Diagnostic]) -> None:

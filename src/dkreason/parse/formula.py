@@ -61,10 +61,31 @@ class Arith:
 
 @dataclass(frozen=True, slots=True)
 class Unary:
-    """-x or abs(x)."""
+    """-x, abs(x) or sqrt(x)."""
 
-    op: str  # - abs
+    op: str  # - abs sqrt
     arg: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class Func:
+    """min(x, y), max(x, y) or hypot(x, y)."""
+
+    op: str  # min max hypot
+    left: Expr
+    right: Expr
+
+
+@dataclass(frozen=True, slots=True)
+class Sampled:
+    """A term over a feature's samples: `prev(X)` (its value at its previous sample),
+    `delta(X)`, `rate(X)` (per second of valid time between the two), `age(X)` (seconds
+    since its last sample).  The state carries each as a value of its own (`term_key`), so
+    whoever makes states (the stream processor, or the progressor from a state file) keeps
+    two samples a feature, no more."""
+
+    op: str  # prev delta rate age
+    arg: Ref
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,7 +95,7 @@ class Str:
     value: str
 
 
-Expr = Num | Str | Ref | Arith | Unary
+Expr = Num | Str | Ref | Arith | Unary | Func | Sampled
 
 
 # ---- formulas --------------------------------------------------------------------------------
@@ -96,6 +117,16 @@ class Observed:
     can be judged (`eventually[0, 5] observed(X)` from `--start`)."""
 
     feature: FeatureRef
+
+
+@dataclass(frozen=True, slots=True)
+class Fresh:
+    """`fresh(X, 500ms)`: X's last sample is at most `limit` seconds old (`age(X) <= limit`,
+    ages being seconds whatever the stream's unit).  Two-valued: false before X's first
+    sample."""
+
+    arg: Ref
+    limit: Fraction
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,7 +172,9 @@ class Quant:
     span: Span = field(compare=False)
 
 
-Formula = BoolConst | Atom | Observed | Compare | Not | Connective | Temporal | Until | Quant
+Formula = (
+    BoolConst | Atom | Observed | Fresh | Compare | Not | Connective | Temporal | Until | Quant
+)
 
 _PREFIX = {"□": "always", "◇": "eventually"}
 _WORD = {
@@ -190,8 +223,20 @@ class _ToAst(Transformer[Token, Any]):
     def abs_(self, children: list[Any]) -> Expr:
         return Unary("abs", _expr(children[1]))
 
+    def func1(self, children: list[Any]) -> Expr:
+        return Unary(str(children[0]), _expr(children[1]))
+
+    def func2(self, children: list[Any]) -> Expr:
+        return Func(str(children[0]), _expr(children[1]), _expr(children[2]))
+
+    def sampled(self, children: list[Any]) -> Expr:
+        return Sampled(str(children[0]), children[1])
+
     def observed(self, children: list[Any]) -> Observed:
         return Observed(children[1].feature)
+
+    def fresh(self, children: list[Any]) -> Fresh:
+        return Fresh(children[1], self.bound([children[2]]) or Fraction(0))
 
     def string(self, children: list[Token]) -> Str:
         text = str(children[0])
@@ -273,7 +318,7 @@ def _nest(op: str, bindings: list[tuple[str, str, Span]], body: Formula) -> Form
 
 
 def _expr(node: Any) -> Expr:
-    if isinstance(node, Num | Str | Ref | Arith | Unary):
+    if isinstance(node, Num | Str | Ref | Arith | Unary | Func | Sampled):
         return node
     if isinstance(node, BoolConst):
         return Num(int(node.value))
@@ -283,7 +328,7 @@ def _expr(node: Any) -> Expr:
 def _formula(node: Any) -> Formula:
     if isinstance(node, Ref):
         return Atom(node.feature)
-    if isinstance(node, Num | Str | Arith | Unary):
+    if isinstance(node, Num | Str | Arith | Unary | Func | Sampled):
         raise ParseError("a number is not a formula: compare it with something", _where(node))
     return node  # type: ignore[no-any-return]
 
@@ -340,7 +385,7 @@ def _balanced(node: Any, depth: int) -> Any:
         raise ParseError(f"formula nested more than {MAX_DEPTH} levels deep", _where(node))
     if isinstance(node, Connective) and node.op in ASSOCIATIVE:
         return chain(node.op, [_balanced(n, depth + 1) for n in _links(node)])
-    if isinstance(node, Compare | Connective | Arith | Until):
+    if isinstance(node, Compare | Connective | Arith | Func | Until):
         return replace(
             node, left=_balanced(node.left, depth + 1), right=_balanced(node.right, depth + 1)
         )
@@ -408,10 +453,11 @@ def _walk(node: Any, env: dict[str, str]) -> Iterator[FeatureRef]:
 
 
 def children(node: Any) -> tuple[Any, ...]:
-    """The subformulas and subexpressions of a node, left to right."""
-    if isinstance(node, Compare | Connective | Arith | Until):
+    """The subformulas and subexpressions of a node, left to right (a term over samples, or
+    `fresh`, has its feature as its child)."""
+    if isinstance(node, Compare | Connective | Arith | Func | Until):
         return node.left, node.right
-    if isinstance(node, Not | Temporal | Unary):
+    if isinstance(node, Not | Temporal | Unary | Sampled | Fresh):
         return (node.arg,)
     if isinstance(node, Quant):
         return (node.body,)
@@ -425,6 +471,30 @@ def _feature_refs(node: Any) -> Iterator[FeatureRef]:
         if isinstance(n, Atom | Ref | Observed):
             yield n.feature
         todo += reversed(children(n))
+
+
+def self_comparisons(formula: Formula) -> list[str]:
+    """One warning line per comparison of a term with itself (`X != X`: its value never
+    changes), naming where it is and suggesting `prev(X)`; under `previous`, saying that the
+    operator took the whole comparison (`previous (X) != X` reads as `previous (X != X)`)."""
+    out: list[str] = []
+    todo: list[tuple[Any, bool]] = [(formula, False)]
+    while todo:
+        n, past = todo.pop()
+        if isinstance(n, Compare) and n.left == n.right:
+            said = "always true" if n.op in ("==", "<=", ">=") else "always false"
+            line = f"{_where(n)}: {unparse(n)} compares a term with itself ({said})"
+            for ref in list(_feature_refs(n.left))[:1]:
+                line += f"; its value at the previous sample is prev({feature_text(ref)})"
+            if past:
+                line += (
+                    " (previous applies to the whole comparison: "
+                    "`previous (X) != X` reads as `previous (X != X)`)"
+                )
+            out.append(line)
+        is_previous = isinstance(n, Temporal) and n.op == "previous"
+        todo += [(c, past or is_previous) for c in reversed(children(n))]
+    return out
 
 
 def quantifiers(formula: Formula) -> Iterator[Quant]:
@@ -481,9 +551,15 @@ def _unparse(n: Any, unit: Fraction | int) -> tuple[str, int]:
         return (repr(n.value) if abs(n.value) != float("inf") else "1e999"), FACTOR
     if isinstance(n, Str):
         return '"' + re.sub(r'(["\\])', r"\\\1", n.value) + '"', FACTOR
+    if isinstance(n, Sampled):
+        return f"{n.op}({feature_text(n.arg.feature)})", FACTOR
+    if isinstance(n, Fresh):
+        return f"fresh({feature_text(n.arg.feature)}, {decimal(n.limit)}s)", FACTOR
+    if isinstance(n, Func):
+        return f"{n.op}({_unparse(n.left, unit)[0]}, {_unparse(n.right, unit)[0]})", FACTOR
     if isinstance(n, Unary):
-        if n.op == "abs":
-            return f"abs({_unparse(n.arg, unit)[0]})", FACTOR
+        if n.op != "-":
+            return f"{n.op}({_unparse(n.arg, unit)[0]})", FACTOR
         inner = isinstance(n.arg, Unary) and n.arg.op == "-"
         return "-" + (f"({wrap(n.arg, FACTOR)})" if inner else wrap(n.arg, FACTOR)), FACTOR
     if isinstance(n, Arith):
@@ -541,6 +617,6 @@ def feature_key(text: str) -> FeatureKey | None:
 # lark compiles its lexers' expressions on first use (~9 ms): one formula using every kind of
 # token pays that here too.
 _PARSER.parse(
-    "forall x in S: always[0, 1ms] (A[x] > -1.5 * abs(B[x]) + 2 and not C[x] or "
+    "forall x in S: always[0, 1ms] (A[x] > -1.5 * abs(B[x]) + max(rate(A[x]), 1) and not C[x] or "
     'eventually D[x] == "s" -> E[x] until[0, 2] F[x] <-> true)'
 )

@@ -41,11 +41,12 @@ from ..parse.formula import (
     Ref,
     Temporal,
     Unary,
+    children,
     unparse,
 )
 from .compile import exact
 from .engine import Held, Report, Stepper, Timer, Unknown
-from .state import boolean_keys, evaluate, features, is_state, key, python, reads
+from .state import GLOBALS, boolean_keys, evaluate, features, is_state, key, python, reads
 from .witness import Clock, Time, Why, but, settled, state_was, window_closed, window_cut
 
 TRUE = BoolConst(True)
@@ -67,8 +68,9 @@ class Shape:
 
 
 def shape(f: Formula) -> Shape | None:
-    """The fused shape of a (quantifier-free) formula, if it has one."""
-    if not (isinstance(f, Temporal) and f.op == "always" and f.interval == ANY):
+    """The fused shape of a (quantifier-free) formula, if it has one (none for a formula with
+    a square root: the generated code here has no path for a value outside its domain)."""
+    if not (isinstance(f, Temporal) and f.op == "always" and f.interval == ANY) or _partial(f):
         return None
     body = f.arg
     if is_state(body):
@@ -90,6 +92,16 @@ def shape(f: Formula) -> Shape | None:
     lo, hi = exact(window.interval.lo), exact(window.interval.hi)
     assert lo is not None
     return Shape("response", trigger or TRUE, target, lo, hi, trigger, window)
+
+
+def _partial(f: Any) -> bool:
+    todo = [f]
+    while todo:
+        n = todo.pop()
+        if isinstance(n, Unary) and n.op == "sqrt":
+            return True
+        todo += children(n)
+    return False
 
 
 class Member:
@@ -304,7 +316,9 @@ def _constant(e: Any) -> int | float | None:
         return None if isinstance(e.value, bool) else e.value
     if isinstance(e, Unary):
         inner = _constant(e.arg)
-        return None if inner is None else -inner if e.op == "-" else abs(inner)
+        if inner is None or e.op not in ("-", "abs"):
+            return None
+        return -inner if e.op == "-" else abs(inner)
     if isinstance(e, Arith) and e.op in _FOLD:
         left, right = _constant(e.left), _constant(e.right)
         return None if left is None or right is None else _FOLD[e.op](left, right)
@@ -452,7 +466,7 @@ def _generate(fs: FusedSet) -> tuple[Run, Make]:
     keys = list(
         dict.fromkeys([*(k for f in formulas for k in features(f)), *(k for k, _ in thresholds)])
     )
-    scope: dict[str, Any] = {"fs": fs, "slow": evaluate}
+    scope: dict[str, Any] = {"fs": fs, "slow": evaluate, **GLOBALS}
     names, reading = reads(keys, "v", scope)
 
     def const(value: Any) -> str:  # a global of the generated code: one lookup, no index

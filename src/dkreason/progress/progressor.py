@@ -33,14 +33,23 @@ from typing import Any
 from ..errors import DkError
 from ..inputs.numbers import exact
 from ..model import FeatureKey
-from ..parse.formula import Connective, Formula, feature_key, parse_formula, quantifiers
+from ..parse.formula import (
+    Connective,
+    Formula,
+    feature_key,
+    parse_formula,
+    quantifiers,
+    self_comparisons,
+)
 from ..stream.policy import END_OF_DATA
+from ..stream.terms import Samples
 from .compile import scaled
 from .engine import Engine, Held, Report, Stepper, Timer
 from .fused import FusedSet
 from .general import General
-from .state import features, is_state
-from .verdict import UnknownSpan, Verdict
+from .robustness import robustness
+from .state import base_features, features, is_state, terms
+from .verdict import Margin, UnknownSpan, Verdict
 from .witness import Clock, Time, Why, cut_of, refuted, since, undecided
 
 ENGINES = ("auto", "general")
@@ -128,7 +137,8 @@ class Progressor:
     (module docstring).  `origin`: when given, witnesses say times as `t+…` seconds from the
     stream time it returns (the run's start).  `timer`: told by when a window will have ended
     (in the stream's times), so a caller that sees the stream pass it without a state of these
-    formulas can `advance` to it."""
+    formulas can `advance` to it.  `robustness`: each verdict of a state given to `step` says
+    by how much (progress.robustness), from the states `step` keeps for it."""
 
     def __init__(
         self,
@@ -137,6 +147,7 @@ class Progressor:
         end_of_data: str = "open",
         origin: Callable[[], Time | None] | None = None,
         timer: Timer | None = None,
+        robustness: bool = False,
     ) -> None:
         if engine not in ENGINES:
             raise DkError(f"unknown engine {engine!r} ({' or '.join(ENGINES)})")
@@ -150,9 +161,18 @@ class Progressor:
             (self.fused, self.general) if engine == "auto" else (self.general,)
         )
         self.formulas: list[_Formula] = []
+        self.warnings: list[str] = []  # of the formulas added as text (parse.self_comparisons)
         self.unstarted: list[_Formula] = []
         self.decided: list[_Formula] = []
-        self.keys: set[FeatureKey] = set()
+        self.keys: set[FeatureKey] = set()  # what `step` reads from the caller's states
+        self.samples = Samples(unit)  # the terms over samples `step` writes into them
+        # robustness: the states `step` was given, and each formula's tree and first state
+        self.trace: list[tuple[Time, dict[FeatureKey, Any]]] | None = [] if robustness else None
+        self.trees: dict[int, tuple[Formula, int]] = {}
+        # what `step` does with a state besides judging it (one test a state when nothing)
+        self.keeping: Callable[[Time, dict[FeatureKey, Any]], None] | None = (
+            self._keep if robustness else None
+        )
         self.pos = -1
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
@@ -174,15 +194,21 @@ class Progressor:
                 raise DkError(
                     f"{q.span}: quantifier over {q.sort} needs a knowledge base (give --config)"
                 )
+            self.warnings += self_comparisons(tree)
         parsed = scaled(tree, Fraction(1) / self.unit)
         self._general()  # the general step while this one is new
         judged = _Formula(formula, features(parsed), self.decided)
         for n, part in enumerate(conjuncts(parsed)):
             report = judged.report(n)
             next(e for e in self.engines if e.add(part, report))
+        if self.trace is not None:
+            self.trees[id(judged)] = (parsed, len(self.trace))
         self.formulas.append(judged)
         self.unstarted.append(judged)
-        self.keys.update(judged.keys)
+        self.keys.update(base_features(parsed))
+        self.samples.want(terms(parsed))
+        if self.samples.terms:
+            self.keeping = self._keep
         self.spelling = _UNSEEN
 
     def step(
@@ -190,7 +216,8 @@ class Progressor:
     ) -> list[Verdict]:
         """Feed one state; return the verdicts it decides.  Values are keyed by `FeatureKey`
         (as the stream processor makes them); keys written as text (`"Close[uav1, uav2]"`) are
-        read at this boundary, once per spelling."""
+        read at this boundary, once per spelling.  Each state where a feature has a value is a
+        sample of it (`prev(X)` is its value at the last such state before)."""
         t = time if type(time) is int else exact_time(time)
         if not t > self.stepped[0]:
             raise DkError(
@@ -205,7 +232,17 @@ class Progressor:
         except KeyError:
             self.spelling = _spelling(values, self.keys, time)
             typed = {k: values[s] for k, s in self.spelling}
+        if self.keeping is not None:
+            self.keeping(t, typed)
         return [*self.stepper(t, typed, time)]
+
+    def _keep(self, t: Time, values: dict[FeatureKey, Any]) -> None:
+        """A state given to `step`: its terms over samples written in, and kept for
+        robustness."""
+        if self.samples.terms:
+            self.samples.fill(t, values)
+        if self.trace is not None:
+            self.trace.append((t, values))
 
     def step_state(
         self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
@@ -304,12 +341,33 @@ class Progressor:
                 )
                 pending = None if m.cut is None else m.cut[1].render()
                 witness = undecided(unknown, m.started, self.clock, pending)
+            margin = None if self.trace is None else self._margin(m, time, at_end)
             out.append(
                 Verdict(
-                    m.text, m.value, time, at_end, witness, unknown, pending=pending, window=window
+                    m.text,
+                    m.value,
+                    time,
+                    at_end,
+                    witness,
+                    unknown,
+                    pending=pending,
+                    robustness=margin,
+                    window=window,
                 )
             )
         return out
+
+    def _margin(self, m: _Formula, time: Any, at_end: bool) -> Margin:
+        """A formula's robustness over the states from its first to its verdict's; a window
+        reaching past the data then seen (at the end: past its end, with end of data "open")
+        unknown in its unseen part."""
+        assert self.trace is not None
+        tree, start = self.trees[id(m)]
+        end = None if time is None else exact_time(time)
+        trace = [s for s in self.trace[start:] if end is None or s[0] <= end]
+        if at_end and self.end_of_data != "open":
+            end = None
+        return robustness(tree, trace, end, self.clock)
 
     def note_unknown(self, keys: Iterable[FeatureKey], pos: int, given: Any) -> None:
         """The engines' `Unknown`: these features were unknown at the state at `pos`."""

@@ -2,8 +2,9 @@
 
 Each compiles to a function of the state's values returning True, False or None (unknown,
 Kleene).  The generated code reads every feature first, then takes a two-valued fast path
-when all it reads as values are known (`observed(X)` reads only whether X has one), and falls
-back to a three-valued interpreter otherwise.
+when all it reads as values are known (`observed(X)` and `fresh(X, d)` read only whether X
+has one, and how old), and falls back to a three-valued interpreter otherwise.  A term over a
+feature's samples (`rate(X)`) is read from the state as a feature is (stream.terms).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import math
 import operator
 from collections.abc import Callable, Iterable, Mapping
+from fractions import Fraction
 from typing import Any
 
 from ..errors import DkError
@@ -23,15 +25,19 @@ from ..parse.formula import (
     Connective,
     Expr,
     Formula,
+    Fresh,
+    Func,
     Not,
     Num,
     Observed,
     Ref,
+    Sampled,
     Str,
     Unary,
     children,
     unparse,
 )
+from ..stream.terms import term_key
 
 Value = bool | None
 StateFn = Callable[[Mapping[FeatureKey, Any], Any], Value]  # (values, time)
@@ -52,8 +58,47 @@ def key(feature: Any) -> FeatureKey:
     return FeatureKey(feature.name, tuple(a.name for a in feature.args))
 
 
+def read_key(n: Atom | Ref | Observed | Sampled | Fresh) -> FeatureKey:
+    """The state key a leaf reads: its feature's, or its term's (`fresh` reads the age)."""
+    if isinstance(n, Sampled):
+        return term_key(n.op, key(n.arg.feature))
+    if isinstance(n, Fresh):
+        return term_key("age", key(n.arg.feature))
+    return key(n.feature)
+
+
+LEAVES = (Atom, Ref, Observed, Sampled, Fresh)
+
+
+def terms(f: Any) -> set[tuple[str, FeatureKey]]:
+    """The terms over samples a formula reads, as (term, feature): what its states carry."""
+    out: set[tuple[str, FeatureKey]] = set()
+    todo = [f]
+    while todo:
+        n = todo.pop()
+        if isinstance(n, Sampled):
+            out.add((n.op, key(n.arg.feature)))
+        elif isinstance(n, Fresh):
+            out.add(("age", key(n.arg.feature)))
+        else:
+            todo += children(n)
+    return out
+
+
+def base_features(f: Any) -> list[FeatureKey]:
+    """The features a formula reads, its terms' features in place of the terms."""
+    out: dict[FeatureKey, None] = {}
+    todo = [f]
+    while todo:
+        n = todo.pop()
+        if isinstance(n, Atom | Ref | Observed):
+            out[key(n.feature)] = None
+        todo += reversed(children(n))
+    return list(out)
+
+
 def is_state(f: Formula) -> bool:
-    if isinstance(f, BoolConst | Atom | Observed | Compare):
+    if isinstance(f, BoolConst | Atom | Observed | Fresh | Compare):
         return True
     if isinstance(f, Not):
         return is_state(f.arg)
@@ -67,8 +112,9 @@ def features(node: Any) -> list[FeatureKey]:
     out: dict[FeatureKey, None] = {}
 
     def walk(n: Any) -> None:
-        if isinstance(n, Atom | Ref | Observed):
-            out[key(n.feature)] = None
+        if isinstance(n, LEAVES):
+            out[read_key(n)] = None
+            return
         for child in children(n):
             walk(child)
 
@@ -78,10 +124,10 @@ def features(node: Any) -> list[FeatureKey]:
 
 def valued(node: Any) -> list[FeatureKey]:
     """The features a state formula reads the values of (not only whether they have one)."""
-    if isinstance(node, Observed):
+    if isinstance(node, Observed | Fresh):
         return []
-    if isinstance(node, Atom | Ref):
-        return [key(node.feature)]
+    if isinstance(node, Atom | Ref | Sampled):
+        return [read_key(node)]
     return list(dict.fromkeys(k for child in children(node) for k in valued(child)))
 
 
@@ -94,6 +140,10 @@ def uses(f: Any) -> dict[FeatureKey, str]:
             out.setdefault(key(n.feature), "bool")
         elif isinstance(n, Ref):
             out.setdefault(key(n.feature), as_)
+        elif isinstance(n, Fresh) or isinstance(n, Sampled) and n.op == "age":
+            pass  # how old X's sample is, whatever X holds
+        elif isinstance(n, Sampled):
+            walk(n.arg, as_ if n.op == "prev" else "number")
         elif isinstance(n, Compare):
             if is_text(n) and n.op not in ("==", "!="):
                 raise DkError(f"strings compare only with == or !=, not {n.op}: {unparse(n)}")
@@ -130,6 +180,9 @@ def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) 
         return f.value
     if isinstance(f, Observed):
         return values[key(f.feature)] is not None
+    if isinstance(f, Fresh):
+        age = values[read_key(f)]
+        return age is not None and age <= f.limit
     if isinstance(f, Atom):
         v = values[key(f.feature)]
         if v is None or isinstance(v, bool):
@@ -142,7 +195,7 @@ def evaluate(f: Formula, values: Mapping[FeatureKey, Any], time: object = None) 
         if is_text(f):
             left, right = _text(f.left, values, time), _text(f.right, values, time)
         else:
-            left, right = _number(f.left, values, time), _number(f.right, values, time)
+            left, right = number(f.left, values, time), number(f.right, values, time)
         return None if left is None or right is None else bool(_CMP[f.op](left, right))
     if isinstance(f, Not):
         v = evaluate(f.arg, values, time)
@@ -173,18 +226,18 @@ def is_text(f: Compare) -> bool:
 def _text(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> str | None:
     if isinstance(e, Str):
         return e.value
-    if isinstance(e, Ref):
-        v = values[key(e.feature)]
+    if isinstance(e, Ref) or isinstance(e, Sampled) and e.op == "prev":
+        v = values[read_key(e)]
         if v is not None and not isinstance(v, str):
             raise DkError(
-                f"feature {key(e.feature)} is compared with a string but has the "
+                f"feature {read_key(e)} is compared with a string but has the "
                 f"value {v!r} at time {time}"
             )
         return v
     raise DkError(f"only a feature compares with a string, not {unparse(e)}")
 
 
-def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
+def number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
     if isinstance(e, Num):
         return e.value
     if isinstance(e, Str):
@@ -197,17 +250,51 @@ def _number(e: Expr, values: Mapping[FeatureKey, Any], time: object) -> Any:
                 f"value {v!r} at time {time}"
             )
         return v
+    if isinstance(e, Sampled):
+        return values[read_key(e)]
     if isinstance(e, Unary):
-        v = _number(e.arg, values, time)
-        return None if v is None else -v if e.op == "-" else abs(v)
+        v = number(e.arg, values, time)
+        if v is None or e.op == "sqrt" and v < 0:
+            return None  # out of its domain: unknown, never a violation
+        return -v if e.op == "-" else FUNCTIONS[e.op](v)
+    if isinstance(e, Func):
+        a, b = number(e.left, values, time), number(e.right, values, time)
+        return None if a is None or b is None else FUNCTIONS[e.op](a, b)
     if isinstance(e, Arith):
-        a, b = _number(e.left, values, time), _number(e.right, values, time)
+        a, b = number(e.left, values, time), number(e.right, values, time)
         if a is None or b is None:
             return None
         if e.op == "/" and b == 0:
             return None  # undefined: unknown, never a violation
         return _ARITH[e.op](a, b)
     raise TypeError(type(e).__name__)
+
+
+def sqrt(x: Any) -> Any:
+    """√x, exact for the square of an exact number (`sqrt(9/4)` is 3/2); ValueError below 0."""
+    if isinstance(x, int | Fraction) and x >= 0:
+        q = Fraction(x)
+        n, d = math.isqrt(q.numerator), math.isqrt(q.denominator)
+        if n * n == q.numerator and d * d == q.denominator:
+            return n if d == 1 else Fraction(n, d)
+    return math.sqrt(x)
+
+
+def hypot(x: Any, y: Any) -> Any:
+    """√(x² + y²), exact where `sqrt` is."""
+    if isinstance(x, int | Fraction) and isinstance(y, int | Fraction):
+        return sqrt(x * x + y * y)
+    return math.hypot(x, y)
+
+
+FUNCTIONS: dict[str, Callable[..., Any]] = {
+    "abs": abs,
+    "sqrt": sqrt,
+    "min": min,
+    "max": max,
+    "hypot": hypot,
+}
+"""The functions a formula may call, by name: also the generated code's globals (`f_sqrt`)."""
 
 
 # ---- generated two-valued fast path ------------------------------------------------------------
@@ -226,7 +313,7 @@ def reads(
 def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
     """A fast function for `f` and the feature keys it reads."""
     keys = features(f)
-    scope: dict[str, Any] = {"slow": evaluate, "formula": f}
+    scope: dict[str, Any] = {"slow": evaluate, "formula": f, **GLOBALS}
     names, lines = reads(keys, "values", scope)
     body = python(f, names)
     known = knowing(f, names)
@@ -235,7 +322,7 @@ def compile_state(f: Formula) -> tuple[StateFn, list[FeatureKey]]:
         f"def state(values, time=None):\n{reads_}"
         f"    if {known}:\n"
         f"        try:\n            return {body}\n"
-        f"        except (ZeroDivisionError, TypeError):\n            pass\n"
+        f"        except (ZeroDivisionError, TypeError, ValueError):\n            pass\n"
         f"    return slow(formula, values, time)\n"
     )
     exec(compile(source, f"<state {unparse(f)}>", "exec"), scope)
@@ -269,14 +356,19 @@ def python(n: Any, names: dict[FeatureKey, str]) -> str:
         return "True" if n.value else "False"
     if isinstance(n, Observed):
         return f"({names[key(n.feature)]} is not None)"
-    if isinstance(n, Atom | Ref):
-        return names[key(n.feature)]
+    if isinstance(n, Fresh):
+        age, limit = names[read_key(n)], n.limit
+        return f"({age} is not None and {age} * {limit.denominator} <= {limit.numerator})"
+    if isinstance(n, Atom | Ref | Sampled):
+        return names[read_key(n)]
     if isinstance(n, Num):
         return repr(n.value) if math.isfinite(n.value) else "1e999" if n.value > 0 else "-1e999"
     if isinstance(n, Compare | Arith):
         return f"({python(n.left, names)} {n.op} {python(n.right, names)})"
     if isinstance(n, Unary):
-        return f"(-{python(n.arg, names)})" if n.op == "-" else f"abs({python(n.arg, names)})"
+        return f"(-{python(n.arg, names)})" if n.op == "-" else f"f_{n.op}({python(n.arg, names)})"
+    if isinstance(n, Func):
+        return f"f_{n.op}({python(n.left, names)}, {python(n.right, names)})"
     if isinstance(n, Str):
         return repr(n.value)
     if isinstance(n, Not):
@@ -290,3 +382,8 @@ def python(n: Any, names: dict[FeatureKey, str]) -> str:
             "<->": f"({a} == {b})",
         }[n.op]
     raise TypeError(type(n).__name__)
+
+
+GLOBALS = {f"f_{name}": fn for name, fn in FUNCTIONS.items()}
+"""What generated code calls: `f_sqrt(x)` (it raises outside its domain; the Kleene path,
+`evaluate`, says unknown)."""

@@ -9,7 +9,74 @@ from decimal import Decimal
 from fractions import Fraction
 from typing import Any
 
+from ..inputs.numbers import decimal
 from ..model import FeatureKey
+
+INF = float("inf")
+
+
+def value_text(value: Any) -> str:
+    """A value as a witness shows it: an exact one as a decimal (`2.000000001`, an age)."""
+    return decimal(value) if type(value) is Fraction else str(value)
+
+
+@dataclass(frozen=True, slots=True)
+class Margin:
+    """By how much a formula held (> 0) or failed (< 0): `value`, the margin of its critical
+    atom `atom` at time `time`, which read `values`, each from `sources` (feature → where its
+    values are read: topic, field, and the match that chose it).  `value` None: no margin,
+    unknown values covering where it would be decided."""
+
+    value: Any
+    atom: str | None
+    time: Any = None
+    t: Any = None
+    values: tuple[tuple[str, Any], ...] = ()
+    sources: tuple[tuple[str, str], ...] = ()
+
+    def text(self) -> str:
+        """`violated by 3.2 at t+41 s: Altitude[uav2] > 10 (Altitude[uav2] = 6.8, read from
+        platform3/uastopic5 msg.height as Alt[uas21])`."""
+        if self.value is None:
+            return "no margin: unknown values cover where it would be decided"
+        said = "held" if self.value > 0 else "violated"
+        size = _number_text(abs(self.value))
+        if self.atom is None:
+            return f"{said} by {size}"
+        when = f"t+{_number_text(self.t)} s" if self.t is not None else str(self.time)
+        sources = dict(self.sources)
+        read = ", ".join(
+            f"{k} = {value_text(v)}" + (f" read from {sources[k]}" if k in sources else "")
+            for k, v in self.values
+        )
+        return f"{said} by {size} at {when}: {self.atom}" + (f" ({read})" if read else "")
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"value": _json_number(self.value), "atom": self.atom}
+        if self.value is None:
+            return out | {"text": self.text()}
+        if self.atom is not None:
+            out |= {"time": _json_number(self.time), "t": _json_number(self.t)}
+            out["values"] = {k: _json_number(v) for k, v in self.values}
+            out["sources"] = dict(self.sources)
+        return out
+
+
+def _json_number(v: Any) -> Any:
+    if isinstance(v, bool) or v is None or isinstance(v, str):
+        return v
+    if isinstance(v, float):
+        return v if v not in (INF, -INF) else str(v)
+    return int(v) if v == int(v) else float(v)
+
+
+def _number_text(v: Any) -> str:
+    if v in (INF, -INF):
+        return "∞" if v > 0 else "-∞"
+    try:
+        return decimal(v) if not isinstance(v, float) else f"{v:.6g}"
+    except (TypeError, ValueError):
+        return str(v)
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,6 +115,7 @@ class InstanceVerdict:
     witness: str | None = None
     pending: str | None = None
     t: float | int | None = None
+    robustness: Margin | None = None  # when asked (progress.robustness)
 
     @property
     def name(self) -> str:
@@ -65,6 +133,8 @@ class InstanceVerdict:
         }
         if self.pending is not None:
             out["pending"] = self.pending
+        if self.robustness is not None:
+            out["robustness"] = self.robustness.to_json()
         return out
 
 
@@ -92,6 +162,7 @@ class Verdict:
     instances: tuple[InstanceVerdict, ...] | None = None
     update: bool = False
     window: tuple[Any, Any] | None = None
+    robustness: Margin | None = None  # when asked: by how much, and what decided it
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -106,6 +177,8 @@ class Verdict:
             out["unknown"] = [u.to_json() for u in self.unknown]
         if self.pending is not None:
             out["pending"] = self.pending
+        if self.robustness is not None:
+            out["robustness"] = self.robustness.to_json()
         if self.instances is not None:
             out["instances"] = [i.to_json() for i in self.instances]
         if self.update:

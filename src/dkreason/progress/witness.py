@@ -17,7 +17,7 @@ from typing import Any
 
 from ..inputs.numbers import decimal
 from ..model import FeatureKey
-from .verdict import UnknownSpan
+from .verdict import UnknownSpan, value_text
 
 Time = int | Fraction
 SHOWN = 10  # spans a witness names; the rest are counted
@@ -98,7 +98,7 @@ def state_was(
     clock: Clock,
 ) -> Why:
     """A state formula's value at t, with the values it read: `X > 1 was false at 3 (X = 0)`."""
-    shown = ", ".join(f"{k} = {values[k]}" for k in keys)
+    shown = ", ".join(f"{k} = {value_text(values[k])}" for k in keys)
     said = {True: "held", False: "was false", None: "was unknown"}[value]
     return Why(text, t, f"{said} at {clock.at(t)}" + (f" ({shown})" if shown else ""))
 

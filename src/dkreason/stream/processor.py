@@ -50,6 +50,7 @@ from ..inputs.numbers import datum
 from ..model import FeatureKey, StreamRequest
 from .policy import StreamPolicy
 from .sources import Message, Source
+from .terms import term_key, term_value
 from .units import NS, seconds
 
 _INF = float("inf")
@@ -58,6 +59,7 @@ _NO_EXPIRY: tuple[list[FeatureKey], list[int]] = ([], [])  # read, never changed
 _NO_QS: list[int] = []
 _VALID_RANK = itemgetter(0, 1)  # a history entry's order: (valid, rank), never its value
 _VALID = itemgetter(0)
+_SECOND = Fraction(1, NS)  # seconds per stream unit
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,12 +137,14 @@ class StreamProcessor:
         on_state: Callable[[int, dict[FeatureKey, Any], tuple[FeatureKey, ...] | None], None],
         on_violation: Callable[[Violation], None],
         texts: frozenset[FeatureKey] = frozenset(),
+        terms: Iterable[tuple[str, FeatureKey]] = (),
     ) -> None:
         """`on_state(time, values, fresh)` gets each state: `values` is read during the call
         only (on every change it is the processor's own dict, changed in place for the next
         state: a state costs what changed).  `texts`: the features the formulas compare with
         strings (their values are kept as strings; any other feature's value must be a number
-        or boolean)."""
+        or boolean).  `terms`: the terms over samples (`("rate", Yaw[r1])`) the formulas read,
+        each a value of the states (stream.terms)."""
         self.texts = texts
         self.policy = policy
         self.source = source
@@ -197,6 +201,8 @@ class StreamProcessor:
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
         for f in request.features:
             self._feature(f.feature.key)
+        self.terms: dict[FeatureKey, tuple[str, int]] = {}
+        self.want(terms)
         self.quiet_until = self._next_due()  # with a period and a start: its first state
         self._route(request, source)
 
@@ -207,6 +213,30 @@ class StreamProcessor:
         self.hist.append([])
         self.due.append(-1)
         self.queued.append(False)
+
+    def want(self, terms: Iterable[tuple[str, FeatureKey]]) -> None:
+        """The terms over samples the states carry from now on."""
+        self.terms = {term_key(op, k): (op, self.position[k]) for op, k in terms}
+
+    def _terms(self, s: int, values: dict[FeatureKey, Any]) -> None:
+        """Each term at s, from its feature's newest sample valid by then and the one before
+        it (the newest of an earlier valid time)."""
+        for k, (op, q) in self.terms.items():
+            hist = self.hist[q]
+            i = (
+                len(hist) - 1
+                if hist and hist[-1][0] <= s
+                else bisect.bisect_right(hist, (s, 1)) - 1
+            )
+            last = prev = None
+            if i >= 0:
+                valid = hist[i][0]
+                last = (valid, hist[i][2])
+                j = i - 1
+                while j >= 0 and hist[j][0] == valid:
+                    j -= 1
+                prev = (hist[j][0], hist[j][2]) if j >= 0 else None
+            values[k] = term_value(op, s, last, prev, _SECOND)
 
     def _open(self, start: int) -> None:
         """A state is due at the start time (on every change; periodic states start there)."""
@@ -618,6 +648,8 @@ class StreamProcessor:
                     break
                 values, _ = self._every_value(self.next_state, None)
                 self.made = self.next_state
+                if self.terms:
+                    self._terms(self.next_state, values)
                 self.on_state(self.next_state, values, None)
                 self.next_state += self.period
             return self._next_due()
@@ -667,14 +699,16 @@ class StreamProcessor:
                         valid, _, v = hist[i]
                         if max_age is None or s - valid <= max_age:
                             value = v
-                        if i > 32:  # older samples are never read again
-                            del hist[:i]
+                        if i > 32:  # older samples are never read again (but by `prev`)
+                            del hist[: i - 1]
                     current[keys[q]] = value
                 redo.clear()
                 values = current
             self.made = s
             if opening:  # the start: every formula's state
                 self.opening = fresh = None
+            if self.terms:
+                self._terms(s, values)
             self.on_state(s, values, fresh)
 
     def _size(self, now: int, final: bool) -> None:
@@ -743,7 +777,7 @@ class StreamProcessor:
                         value = v
                 elif s - valid <= deviation:
                     value = v
-                if i > 32:  # older samples are never read again
-                    del hist[:i]
+                if i > 32:  # older samples are never read again (but by `prev`)
+                    del hist[: i - 1]
             values[key] = value
         return values, None if fresh is None else tuple(fresh)

@@ -1,0 +1,220 @@
+"""Robustness (issue 30): discrete-time STL space robustness of a formula over the states
+judged, with its critical atom and where that atom's values came from; checked against
+rtamt's discrete-time offline evaluator on random formulas and uniformly sampled traces."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from dkreason import KnowledgeManager
+from dkreason.cli import main
+from dkreason.model import FeatureKey
+from dkreason.parse.formula import parse_formula
+from dkreason.progress import Progressor, Verdict
+from dkreason.progress.robustness import margins
+
+SETTINGS = settings(
+    max_examples=int(os.environ.get("DKREASON_EXAMPLES", "150")),
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+
+# ---- the fragment both dkreason and rtamt read, in the spelling both accept ----------------
+
+windows = st.one_of(
+    st.just(""),
+    st.tuples(st.integers(0, 2), st.integers(0, 3)).map(lambda p: f"[{p[0]},{p[0] + p[1]}]"),
+)
+comparisons = st.builds(
+    lambda var, op, c: f"({var} {op} {c})",
+    st.sampled_from(["x", "y"]),
+    st.sampled_from(["<", "<=", ">", ">="]),
+    st.integers(-3, 3),
+)
+
+
+@st.composite
+def stl(draw: st.DrawFn, depth: int = 3) -> str:
+    if depth == 0 or draw(st.integers(0, 3)) == 0:
+        return draw(comparisons)
+    kind = draw(st.sampled_from(["not", "unary", "unary", "binary", "binary"]))
+    if kind == "not":
+        return f"(not {draw(stl(depth - 1))})"
+    if kind == "unary":
+        op = draw(st.sampled_from(["always", "eventually", "historically", "once"]))
+        return f"({op}{draw(windows)}{draw(stl(depth - 1))})"
+    op = draw(st.sampled_from(["and", "or", "until", "since"]))
+    window = draw(windows) if op in ("until", "since") else ""
+    return f"({draw(stl(depth - 1))} {op}{window} {draw(stl(depth - 1))})"
+
+
+signals = st.integers(2, 8).flatmap(  # rtamt 0.4 fails on one sample (UnboundLocalError)
+    lambda n: st.tuples(
+        st.lists(st.integers(-4, 4), min_size=n, max_size=n),
+        st.lists(st.integers(-4, 4), min_size=n, max_size=n),
+    )
+)
+
+
+def rtamt_margins(formula: str, xs: list[int], ys: list[int]) -> list[Any]:
+    rtamt = pytest.importorskip("rtamt")
+    spec = rtamt.StlDiscreteTimeOfflineSpecification()
+    spec.declare_var("x", "float")
+    spec.declare_var("y", "float")
+    spec.spec = formula
+    spec.parse()
+    data = {"time": list(range(len(xs))), "x": [float(x) for x in xs], "y": [float(y) for y in ys]}
+    return [v for _, v in spec.evaluate(data)]
+
+
+@SETTINGS
+@given(stl(), signals)
+def test_margins_equal_rtamts_discrete_time_offline_evaluation(
+    formula: str, signal: tuple[list[int], list[int]]
+) -> None:
+    xs, ys = signal
+    trace = [
+        (t, {FeatureKey("x"): x, FeatureKey("y"): y})
+        for t, (x, y) in enumerate(zip(xs, ys, strict=True))
+    ]
+    ours = margins(parse_formula(formula), trace)
+    theirs = rtamt_margins(formula, xs, ys)
+    assert len(ours) == len(theirs)
+    for a, b in zip(ours, theirs, strict=True):
+        assert a == b or (math.isinf(a) and math.isinf(b) and (a > 0) == (b > 0)), (a, b)
+
+
+# ---- per verdict and per instance, naming the critical atom and its source -----------------
+
+ONTOLOGY = """
+@prefix : <http://r.org/o#> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:Robot a owl:Class .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:Yaw a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf (
+    :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Robot ] ) ] .
+:Heading a owl:Class ; owl:equivalentClass :Yaw ; rdfs:subClassOf [ a owl:Class ;
+    owl:intersectionOf ( :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ;
+    owl:allValuesFrom :Robot ] ) ] .
+:r1 a owl:NamedIndividual, :Robot .
+:r2 a owl:NamedIndividual, :Robot .
+:bot1 a owl:NamedIndividual, :Robot ; owl:sameAs :r1 .
+"""
+SPECS = """topic imu1:Imu contains Heading(bot1) = msg.yaw
+topic imu2:Imu contains Yaw(r2) = msg.yaw
+"""
+
+
+@pytest.fixture
+def robots(tmp_path: Path) -> tuple[Path, Path]:
+    """Two robots turning: r1 (read as Heading[bot1], bot1 = r1) reaches 2.5 rad at 5 s, r2
+    stays at 1 rad; at 1 Hz."""
+    (tmp_path / "r.ttl").write_text(ONTOLOGY)
+    (tmp_path / "r.sslt").write_text(SPECS)
+    config = tmp_path / "r.toml"
+    config.write_text('[platforms.robot]\nontology = "r.ttl"\nspecs = "r.sslt"\n')
+    rows = [("imu1", t, 0.5 * t) for t in range(6)] + [("imu2", t + 0.5, 1.0) for t in range(6)]
+    source = tmp_path / "r.jsonl"
+    source.write_text(
+        "".join(
+            json.dumps({"topic": topic, "time": t, "msg": {"yaw": y}}) + "\n"
+            for topic, t, y in sorted(rows, key=lambda r: r[1])
+        )
+    )
+    return config, source
+
+
+def test_a_violation_says_by_how_much_at_which_atom_read_from_where(
+    robots: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    config, source = robots
+    argv = ["monitor", "--config", str(config), "--source", str(source), "--robustness"]
+    assert main([*argv, "always (Yaw[r1] < 1.75)"]) == 1
+    assert (
+        "    robustness: violated by 0.25 at t+4 s: Yaw[r1] < 1.75 (Yaw[r1] = 2.0 read from "
+        "robot/imu1 msg.yaw via Heading[bot1])"
+    ) in capsys.readouterr().out.splitlines()
+
+
+def test_each_instance_has_its_margin_and_the_formula_the_least(
+    robots: tuple[Path, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    config, source = robots
+    code = main(
+        [
+            "monitor",
+            "--config",
+            str(config),
+            "--source",
+            str(source),
+            "--robustness",
+            "--json",
+            "forall r in Robot: always (Yaw[r] < 3)",
+        ]
+    )
+    (verdict,) = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert code == 0 and verdict["verdict"] is True
+    # the sort names r1 as bot1 (its sameAs), as the quantifier's instances do
+    assert verdict["robustness"] == {
+        "value": 0.5,
+        "atom": "Yaw[bot1] < 3",
+        "time": 5,
+        "t": 5,
+        "values": {"Yaw[bot1]": 2.5},
+        "sources": {"Yaw[bot1]": "robot/imu1 msg.yaw via Heading[bot1]"},
+    }
+    margins_ = {i["bindings"]["r"]: i["robustness"]["value"] for i in verdict["instances"]}
+    assert margins_ == {"bot1": 0.5, "r2": 2.0}
+
+
+def test_the_api_gives_the_margin_with_each_verdict(robots: tuple[Path, Path]) -> None:
+    config, source = robots
+    km = KnowledgeManager.from_config(config)
+    run = km.monitor("eventually (Yaw[r2] > 0.5)", source, robustness=True)
+    (verdict,) = [e for e in run if isinstance(e, Verdict)]
+    assert verdict.robustness is not None
+    assert (verdict.robustness.value, verdict.robustness.atom) == (0.5, "Yaw[r2] > 0.5")
+    plain = km.monitor("eventually (Yaw[r2] > 0.5)", source)
+    assert all(e.robustness is None for e in plain if isinstance(e, Verdict))
+
+
+def test_unknown_values_give_no_margin_and_say_so() -> None:
+    p = Progressor(robustness=True)
+    p.add("always (X > 0)")
+    p.step(0, {"X": 1})
+    p.step(1, {"X": None})
+    (v,) = p.finish()
+    assert v.verdict is None and v.robustness is not None and v.robustness.value is None
+    assert v.robustness.text() == "no margin: unknown values cover where it would be decided"
+    p = Progressor(robustness=True)
+    p.add("always (X > 0)")
+    p.step(0, {"X": None})
+    (v,) = p.step(1, {"X": -2})
+    assert v.verdict is False and v.robustness is not None and v.robustness.value == -2
+
+
+def test_progress_gives_the_margin_of_a_state_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    states = tmp_path / "s.jsonl"
+    states.write_text(
+        "".join(json.dumps({"time": t, "values": {"X": x}}) + "\n" for t, x in enumerate([3, 2, 5]))
+    )
+    argv = ["progress", "--states", str(states), "--robustness"]
+    assert main([*argv, "always (X >= 1)"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        "    robustness: held by 1 at 1: X >= 1 (X = 2)"
+    )
+    assert main([*argv, "--json", "eventually[0, 1] X > 4"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out["robustness"]["value"] == -1 and out["robustness"]["atom"] == "X > 4"
