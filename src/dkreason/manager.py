@@ -115,6 +115,8 @@ class KnowledgeManager:
         record: str | Path | None = None,
         clips: str | Path | None = None,
         margin: float | Fraction = 2,
+        foxglove: str | None = None,
+        speed: float | None = None,
     ) -> MonitorRun:
         """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
         recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
@@ -123,7 +125,11 @@ class KnowledgeManager:
         violations as they happen; all times are seconds.  Over ROS recordings, once iterated
         it writes `record` (an MCAP file: the relevant topics byte for byte, the events as
         `foxglove.Log` and JSON) and into the folder `clips` one MCAP file per violation
-        (`margin` s around its witness window; `run.written` names them)."""
+        (`margin` s around its witness window; `run.written` names them).  `foxglove`
+        (`[HOST:]PORT`): the run served to Foxglove over its WebSocket protocol as it goes
+        (`run.watcher.port`: the port taken; iterating waits for a subscription), until the
+        run is closed.  `speed`: the recordings replayed at that many times their pace (0:
+        at once; default 1 with `foxglove`, else 0)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
         from .stream.binding import open_recordings
@@ -143,11 +149,23 @@ class KnowledgeManager:
             if isinstance(source, Sequence)
             else source
         )
-        engine = Monitor(
-            self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
-        )
+        try:
+            engine = Monitor(
+                self.plan(formulas), self.request, policy or StreamPolicy(), keep_states=keep_states
+            )
+            if speed is not None and speed < 0:
+                raise DkError(f"speed must be 0 or more (1: real time), not {speed}")
+            watcher = None
+            if foxglove is not None:
+                from .live.viewer import Viewer
+
+                watcher = Viewer(foxglove, [f.feature.key for f in engine.request.features])
+        except BaseException:
+            opened.close()
+            raise
+        pace = speed if speed is not None else 1.0 if foxglove is not None else 0.0
         if record is None and clips is None:
-            return MonitorRun(engine, opened)
+            return MonitorRun(engine, opened, speed=pace, watcher=watcher)
         from .live.record import RecordedRun
         from .stream.binding import Recordings
 
@@ -159,6 +177,8 @@ class KnowledgeManager:
             None if record is None else Path(record),
             None if clips is None else Path(clips),
             Fraction(margin),
+            speed=pace,
+            watcher=watcher,
         )
 
     def info(

@@ -46,6 +46,8 @@ def monitor(args: argparse.Namespace) -> int:
         raise DkError("--record is for recordings and --ros2 (--live samples are no ROS messages)")
     if args.clips is not None and (args.live or args.ros2):
         raise DkError("--clips is for recordings (--source)")
+    if args.speed is not None and (args.live or args.ros2):
+        raise DkError("--speed is for recordings (--source): live data comes at its own pace")
     if args.ros2:
         return live.monitor_ros2(args, stream_policy)
     if args.live:
@@ -65,13 +67,27 @@ def monitor(args: argparse.Namespace) -> int:
         record=args.record,
         clips=args.clips,
         margin=args.clip_margin,
+        foxglove=args.foxglove,
+        speed=args.speed,
     )
+    with run:
+        return _monitored(args, run)
+
+
+def _monitored(args: argparse.Namespace, run: Any) -> int:
     for topic, features in run.absent.items():
         print(f"warning: {topic} (for {', '.join(features)}) is in no recording", file=sys.stderr)
     for note in run.notes:
         print(f"note: {note}", file=sys.stderr)
     if not args.json:
         print(render.request(run.request), flush=True)
+    if run.watcher is not None:
+        print(
+            f"serving Foxglove on {run.watcher.url}: the replay starts when it subscribes to "
+            "a topic",
+            file=sys.stderr,
+            flush=True,
+        )
     events: list[Any] = []
     error = None
     with render.progress_bar(run.count() if not args.json else None, not args.json) as tick:
