@@ -29,6 +29,10 @@ if TYPE_CHECKING:
 
 
 class KnowledgeManager:
+    """The one front door: everything the CLI does (match, explain, monitor, batch, info,
+    plot, init, the knowledge edited), with the CLI's defaults, over one knowledge base
+    (`from_config`)."""
+
     def __init__(self, kb: KnowledgeBase) -> None:
         self.kb = kb
 
@@ -127,8 +131,8 @@ class KnowledgeManager:
         `foxglove.Log` and JSON) and into the folder `clips` one MCAP file per violation
         (`margin` s around its witness window; `run.written` names them).  `foxglove`
         (`[HOST:]PORT`): the run served to Foxglove over its WebSocket protocol as it goes
-        (`run.watcher.port`: the port taken; iterating waits for a subscription), until the
-        run is closed.  `speed`: the recordings replayed at that many times their pace (0:
+        (`run.watcher.url`: where; iterating waits for a subscription), until the run is
+        closed.  `speed`: the recordings replayed at that many times their pace (0:
         at once; default 1 with `foxglove`, else 0)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
