@@ -1,14 +1,15 @@
-# Two entry points do all set-up: `make demo` and `make test` (see README).
+# Two entry points do all set-up: `make demo` and `make test` (see README); `make docs` builds
+# the documentation site.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo live ros2-demo test lint bench clean
+.PHONY: demo live ros2-demo test lint bench docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test]'
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -e '.[test,docs]'
 	touch $(STAMP)
 
 RECORDING := examples/traffic/recording
@@ -73,5 +74,10 @@ bench: $(STAMP)
 	$(BIN)/python -m benchmarks.bench_owl_memory
 	$(BIN)/python -m benchmarks.bench_adapt
 
+# The documentation site (mkdocs.yml, pages in docs/) into site/; --strict: a broken link or
+# API reference is an error, as in the test that builds it.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
+
 clean:
-	rm -rf $(VENV) build src/*.egg-info
+	rm -rf $(VENV) build site src/*.egg-info

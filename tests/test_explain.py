@@ -273,11 +273,11 @@ def test_unknown_feature_or_topic_is_a_one_line_error(capsys: pytest.CaptureFixt
         assert code == 2 and (out.out + out.err).count("\n") == 1
 
 
-def test_the_readmes_explain_example_is_what_the_command_prints(
+def test_the_docs_explain_example_is_what_the_command_prints(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The README shows `dkreason explain` citing rule lines: they follow the rule files."""
-    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    """The docs show `dkreason explain` citing rule lines: they follow the rule files."""
+    readme = (REPO / "docs" / "explanations.md").read_text(encoding="utf-8")
     command = '$ dkreason explain --config examples/federation.toml "always (Altitude[uav2] > 10)"'
     block = readme[readme.index(command) :].split("```")[0].splitlines()[1:]
     monkeypatch.chdir(REPO)
@@ -290,7 +290,7 @@ def test_the_readmes_explain_example_is_what_the_command_prints(
                 "always (Altitude[uav2] > 10)",
                 "--feature",
                 "Altitude[uav2]",
-                "--proof",  # the README's block shows the proof's first lines
+                "--proof",  # the docs' block shows the proof's first lines
             ]
         )
         == 0

@@ -245,11 +245,12 @@ def test_a_shared_object_is_filtered_by_each_platforms_own_id(tmp_path: Path) ->
     }
 
 
-def test_the_readmes_cowl_example_reads_every_bridge_type(tmp_path: Path) -> None:
+def test_the_docs_cowl_example_reads_every_bridge_type(tmp_path: Path) -> None:
     from dkreason.model import BRIDGE_TYPES
     from dkreason.parse.cowl import read_bridge_rules
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    readme = (docs / "inputs.md").read_text(encoding="utf-8")
     (example,) = re.findall(r"```xml\n(<cowl:mapping.*?</cowl:mapping>)\n```", readme, re.S)
     (tmp_path / "m.cowl.xml").write_text(example)
     rules = read_bridge_rules(tmp_path / "m.cowl.xml")

@@ -1,5 +1,5 @@
-"""Fleets the right way (issue 28, items 8 and 10): the README's walk-through of two robots
-(examples/turtles: per-robot objects, one specs file under namespaces) run as written, topics
+"""Fleets the right way (issue 28, items 8 and 10): docs/own-robot.md's walk-through of two
+robots (examples/turtles: per-robot objects, one specs file under namespaces) run as written, topics
 shown by the ROS names they resolve to, and a federation recorded under its topics' bare
 names bound where no other platform's spec uses the name."""
 

@@ -5,6 +5,11 @@
 from __future__ import annotations
 
 import json
+import socket
+import struct
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -129,3 +134,159 @@ def test_record_is_refused_for_live_federation_and_clips_for_live(
     assert "--record is for recordings and --ros2" in capsys.readouterr().err
     assert main([*base, "--ros2", "--clips", str(tmp_path)]) == 2
     assert "--clips is for recordings" in capsys.readouterr().err
+
+
+# ---- --foxglove: the run served over Foxglove's WebSocket protocol ---------------------
+
+
+class Watching:
+    """A WebSocket client doing what Foxglove does on connecting: it reads the server's
+    advertised channels, subscribes to them all, and reads message data (each subscription
+    numbered as its channel)."""
+
+    def __init__(self, ws: Any) -> None:
+        self.ws = ws
+        assert json.loads(self.ws.recv())["op"] == "serverInfo"
+        advertised = json.loads(self.ws.recv())
+        assert advertised["op"] == "advertise"
+        self.channels = {c["id"]: c for c in advertised["channels"]}
+        self.got: list[tuple[str, int, Any]] = []  # (topic, log time, message)
+
+    def subscribe(self) -> None:
+        subscriptions = [{"id": n, "channelId": n} for n in self.channels]
+        self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
+
+    def read_until(self, done: Any) -> None:
+        """Messages read until `done(self.got)` (a channel advertised late is subscribed to);
+        the timeout only stops a test that would hang."""
+        while not done(self.got):
+            frame = self.ws.recv(timeout=30)
+            if isinstance(frame, str):
+                more = json.loads(frame)
+                if more["op"] == "advertise":
+                    self.channels.update({c["id"]: c for c in more["channels"]})
+                    self.subscribe()
+                continue
+            opcode, sub, at = struct.unpack_from("<BIQ", frame)
+            assert opcode == 1  # message data
+            self.got.append((self.channels[sub]["topic"], at, json.loads(frame[13:])))
+
+
+@contextmanager
+def watching(url: str) -> Iterator[Watching]:
+    from websockets.sync.client import connect
+    from websockets.typing import Subprotocol
+
+    with connect(url, subprotocols=[Subprotocol("foxglove.sdk.v1")]) as ws:
+        yield Watching(ws)
+
+
+def test_foxglove_serves_features_and_verdicts_as_the_run_goes(tmp_path: Path) -> None:
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", TYPES, car_rows())
+    km = KnowledgeManager.from_config(SINGLE)
+    with km.monitor([SPEEDING, SLOW], [source], foxglove="127.0.0.1:0", speed=0) as run:
+        assert run.watcher is not None
+        with watching(run.watcher.url) as client:
+            advertised = {c["topic"]: c for c in client.channels.values()}
+            assert set(advertised) == {
+                "/dkreason/feature/Speed/car1",
+                "/dkreason/feature/Speed/car2",
+                "/dkreason/log",
+                "/dkreason/events",
+            }
+            assert advertised["/dkreason/log"]["schemaName"] == "foxglove.Log"
+            assert {c["encoding"] for c in advertised.values()} == {"json"}
+            client.subscribe()
+            events = list(run)  # the replay starts once the client subscribed
+            said = [e.to_json() for e in events]
+            client.read_until(lambda got: len([g for g in got if g[0] == "/dkreason/events"]) == 2)
+    by_topic: dict[str, list[tuple[int, Any]]] = {}
+    for topic, at, message in client.got:
+        by_topic.setdefault(topic, []).append((at, message))
+    # each sample's value at its state's time: car1 at 0.1 s, 1.1 s, …; car2 at 0 s, 1 s, …
+    car1 = by_topic["/dkreason/feature/Speed/car1"]
+    assert car1[:2] == [(S // 10, {"value": 70.0}), (S + S // 10, {"value": 70.0})]
+    assert len(car1) == 8 and len(by_topic["/dkreason/feature/Speed/car2"]) == 8
+    logs = by_topic["/dkreason/log"]
+    for _, line in logs:
+        jsonschema.validate(line, LOG_SCHEMA)
+    violated = next(e for e in said if e.get("verdict") is False)
+    assert [(at, g["name"], g["level"], g["message"]) for at, g in logs] == [
+        (3 * S + S // 10, SPEEDING, 4, violated["witness"]),
+        (7 * S, SLOW, 2, "held at t+7 s"),
+    ]
+    assert [e for _, e in by_topic["/dkreason/events"]] == said
+
+
+def test_monitor_foxglove_on_the_command_line(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from dkreason.live import viewer
+
+    source = tmp_path / "run.bag"
+    write_recording(source, "ros1", TYPES, car_rows())
+    started: list[viewer.Viewer] = []
+    serving = threading.Event()
+
+    class Seen(viewer.Viewer):  # the CLI's viewer, made known to the test
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            started.append(self)
+            serving.set()
+
+    monkeypatch.setattr(viewer, "Viewer", Seen)
+    codes: list[int] = []
+    cli = threading.Thread(
+        target=lambda: codes.append(
+            main(
+                ["monitor", "--config", str(SINGLE), "--source", str(source), "--json"]
+                + ["--foxglove", "127.0.0.1:0", "--speed", "0", SPEEDING]
+            )
+        )
+    )
+    cli.start()
+    assert serving.wait(30)
+    url = started[0].url
+    with watching(url) as client:
+        client.subscribe()
+        client.read_until(lambda got: any(topic == "/dkreason/log" for topic, _, _ in got))
+    cli.join()
+    assert codes == [1]
+    assert f"serving Foxglove on {url}: the replay starts" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("given", "error"),
+    [
+        ("99999", "--foxglove '99999': expected [HOST:]PORT"),
+        ("robot:", "--foxglove 'robot:': expected [HOST:]PORT"),
+        ("taken", "Address already in use"),
+    ],
+)
+def test_foxglove_port_taken_or_malformed_is_one_line(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, given: str, error: str
+) -> None:
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", TYPES, car_rows(2))
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        if given == "taken":
+            given = f"127.0.0.1:{taken.getsockname()[1]}"
+        code = main(
+            ["monitor", "--config", str(SINGLE), "--source", str(source)]
+            + ["--foxglove", given, SPEEDING]
+        )
+    err = capsys.readouterr().err
+    assert code == 2 and error in err and len(err.splitlines()) == 1
+
+
+def test_speed_is_for_recordings(capsys: pytest.CaptureFixture[str]) -> None:
+    base = ["monitor", "--config", str(SINGLE), SPEEDING]
+    assert main([*base, "--live", "--speed", "2"]) == 2
+    assert "--speed is for recordings" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stop:
+        main([*base, "--speed", "-1"])
+    assert stop.value.code == 2
+    assert "expected 0 or more" in capsys.readouterr().err

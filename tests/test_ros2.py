@@ -677,6 +677,8 @@ def test_a_violation_goes_to_every_formula_that_reads_its_feature() -> None:
         (["--ros2", "--bind", "robot1"], "expected PLATFORM=/NAMESPACE"),
         (["--ros2", "--bind", "nobody=/x"], "not a platform of the config"),
         (["--ros2", "--source", "x.mcap"], "--ros2 takes no --source"),
+        (["--ros2", "--foxglove", "robot:"], "--foxglove 'robot:': expected [HOST:]PORT"),
+        (["--ros2", "--speed", "2"], "--speed is for recordings"),
         (
             ["--publish-verdicts", "--source", "x.mcap"],
             "--publish-verdicts is for --live or --ros2",
@@ -697,9 +699,9 @@ def test_ros2_options_misused_are_one_line_and_exit_2(
 def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
     traffic: Path, tmp_path: Path
 ) -> None:
-    """`dkreason monitor --ros2 --sim-time --json --record --publish-verdicts` against the
-    replayed robots: the offline verdicts, as JSON lines; the record replays them; the
-    verdicts arrive on dkreason/verdicts/f1."""
+    """`dkreason monitor --ros2 --sim-time --json --record --publish-verdicts --foxglove`
+    against the replayed robots: the offline verdicts, as JSON lines; the record replays
+    them; the verdicts arrive on dkreason/verdicts/f1; Foxglove is served meanwhile."""
     import subprocess
     import sys
 
@@ -731,6 +733,8 @@ def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
             "--record",
             str(record),
             "--publish-verdicts",
+            "--foxglove",
+            "127.0.0.1:0",
             "--connect",
             f"tcp/127.0.0.1:{port}",
             "--until",
@@ -750,6 +754,7 @@ def test_the_cli_monitors_ros2_robots_records_and_publishes_its_verdicts(
         listener.undeclare()
         session.close()
     assert proc.returncode == 1, err
+    assert "serving Foxglove on ws://localhost:" in err
     lines = [json.loads(line) for line in out.splitlines()]
     verdicts = [(v["verdict"], v["time"]) for v in lines if "verdict" in v and "update" not in v]
     assert verdicts == [(False, 300.02)]

@@ -16,6 +16,8 @@ from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.stream.fastread import compile_extractor
 from dkreason.stream.fields import accessor, check
+from dkreason.stream.pace import paced
+from dkreason.stream.units import NS
 
 DEFINITION = (
     "std_msgs/Header header\nint32 id\nfloat64 speed\nuint8[4] arr\nstring name\n"
@@ -304,3 +306,23 @@ def test_pushed_times_are_seconds_and_nanoseconds_are_caught() -> None:
     source.push("topic3", 1.5, {"id": 1, "spd": 70})
     with pytest.raises(DkError, match="times are seconds .nanoseconds given"):
         source.push("topic3", 1_700_000_000_000_000_000, {"id": 1, "spd": 70})
+
+
+@given(
+    st.lists(st.integers(0, 10 * NS), min_size=1, max_size=20).map(sorted),
+    st.sampled_from([0.5, 1.0, 4.0]),
+)
+def test_a_paced_replay_yields_each_message_when_its_record_time_comes(
+    times: list[int], speed: float
+) -> None:
+    """`--speed`: a message recorded t s after the first is read t / speed s after it (the
+    clock is the test's: nothing sleeps)."""
+    now = [0.0]
+
+    def sleep(seconds: float) -> None:
+        assert seconds > 0
+        now[0] += seconds
+
+    messages = iter([("/a", t, t, ()) for t in times])
+    for message in paced(messages, speed, clock=lambda: now[0], sleep=sleep):
+        assert now[0] == pytest.approx((message[1] - times[0]) / NS / speed)

@@ -29,6 +29,10 @@ if TYPE_CHECKING:
 
 
 class KnowledgeManager:
+    """The one front door: everything the CLI does (match, explain, monitor, batch, info,
+    plot, init, the knowledge edited), with the CLI's defaults, over one knowledge base
+    (`from_config`)."""
+
     def __init__(self, kb: KnowledgeBase) -> None:
         self.kb = kb
 
@@ -116,6 +120,8 @@ class KnowledgeManager:
         clips: str | Path | None = None,
         margin: float | Fraction = 2,
         robustness: bool = False,
+        foxglove: str | None = None,
+        speed: float | None = None,
     ) -> MonitorRun:
         """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
         recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
@@ -126,7 +132,11 @@ class KnowledgeManager:
         `foxglove.Log` and JSON) and into the folder `clips` one MCAP file per violation
         (`margin` s around its witness window; `run.written` names them).  `robustness`: each
         verdict, and each instance's, says by how much it held or failed and what decided it
-        (its `robustness`: progress.robustness)."""
+        (its `robustness`: progress.robustness).  `foxglove` (`[HOST:]PORT`): the run served
+        to Foxglove over its WebSocket protocol as it goes (`run.watcher.url`: where;
+        iterating waits for a subscription), until the run is closed.  `speed`: the
+        recordings replayed at that many times their pace (0: at once; default 1 with
+        `foxglove`, else 0)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
         from .stream.binding import open_recordings
@@ -146,15 +156,27 @@ class KnowledgeManager:
             if isinstance(source, Sequence)
             else source
         )
-        engine = Monitor(
-            self.plan(formulas),
-            self.request,
-            policy or StreamPolicy(),
-            keep_states=keep_states,
-            robustness=robustness,
-        )
+        try:
+            engine = Monitor(
+                self.plan(formulas),
+                self.request,
+                policy or StreamPolicy(),
+                keep_states=keep_states,
+                robustness=robustness,
+            )
+            if speed is not None and speed < 0:
+                raise DkError(f"speed must be 0 or more (1: real time), not {speed}")
+            watcher = None
+            if foxglove is not None:
+                from .live.viewer import Viewer
+
+                watcher = Viewer(foxglove, [f.feature.key for f in engine.request.features])
+        except BaseException:
+            opened.close()
+            raise
+        pace = speed if speed is not None else 1.0 if foxglove is not None else 0.0
         if record is None and clips is None:
-            return MonitorRun(engine, opened)
+            return MonitorRun(engine, opened, speed=pace, watcher=watcher)
         from .live.record import RecordedRun
         from .stream.binding import Recordings
 
@@ -166,6 +188,8 @@ class KnowledgeManager:
             None if record is None else Path(record),
             None if clips is None else Path(clips),
             Fraction(margin),
+            speed=pace,
+            watcher=watcher,
         )
 
     def info(

@@ -13,10 +13,10 @@ import dataclasses
 import functools
 import heapq
 import itertools
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from fractions import Fraction
 from operator import itemgetter
-from typing import Any
+from typing import Any, Protocol
 
 from .errors import DkError
 from .expand import Instance
@@ -29,6 +29,7 @@ from .progress.compile import scaled
 from .progress.robustness import UNKNOWN, robustness
 from .progress.state import USE, feature_uses, features, terms
 from .progress.witness import Clock, Time, undecided
+from .stream.pace import paced
 from .stream.policy import StreamPolicy
 from .stream.processor import StreamProcessor, Violation
 from .stream.sources import Source
@@ -38,6 +39,29 @@ from .stream.units import NS, seconds
 Event = Verdict | Violation
 WORDS: dict[bool | None, str] = {True: "held", False: "violated", None: "unknown"}
 """How a verdict is said, by the CLI, the plot and whatever shows a person one."""
+Watch = Callable[[int, dict[FeatureKey, Any], tuple[FeatureKey, ...] | None], None]
+"""Told each state as it is made: its time (ns), the values, the features sampled at it
+(None: any of them)."""
+
+
+class Watcher(Protocol):
+    """Who shows a run as it goes besides its reader (live/viewer.py: Foxglove): told each
+    state and each event; `ready` returns when someone watches (a replay starts then)."""
+
+    @property
+    def url(self) -> str:
+        """Where the run is watched."""
+        ...
+
+    def state(
+        self, time: int, values: Mapping[FeatureKey, Any], fresh: tuple[FeatureKey, ...] | None
+    ) -> None: ...
+
+    def event(self, event: Any) -> None: ...
+
+    def ready(self) -> None: ...
+
+    def close(self) -> None: ...
 
 
 class _Group:
@@ -76,8 +100,13 @@ class Monitor:
         *,
         keep_states: bool = False,
         robustness: bool = False,
+        watch: Watch | None = None,
     ) -> None:
-        self.plan, self.match, self.policy, self.keep_states = plan, match, policy, keep_states
+        """`keep_states`: every state kept (`states`, for a plot); `watch`: told each one."""
+        self.plan, self.match, self.policy = plan, match, policy
+        self.watchers: list[Watch] = [self._keep] if keep_states else []
+        if watch is not None:
+            self.watchers.append(watch)
         # robustness: each group keeps its states, and each instance where it began in them
         # and its tree in stream units (`_margin`); Boolean monitoring does none of it
         self.robust = robustness
@@ -150,6 +179,9 @@ class Monitor:
     def _terms(self) -> set[tuple[str, FeatureKey]]:
         """The terms over samples the formulas read (`prev(X)`): the states carry them."""
         return {t for f in self.plan.formulas for i in f.instances for t in terms(i.tree)}
+
+    def _keep(self, time: int, values: dict[FeatureKey, Any], _: object) -> None:
+        self.states.append((time, dict(values)))
 
     def _wait(self, n: int, indices: Iterable[int], instances: Sequence[Instance]) -> None:
         for i, instance in zip(indices, instances, strict=True):
@@ -243,8 +275,9 @@ class Monitor:
     def _on_state(
         self, time: int, values: dict[FeatureKey, Any], fresh: tuple[FeatureKey, ...] | None = None
     ) -> None:
-        if self.keep_states:
-            self.states.append((time, dict(values)))
+        if self.watchers:
+            for watch in self.watchers:
+                watch(time, values, fresh)
         if not self.seen:  # the first state: every group's with a start time, and where
             self.seen = True  # formulas over no feature (or an empty sort) are judged
             if self.policy.start_time is not None:
@@ -466,9 +499,12 @@ class Monitor:
         self._settled(settled, self._when(horizon), at_end=True)
         return self.events()
 
-    def run(self, source: Source, progress: Callable[[int], None] | None = None) -> Iterator[Event]:
+    def run(
+        self, source: Source, progress: Callable[[int], None] | None = None, speed: float = 0
+    ) -> Iterator[Event]:
         """Events as they happen: violations as seen, verdicts as decided, the rest at the end.
-        An error in the source comes after every event decided before it."""
+        An error in the source comes after every event decided before it.  `speed`: the
+        messages replayed at that many times their record times' pace (0: at once)."""
         try:
             processor = self.processor or self.start(source)
         except BaseException:
@@ -476,7 +512,8 @@ class Monitor:
             raise
         pending = self.pending
         try:
-            for n in processor.replay(source.messages(processor.wanted), pending):
+            messages = source.messages(processor.wanted)
+            for n in processor.replay(paced(messages, speed) if speed else messages, pending):
                 if pending:
                     yield from self.events()
                 if progress is not None and not n & 4095:
@@ -495,16 +532,21 @@ class MonitorRun:
     """One monitoring run over an opened source, as `dkreason monitor` shows it: made, it has
     matched the plan and checked each feature's fields against the recordings (so the stream
     request, the topics no recording holds and the sources' notes can be shown first);
-    iterated (once), it yields the events as they happen.  Left unread, close it (or use it
-    in a `with` block)."""
+    iterated (once), it yields the events as they happen, its messages replayed at `speed`
+    times their pace (0: at once) and shown to `watcher` (once it is `ready`).  Left unread,
+    close it (or use it in a `with` block); a watcher is served until the run is closed."""
 
-    def __init__(self, monitor: Monitor, source: Source) -> None:
-        self.monitor, self.source = monitor, source
+    def __init__(
+        self, monitor: Monitor, source: Source, *, speed: float = 0, watcher: Watcher | None = None
+    ) -> None:
+        self.monitor, self.source, self.speed, self.watcher = monitor, source, speed, watcher
         try:
             self.processor = monitor.start(source)
         except BaseException:
-            source.close()
+            self.close()
             raise
+        if watcher is not None:
+            monitor.watchers.append(watcher.state)
 
     @property
     def request(self) -> StreamRequest:
@@ -556,14 +598,25 @@ class MonitorRun:
 
     def events(self, progress: Callable[[int], None] | None = None) -> Iterator[Event]:
         """Events as they happen; `progress` is told how many messages were read."""
-        return self.monitor.run(self.source, progress)
+        if self.watcher is None:
+            return self.monitor.run(self.source, progress, self.speed)
+        return self._watched(self.watcher, progress)
+
+    def _watched(self, watcher: Watcher, progress: Callable[[int], None] | None) -> Iterator[Event]:
+        watcher.ready()
+        for event in self.monitor.run(self.source, progress, self.speed):
+            watcher.event(event)
+            yield event
 
     def __iter__(self) -> Iterator[Event]:
         return self.events()
 
     def close(self) -> None:
-        """The sources closed without reading on (iterating to the end closes them too)."""
+        """The sources closed without reading on (iterating to the end closes them too),
+        the watcher no longer served."""
         self.source.close()
+        if self.watcher is not None:
+            self.watcher.close()
 
     def __enter__(self) -> MonitorRun:
         return self

@@ -133,6 +133,14 @@ def positive(text: str) -> float:
     return value
 
 
+def speed(text: str) -> float:
+    """A replay speed: 1 real time, 0 as fast as it reads."""
+    value = finite(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected 0 or more (1: real time), got {text}")
+    return value
+
+
 def whole(text: str) -> int:
     """A count of at least 1."""
     if not text.isdigit() or int(text) < 1:

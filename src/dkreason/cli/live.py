@@ -20,8 +20,9 @@ from ..live.ros2 import Ros2Monitor
 from ..live.serve import PlatformNode
 from ..live.session import open_session
 from ..live.signing import signer, trusted_keys
+from ..live.viewer import Viewer
 from ..manager import KnowledgeManager
-from ..monitor import Monitor
+from ..monitor import Monitor, Watch
 from ..progress import Verdict
 from ..stream.binding import remaps
 from ..stream.policy import StreamPolicy
@@ -39,9 +40,12 @@ def monitor_live(args: argparse.Namespace, policy: StreamPolicy) -> int:
     trust = trusted_keys(args.trust) if args.trust is not None else None
     formulas = read_formulas(args)
     km = KnowledgeManager.from_config(args.config, live=True)  # read before the session opens
+    viewer = _viewer(args)
     session = _session(args)
     try:
-        monitor = LiveMonitor(km, formulas, policy, session, args.wait, trust=trust)
+        monitor = LiveMonitor(
+            km, formulas, policy, session, args.wait, trust=trust, watch=_watch(viewer)
+        )
         _on_signals(lambda *_: monitor.stop.set())
         return _report(
             args,
@@ -50,9 +54,12 @@ def monitor_live(args: argparse.Namespace, policy: StreamPolicy) -> int:
             [f.text for f in monitor.formulas],
             ros2=False,
             reads=lambda key: _reading(monitor.monitor, key),
+            viewer=viewer,
         )
     finally:
         session.close()
+        if viewer is not None:
+            viewer.close()
 
 
 def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
@@ -75,6 +82,7 @@ def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
         )
     store = load_typestore(msg_types(args.msg), False, args.typestore or "ros2_jazzy")
     formulas = read_formulas(args)
+    viewer = _viewer(args)
     recorder = Recorder(args.record, store) if args.record is not None else None
     session = _session(args)
     try:
@@ -90,6 +98,7 @@ def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
             remap=remaps(args.remap),
             sim_time=args.sim_time,
             recorder=recorder,
+            watch=_watch(viewer),
         )
         recorder = None  # the monitor closes it
         _on_signals(lambda *_: monitor.stop.set())
@@ -102,11 +111,27 @@ def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
             domain=domain,
             labelled=lambda: monitor.labelled,
             reads=lambda key: _reading(monitor.monitor, key),
+            viewer=viewer,
         )
     finally:
         if recorder is not None:
             recorder.close()
         session.close()
+        if viewer is not None:
+            viewer.close()
+
+
+def _viewer(args: argparse.Namespace) -> Viewer | None:
+    """`--foxglove`: the run served to Foxglove from the start (live data does not wait)."""
+    if args.foxglove is None:
+        return None
+    viewer = Viewer(args.foxglove)
+    print(f"serving Foxglove on {viewer.url}", file=sys.stderr, flush=True)
+    return viewer
+
+
+def _watch(viewer: Viewer | None) -> Watch | None:
+    return None if viewer is None else viewer.state
 
 
 def _reading(monitor: Monitor | None, key: Any) -> list[str]:
@@ -124,6 +149,7 @@ def _report(
     domain: int = 0,
     labelled: Any = None,
     reads: Any = None,
+    viewer: Viewer | None = None,
 ) -> int:
     """A live run's events printed (and published with --publish-verdicts) as they come."""
     announce = (
@@ -137,6 +163,8 @@ def _report(
         for event in events:
             if announce is not None:
                 announce(event)
+            if viewer is not None:
+                viewer.event(event)
             if isinstance(event, Change):
                 print(
                     json.dumps(event.to_json(), ensure_ascii=False) if args.json else str(event),

@@ -48,6 +48,8 @@ def monitor(args: argparse.Namespace) -> int:
         raise DkError("--clips is for recordings (--source)")
     if args.robustness and (args.live or args.ros2):
         raise DkError("--robustness is for recordings (--source)")
+    if args.speed is not None and (args.live or args.ros2):
+        raise DkError("--speed is for recordings (--source): live data comes at its own pace")
     if args.ros2:
         return live.monitor_ros2(args, stream_policy)
     if args.live:
@@ -68,7 +70,14 @@ def monitor(args: argparse.Namespace) -> int:
         clips=args.clips,
         margin=args.clip_margin,
         robustness=args.robustness,
+        foxglove=args.foxglove,
+        speed=args.speed,
     )
+    with run:
+        return _monitored(args, run)
+
+
+def _monitored(args: argparse.Namespace, run: Any) -> int:
     for topic, features in run.absent.items():
         print(f"warning: {topic} (for {', '.join(features)}) is in no recording", file=sys.stderr)
     for note in run.notes:
@@ -77,6 +86,13 @@ def monitor(args: argparse.Namespace) -> int:
         print(render.request(run.request), flush=True)
     if args.json:  # (the request said them otherwise)
         render.formula_warnings(run.warnings, args.json)
+    if run.watcher is not None:
+        print(
+            f"serving Foxglove on {run.watcher.url}: the replay starts when it subscribes to "
+            "a topic",
+            file=sys.stderr,
+            flush=True,
+        )
     events: list[Any] = []
     error = None
     with render.progress_bar(run.count() if not args.json else None, not args.json) as tick:

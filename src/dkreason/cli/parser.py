@@ -148,6 +148,20 @@ def _monitor(sub: a.Sub) -> None:
         "--clip-margin before its witness window to --clip-margin after it",
     )
     out.add_argument(
+        "--foxglove",
+        metavar="[HOST:]PORT",
+        help="serve the run to Foxglove (open ws://localhost:PORT): each feature's values on "
+        "/dkreason/feature/NAME/ARG, the verdicts as foxglove.Log on /dkreason/log; a "
+        "replay starts when Foxglove subscribes to a topic (HOST: default 127.0.0.1)",
+    )
+    out.add_argument(
+        "--speed",
+        type=a.speed,
+        metavar="X",
+        help="recordings: replay at X times the recorded pace (1: real time, 0: as fast as "
+        "it reads; default 1 with --foxglove, else 0)",
+    )
+    out.add_argument(
         "--clip-margin",
         type=a.seconds,
         default=Fraction(2),

@@ -33,7 +33,7 @@ from ..errors import DkError, WireError
 from ..kb import Platform, make_platform, with_object
 from ..manager import KnowledgeManager
 from ..model import FeatureKey, StreamRequest
-from ..monitor import Monitor
+from ..monitor import Monitor, Watch
 from ..plan import Parsed, parse
 from ..stream.policy import StreamPolicy
 from ..stream.processor import StreamProcessor
@@ -58,16 +58,17 @@ class LiveMonitor:
         wait: float = 10.0,
         ask_timeout: float = 3.0,
         trust: dict[str, Any] | None = None,
+        watch: Watch | None = None,
     ) -> None:
         """`km`: the knowledge at hand (`KnowledgeManager.from_config(path, live=True)`: the
         platforms whose files the config names, none online); the others' is asked of their
         nodes as they appear.  The platforms its config names are the only ones trusted.
         `trust`: platform → Ed25519 public key (signing.trusted_keys); the samples of those
-        platforms must be signed by it."""
+        platforms must be signed by it.  `watch`: told each state (a Foxglove viewer)."""
         self.formulas = parse(formulas)  # a typo is reported at once, not after the wait
         self.km, self.policy, self.session = km, policy, session
         self.wait, self.ask_timeout = wait, ask_timeout
-        self.trust = trust or {}
+        self.trust, self.watch = trust or {}, watch
         config = km.kb.config
         self.names = {p.name for p in config.platforms} if config else set(km.kb.platforms)
         self.digests: dict[str, str] = {}  # of the ontology each platform served
@@ -191,7 +192,9 @@ class LiveMonitor:
         s, from the start) is over, every replay has ended, or `stop` is set; then the end
         verdicts."""
         yield from self._gather()
-        monitor = self.monitor = Monitor(self.km.plan(self.formulas), self.km.request, self.policy)
+        monitor = self.monitor = Monitor(
+            self.km.plan(self.formulas), self.km.request, self.policy, watch=self.watch
+        )
         processor = self.processor = monitor.start(self.source)
         self.read = dict_reader(self.source.name, processor.wanted)
         yield from self._subscribe(monitor.request, None, "")

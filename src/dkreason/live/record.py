@@ -24,7 +24,7 @@ from typing import Any
 
 from ..errors import DkError
 from ..eventlog import INFO, LOG_SCHEMA, LOG_TOPIC, EventLog, log, ns
-from ..monitor import Event, Monitor, MonitorRun
+from ..monitor import Event, Monitor, MonitorRun, Watcher
 from ..progress import Verdict
 from ..stream.binding import Recordings
 from ..stream.sources import Raw
@@ -167,14 +167,21 @@ class RecordedRun(MonitorRun):
         record: Path | None = None,
         clips: Path | None = None,
         margin: Fraction = Fraction(2),
+        *,
+        speed: float = 0,
+        watcher: Watcher | None = None,
     ) -> None:
+        problem = None
         if record is not None and not record.parent.is_dir():
+            problem = f"--record {record}: no such directory {record.parent}"
+        elif clips is not None and not clips.is_dir():
+            problem = f"--clips {clips}: no such directory"
+        if problem is not None:
             source.close()
-            raise DkError(f"--record {record}: no such directory {record.parent}")
-        if clips is not None and not clips.is_dir():
-            source.close()
-            raise DkError(f"--clips {clips}: no such directory")
-        super().__init__(monitor, source)
+            if watcher is not None:
+                watcher.close()
+            raise DkError(problem)
+        super().__init__(monitor, source, speed=speed, watcher=watcher)
         self.recordings, self.record, self.clips, self.margin = source, record, clips, margin
         self.written: list[tuple[Path, Verdict]] = []
         """The clips written, each with the verdict it shows."""

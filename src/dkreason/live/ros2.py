@@ -34,7 +34,7 @@ from typing import Any
 from ..errors import DkError, WireError
 from ..manager import KnowledgeManager
 from ..model import FeatureKey, TopicMatch
-from ..monitor import Monitor
+from ..monitor import Monitor, Watch
 from ..plan import Parsed
 from ..stream import fields
 from ..stream.binding import message_type_fits, recording_names
@@ -115,16 +115,20 @@ class Ros2Monitor:
         sim_time: bool = False,
         recorder: Recorder | None = None,
         keep_states: bool = False,
+        watch: Watch | None = None,
     ) -> None:
         """`store`: a rosbags typestore; `bind`: platform → ROS namespace whose nodes (or
         topics) are that platform's; `remap`: ROS topic name → the name it is bound by;
-        `bridge`: take zenoh-bridge-ros2dds' publishers too."""
+        `bridge`: take zenoh-bridge-ros2dds' publishers too; `watch`: told each state (a
+        Foxglove viewer)."""
         self.session, self.store = session, store
         self.domain, self.bridge, self.sim_time = domain, bridge, sim_time
         self.bind = {p: ns.rstrip("/") or "/" for p, ns in (bind or {}).items()}
         self.remap = dict(remap or {})
         self.recorder = recorder
-        self.monitor = Monitor(km.plan(formulas), km.request, policy, keep_states=keep_states)
+        self.monitor = Monitor(
+            km.plan(formulas), km.request, policy, keep_states=keep_states, watch=watch
+        )
         self.processor = self.monitor.start(loop.LiveSource())
         request = self.monitor.request
         namespaces = dict(request.namespaces)
