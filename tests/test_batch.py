@@ -196,6 +196,24 @@ def test_resume_monitors_only_the_runs_an_interrupted_batch_left(fleet: Path) ->
     assert (again.batch_id, again.rows) == (done.batch_id, ())
 
 
+def test_a_batch_runs_beside_another_cluster_on_dasks_default_port(fleet: Path) -> None:
+    """Two batches at once (another user's, or two test workers) each start a local cluster:
+    none takes Dask's fixed dashboard port 8787, which the other may hold."""
+    taken = socket.socket()
+    try:
+        taken.bind(("0.0.0.0", 8787))
+        taken.listen()
+    except OSError:  # held already: the case itself
+        pass
+    try:
+        done = KnowledgeManager.from_config(FEDERATION).batch(
+            [str(fleet / "runs" / "fast.jsonl")], FAST, jobs=1, db=fleet / "r.duckdb"
+        )
+    finally:
+        taken.close()
+    assert [row.verdict for row in done.rows] == ["violated"]
+
+
 def test_diff_lists_the_verdicts_a_changed_spec_and_recording_changed(
     fleet: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -281,7 +281,9 @@ def cluster(jobs: int | None, scheduler: str | None) -> Iterator[Any]:
             n_workers=jobs or os.cpu_count() or 1,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=":0" if _has_dashboard() else None,
+            # any free port: Dask's fixed 8787 may be another cluster's (another batch, or
+            # another user's) and its HTTP server (metrics) starts even without a dashboard
+            dashboard_address=":0",
             silence_logs=50,
         )
         with local, Client(local) as client:
@@ -289,7 +291,7 @@ def cluster(jobs: int | None, scheduler: str | None) -> Iterator[Any]:
 
 
 def _has_dashboard() -> bool:
-    """Dask draws its dashboard with bokeh, an optional package."""
+    """Dask draws its dashboard with bokeh, an optional package: without it, no link."""
     return importlib.util.find_spec("bokeh") is not None
 
 
