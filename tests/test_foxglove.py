@@ -18,6 +18,7 @@ import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
+from dkreason.live.viewer import Viewer
 from dkreason.progress import Verdict
 from dkreason.stream.recording import write_recording
 
@@ -152,8 +153,13 @@ class Watching:
         self.channels = {c["id"]: c for c in advertised["channels"]}
         self.got: list[tuple[str, int, Any]] = []  # (topic, log time, message)
 
-    def subscribe(self) -> None:
-        subscriptions = [{"id": n, "channelId": n} for n in self.channels]
+    def subscribe(self, *topics: str) -> None:
+        """To `topics` (all channels if none are named)."""
+        subscriptions = [
+            {"id": n, "channelId": n}
+            for n, c in self.channels.items()
+            if not topics or c["topic"] in topics
+        ]
         self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
 
     def read_until(self, done: Any) -> None:
@@ -198,6 +204,8 @@ def test_foxglove_serves_features_and_verdicts_as_the_run_goes(tmp_path: Path) -
             assert advertised["/dkreason/log"]["schemaName"] == "foxglove.Log"
             assert {c["encoding"] for c in advertised.values()} == {"json"}
             client.subscribe()
+            assert isinstance(run.watcher, Viewer)  # every channel subscribed, not only the first:
+            assert run.watcher.subscribed(len(advertised), timeout=60)
             events = list(run)  # the replay starts once the client subscribed
             said = [e.to_json() for e in events]
             client.read_until(lambda got: len([g for g in got if g[0] == "/dkreason/events"]) == 2)
@@ -248,8 +256,8 @@ def test_monitor_foxglove_on_the_command_line(
     cli.start()
     assert serving.wait(30)
     url = started[0].url
-    with watching(url) as client:
-        client.subscribe()
+    with watching(url) as client:  # the log alone: the replay starts at the first subscription
+        client.subscribe("/dkreason/log")
         client.read_until(lambda got: any(topic == "/dkreason/log" for topic, _, _ in got))
     cli.join()
     assert codes == [1]

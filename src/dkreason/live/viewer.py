@@ -58,7 +58,7 @@ class Viewer:
         host, port = address(given)
         self.host = host
         self.context = foxglove.Context()
-        self.subscribed = threading.Event()
+        self.subscriptions = Subscriptions()
         self.said = EventLog()
         self.last = 0  # the time of the latest state (ns): an event without one is said then
         try:
@@ -67,7 +67,7 @@ class Viewer:
                 host=host,
                 port=port,
                 context=self.context,
-                server_listener=_listener(self.subscribed),
+                server_listener=_listener(self.subscriptions),
             )
         except RuntimeError as exc:  # the port taken, the host unknown
             text = str(exc).removeprefix("FoxgloveError: ")
@@ -101,7 +101,12 @@ class Viewer:
 
     def ready(self) -> None:
         """Wait until a client subscribes to a channel (a replay starts then)."""
-        self.subscribed.wait()
+        self.subscriptions.wait(1, None)
+
+    def subscribed(self, channels: int, timeout: float) -> bool:
+        """Whether clients subscribed to `channels` channels within `timeout` s (a client
+        subscribing to several: a replay waits for the first only)."""
+        return self.subscriptions.wait(channels, timeout)
 
     def state(
         self, time: int, values: Mapping[FeatureKey, Any], fresh: tuple[FeatureKey, ...] | None
@@ -136,13 +141,30 @@ def _plain(value: Any) -> Any:
     return float(value)
 
 
-def _listener(subscribed: threading.Event) -> ServerListener:
-    """foxglove-sdk's ServerListener (its other callbacks do nothing): the first
-    subscription sets `subscribed`."""
+class Subscriptions:
+    """How many channel subscriptions the server has taken, to wait on."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.changed = threading.Condition()
+
+    def add(self) -> None:
+        with self.changed:
+            self.count += 1
+            self.changed.notify_all()
+
+    def wait(self, count: int, timeout: float | None) -> bool:
+        with self.changed:
+            return self.changed.wait_for(lambda: self.count >= count, timeout)
+
+
+def _listener(subscriptions: Subscriptions) -> ServerListener:
+    """foxglove-sdk's ServerListener (its other callbacks do nothing): each subscription is
+    counted."""
     from foxglove.websocket import ServerListener
 
     class Listener(ServerListener):
         def on_subscribe(self, client: Client, channel: ChannelView) -> None:
-            subscribed.set()
+            subscriptions.add()
 
     return Listener()
