@@ -37,7 +37,7 @@ from typing import Any, NamedTuple
 from dkreason.model import FeatureKey
 from dkreason.parse.formula import parse_formula
 from dkreason.progress import Progressor
-from dkreason.progress.robustness import margins
+from dkreason.progress.robustness import Signals, margins
 
 ROUNDS = 3
 TARGET_RTAMT = 10.0  # at least 10x rtamt on every row
@@ -217,8 +217,9 @@ def robust_ours(kind: str, n: int, rows: list[dict[str, float]]) -> tuple[float,
         trace = [(t, {FeatureKey(v): x for v, x in row.items()}) for t, row in enumerate(rows)]
 
         def run() -> int:
+            signals = Signals(trace)  # the trace's columns read once, for every formula
             for tree in trees:
-                margins(tree, trace)
+                margins(tree, signals)
             return len(trace)
 
         return run
