@@ -250,15 +250,19 @@ def _trace(rows: list[tuple[int, Any, Any]]) -> list[tuple[int, dict[FeatureKey,
 
 
 @SETTINGS
-@given(shapes, irregular, st.sampled_from([None, 0, 2]))
+@given(shapes, irregular, st.sampled_from([None, 0, 2]), st.integers(0, 4))
 def test_the_states_kept_give_the_margin_every_state_gives(
-    formula: str, rows: list[tuple[int, Any, Any]], beyond: int | None
+    formula: str, rows: list[tuple[int, Any, Any]], beyond: int | None, before: int
 ) -> None:
-    trace = _trace(rows)
+    """Also for a formula added after a few states (another formula's: it reads none)."""
+    everything = _trace(rows)
+    trace = everything[before:] or everything[-1:]
     end = None if beyond is None else trace[-1][0] + beyond
     kept = Kept(chunk=3)  # folds every few states, as it does every few thousand
-    kept.add("f", parse_formula(formula))
-    for t, values in trace:
+    kept.add("g", parse_formula("always historically (x > -9)"))
+    for t, values in everything:
+        if t == trace[0][0]:
+            kept.add("f", parse_formula(formula))
         kept.append(t, values)
     assert margin(kept.margin("f", trace[-1][0], end)) == robustness(
         parse_formula(formula), trace, end

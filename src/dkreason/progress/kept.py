@@ -100,8 +100,9 @@ class Kept:
 
     def fold(self) -> None:
         """Fold in what is settled, and forget the states no formula reads any more."""
+        signals = Signals(self.states)  # one reading of the columns for every formula
         for part in self.parts.values():
-            part.fold(self)
+            part.fold(self, signals)
         end = self.offset + len(self.states)
         need = min((k for p in self.parts.values() if (k := p.keep()) is not None), default=end)
         if need > self.offset:
@@ -130,8 +131,8 @@ class _Part:
     def __init__(self, tree: Formula, start: int) -> None:
         self.tree, self.start = tree, start
 
-    def fold(self, kept: Kept) -> None:
-        """Fold in what the states kept settle."""
+    def fold(self, kept: Kept, signals: Signals) -> None:
+        """Fold in what the states kept (`signals`: their margins) settle."""
 
     def keep(self) -> int | None:
         """The first stream index still read (None: none)."""
@@ -150,7 +151,7 @@ class _Head(_Part):
         self.ahead = ahead
         self.settled: tuple[Rho] | None = None
 
-    def fold(self, kept: Kept) -> None:
+    def fold(self, kept: Kept, signals: Signals) -> None:
         if self.settled is not None or kept.offset + len(kept.states) <= self.start:
             return
         past = kept.index(kept.states[self.start - kept.offset][0] + self.ahead, self.start, True)
@@ -173,34 +174,36 @@ class _Fold(_Part):
         self.arg, self.lo, (self.ahead, self.back) = tree.arg, tree.interval.lo, reach_
         self.minimum = tree.op == "always"
         self.empty: Rho = (INF if self.minimum else -INF, None)  # no state folded in yet
-        self.acc = self.empty
+        self.acc: Rho = self.empty
         self.origin: Time | None = None  # the formula's first state's time
         self.done = start  # the states before it are folded in
         self.context = start  # the first state the next fold reads
 
-    def fold(self, kept: Kept) -> None:
+    def fold(self, kept: Kept, signals: Signals) -> None:
         states = kept.states
         if kept.offset + len(states) <= self.done:
             return
         self.origin = states[self.start - kept.offset][0] if self.origin is None else self.origin
         closed = kept.index(states[-1][0] - self.ahead, self.done)  # t + ahead < last
         if closed > self.done:
-            signals = Signals(kept.states[self.context - kept.offset :])
-            self.acc = self._fold(kept, signals, self.acc, closed)
+            base = kept.offset
+            if self.back and base < self.start:  # past operators must not see before start
+                signals, base = Signals(states[self.context - base :]), self.context
+            self.acc = self._fold(kept, signals, base, self.acc, closed)
             self.done = closed
             t_done = states[closed - kept.offset][0]
             self.context = max(self.start, kept.index(t_done - self.back, self.context))
 
-    def _fold(self, kept: Kept, signals: Signals, acc: Rho, stop: int) -> Rho:
+    def _fold(self, kept: Kept, signals: Signals, base: int, acc: Rho, stop: int) -> Rho:
         """acc folded with φ's margins at the states from `done` to `stop` (from the first at
-        least lo after the formula's first state)."""
+        least lo after the formula's first state); `signals` begin at stream index `base`."""
         first = self.done
         if self.lo:
             assert self.origin is not None
             first = max(first, kept.index(self.origin + self.lo, first))
         if first >= stop:
             return acc
-        rho = signals.rho(self.arg)[first - self.context : stop - self.context]
+        rho = signals.rho(self.arg)[first - base : stop - base]
         unknown = np.isnan(rho)
         known = np.where(unknown, INF if self.minimum else -INF, rho)
         at = int(np.argmin(known) if self.minimum else np.argmax(known))
@@ -212,7 +215,7 @@ class _Fold(_Part):
         joined = here if acc is self.empty else (lower if self.minimum else upper)(acc, here)
         if joined is not here or here is None:
             return joined
-        crit = signals.critical(self.arg, first - self.context + at)
+        crit = signals.critical(self.arg, first - base + at)
         return best, None if crit is None else signals.found(crit)
 
     def keep(self) -> int | None:
@@ -223,7 +226,8 @@ class _Fold(_Part):
         if kept.offset + len(kept.states) <= self.start or not trace:
             return None
         self.origin = trace[0][0] if self.origin is None else self.origin
-        return self._fold(kept, Signals(trace, end), self.acc, self.context + len(trace))
+        signals = Signals(trace, end)
+        return self._fold(kept, signals, self.context, self.acc, self.context + len(trace))
 
 
 class _Join(_Part):
@@ -233,9 +237,9 @@ class _Join(_Part):
         super().__init__(tree, parts[0].start)
         self.parts = parts
 
-    def fold(self, kept: Kept) -> None:
+    def fold(self, kept: Kept, signals: Signals) -> None:
         for p in self.parts:
-            p.fold(kept)
+            p.fold(kept, signals)
 
     def keep(self) -> int | None:
         return min((k for p in self.parts if (k := p.keep()) is not None), default=None)

@@ -89,16 +89,18 @@ def upper(a: Rho, b: Rho) -> Rho:
     return a if a[0] >= b[0] else b
 
 
-def low(a: Any, b: Any) -> Any:
+def low(a: Any, b: Any) -> Array:
     """`lower` of margin arrays (NaN: unknown)."""
     m = np.fmin(a, b)
-    return np.where(m < 0, m, np.minimum(a, b))
+    out: Array = np.where(m < 0, m, np.minimum(a, b))
+    return out
 
 
-def high(a: Any, b: Any) -> Any:
+def high(a: Any, b: Any) -> Array:
     """`upper` of margin arrays (NaN: unknown)."""
     m = np.fmax(a, b)
-    return np.where(m > 0, m, np.maximum(a, b))
+    out: Array = np.where(m > 0, m, np.maximum(a, b))
+    return out
 
 
 def _low1(a: float, b: float) -> float:
@@ -333,14 +335,14 @@ class Signals:
                 later = out[j] = _high1(b[j], _low1(a[j], later))
             return out
         first, stop = self.bounds(f.interval, future)
-        idx = np.arange(n)
+        idx = np.arange(n, dtype=np.intp)
         reach = stop - idx if future else idx - first + 1  # the steps from i in the window
         acc, phi = np.full(n, -np.inf), np.full(n, np.inf)
         for m in range(int(reach.max(initial=0))):
-            j = idx + m if future else idx - m
+            js = idx + m if future else idx - m
             live = m < reach
-            at = np.clip(j, 0, n - 1)
-            inside = live & ((j >= first) if future else (j < stop))
+            at = np.clip(js, 0, n - 1)
+            inside = live & ((js >= first) if future else (js < stop))
             acc = np.where(inside, high(acc, low(right[at], phi)), acc)
             phi = np.where(live, low(phi, left[at]), phi)
         cut = self.cut(f.interval.hi) if future else None
