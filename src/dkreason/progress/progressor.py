@@ -171,7 +171,7 @@ class Progressor:
         self.kept = Kept() if robustness else None
         # what `step` does with a state besides judging it (one test a state when nothing)
         self.keeping: Callable[[Time, dict[FeatureKey, Any]], None] | None = (
-            self._keep if robustness else None
+            None if self.kept is None else self.kept.append
         )
         self.pos = -1
         self.last_input: Any = None
