@@ -16,6 +16,12 @@ and formulas (the margin at every state, as rtamt gives it; 1 and 100 formulas):
 
 R1 always (x > c)      R2 always (a > c and b > c)      R3 always (x > c -> eventually[0,w] y > c)
 
+"offline" is dkreason's margin at every state (progress.robustness.margins, as rtamt's);
+"monitor" is the Formula Progressor with robustness on, every state stepped and each formula's
+margin at its verdict (the end), the states kept only as its windows need (progress.kept).
+The traces satisfy every formula (no monitor stops early); then the traced memory of a
+1,000,000-state monitor of R3 with robustness at each quarter.
+
 Last, memory over a 1,000,000-state run of P3 (bounded windows): traced memory after 10%, 50%
 and 100% of the states.
 
@@ -37,7 +43,7 @@ from typing import Any, NamedTuple
 from dkreason.model import FeatureKey
 from dkreason.parse.formula import parse_formula
 from dkreason.progress import Progressor
-from dkreason.progress.robustness import margins
+from dkreason.progress.robustness import Signals, margins
 
 ROUNDS = 3
 TARGET_RTAMT = 10.0  # at least 10x rtamt on every row
@@ -207,8 +213,35 @@ def robust_spec(kind: str, k: int, past: bool = False) -> tuple[str, list[str]]:
 
 
 def robust_trace(n: int, seed: int = 7) -> list[dict[str, float]]:
+    """Seeded states that satisfy every formula of the rows (thresholds are at most 10)."""
     rnd = random.Random(seed)
-    return [{v: rnd.uniform(0, 20) for v in ("x", "y", "a", "b", "c")} for _ in range(n)]
+    return [
+        {**{v: rnd.uniform(10.5, 20) for v in ("x", "y", "a", "b")}, "c": rnd.uniform(0, 10)}
+        for _ in range(n)
+    ]
+
+
+def robust_monitor(kind: str, n: int, rows: list[dict[str, float]]) -> tuple[float, int]:
+    """The Progressor with robustness: every state stepped, each margin at the end."""
+    states = [{FeatureKey(v): x for v, x in row.items()} for row in rows]
+
+    def prepare() -> Callable[[], int]:
+        p = Progressor(robustness=True)
+        for k in range(n):
+            p.add(robust_spec(kind, k)[0])
+
+        def run() -> int:
+            step = p.step
+            for t, values in enumerate(states):
+                if step(t, values):
+                    raise AssertionError("a benchmark formula was decided early")
+            if any(v.robustness is None or v.robustness.value is None for v in p.finish()):
+                raise AssertionError("a benchmark formula has no margin")
+            return len(states)
+
+        return run
+
+    return best(prepare)
 
 
 def robust_ours(kind: str, n: int, rows: list[dict[str, float]]) -> tuple[float, int]:
@@ -217,8 +250,9 @@ def robust_ours(kind: str, n: int, rows: list[dict[str, float]]) -> tuple[float,
         trace = [(t, {FeatureKey(v): x for v, x in row.items()}) for t, row in enumerate(rows)]
 
         def run() -> int:
+            signals = Signals(trace)  # the trace's columns read once, for every formula
             for tree in trees:
-                margins(tree, trace)
+                margins(tree, signals)
             return len(trace)
 
         return run
@@ -286,11 +320,14 @@ def robustness_rows(states: int) -> list[dict[str, Any]]:
             mine, count = robust_ours(kind, n, full[: max(states // n, 1_000)])
             row: dict[str, Any] = {"row": kind, "formulas": n, "ours": round(mine)}
             row["ours_states"] = count
+            online, _ = robust_monitor(kind, n, full[: max(states // n, 1_000)])
+            row["monitor"] = round(online)
             peer_states = max(200, min(states, int(PEER_BUDGET / (40e-6 * n))))
             got = robust_rtamt(kind, n, full[:peer_states])
             if got is not None:
                 row["rtamt"], row["rtamt_states"] = round(got[0]), got[1]
                 row["x_rtamt"] = round(mine / got[0], 2)
+                row["x_monitor"] = round(online / got[0], 2)
             online_states = max(200, min(states, int(PEER_BUDGET / (100e-6 * n))))
             got = robust_rtamt_online(kind, n, full[:online_states])
             if got is not None:
@@ -302,22 +339,40 @@ def robustness_rows(states: int) -> list[dict[str, Any]]:
 
 def print_robustness(rows: list[dict[str, Any]]) -> None:
     print(
-        "robustness: states/s (CPU, best of 3), every state's margin; beside rtamt's offline "
-        "evaluator (the same formulas) and its online monitor (their past-time forms)"
+        "robustness: states/s (CPU, best of 3); dkreason's margin at every state (offline) and "
+        "its monitor with robustness; rtamt's offline evaluator (the same formulas) and its "
+        "online monitor (their past-time forms); x: dkreason / rtamt offline"
     )
     print(
-        f"{'row':<4}{'n':>4}{'dkreason':>12}{'offline':>10}{'x':>7}{'online':>10}{'x':>7}"
-        "  target (offline)"
+        f"{'row':<4}{'n':>4}{'offline':>12}{'monitor':>12}{'rtamt':>10}{'x off':>8}"
+        f"{'x mon':>8}{'rtamt on':>10}  target"
     )
     for r in rows:
-        ok = r.get("x_rtamt", TARGET_RTAMT) >= TARGET_RTAMT
+        ok = min(r.get("x_rtamt", TARGET_RTAMT), r.get("x_monitor", TARGET_RTAMT)) >= TARGET_RTAMT
         print(
-            f"{r['row']:<4}{r['formulas']:>4}{r['ours']:>12,}{r.get('rtamt', 0):>10,}"
-            f"{r.get('x_rtamt', '-'):>7}{r.get('rtamt_online', 0):>10,}"
-            f"{r.get('x_rtamt_online', '-'):>7}  {'met' if ok else 'MISSED'}  "
+            f"{r['row']:<4}{r['formulas']:>4}{r['ours']:>12,}{r['monitor']:>12,}"
+            f"{r.get('rtamt', 0):>10,}{r.get('x_rtamt', '-'):>8}{r.get('x_monitor', '-'):>8}"
+            f"{r.get('rtamt_online', 0):>10,}  {'met' if ok else 'MISSED'}  "
             f"[{r['ours_states']:,} / {r.get('rtamt_states', '-')} / "
             f"{r.get('rtamt_online_states', '-')}]"
         )
+
+
+def robust_memory(states: int) -> list[tuple[int, int]]:
+    """Traced memory (bytes) at each quarter of an R3 monitor with robustness."""
+    rows = [{FeatureKey(v): x for v, x in row.items()} for row in robust_trace(20_000)]
+    p = Progressor(robustness=True)
+    p.add(robust_spec("R3", 0)[0])
+    marks, out = {states * q // 4 for q in (1, 2, 3, 4)}, []
+    tracemalloc.start()
+    try:
+        for t in range(states):
+            p.step(t, dict(rows[t % len(rows)]))
+            if t + 1 in marks:
+                out.append((t + 1, tracemalloc.get_traced_memory()[0]))
+    finally:
+        tracemalloc.stop()
+    return out
 
 
 def memory(states: int) -> list[tuple[int, int]]:
@@ -346,11 +401,13 @@ def main() -> None:
     parser.add_argument("--robustness-only", action="store_true")
     args = parser.parse_args()
     robust = robustness_rows(args.robustness_states)
+    robust_mem = robust_memory(args.memory_states)
     if args.robustness_only:
         if args.json:
-            print(json.dumps({"robustness": robust}, indent=1))
+            print(json.dumps({"robustness": robust, "robustness_memory": robust_mem}, indent=1))
         else:
             print_robustness(robust)
+            print_memory("R3 with robustness", robust_mem)
         return
     results = []
     for kind in ("P1", "P2", "P3", "P4", "P5"):
@@ -375,7 +432,17 @@ def main() -> None:
             results.append(row)
     mem = memory(args.memory_states)
     if args.json:
-        print(json.dumps({"rows": results, "robustness": robust, "memory": mem}, indent=1))
+        print(
+            json.dumps(
+                {
+                    "rows": results,
+                    "robustness": robust,
+                    "memory": mem,
+                    "robustness_memory": robust_mem,
+                },
+                indent=1,
+            )
+        )
         return
     print("states/s (CPU, best of 3); ours/peer ratio; [states per run]")
     print(
@@ -393,9 +460,14 @@ def main() -> None:
             f"{r.get('reelay_states', '-')}]"
         )
     print_robustness(robust)
+    print_memory("P3", mem)
+    print_memory("R3 with robustness", robust_mem)
+
+
+def print_memory(what: str, marks: list[tuple[int, int]]) -> None:
     print(
-        "memory of P3 over a long run (states: traced bytes): "
-        + ", ".join(f"{n:,}: {b:,}" for n, b in mem)
+        f"memory of {what} over a long run (states: traced bytes): "
+        + ", ".join(f"{n:,}: {b:,}" for n, b in marks)
     )
 
 

@@ -19,7 +19,8 @@ from dkreason.cli import main
 from dkreason.model import FeatureKey
 from dkreason.parse.formula import parse_formula
 from dkreason.progress import Progressor, Verdict
-from dkreason.progress.robustness import margins
+from dkreason.progress.kept import CHUNK, Kept
+from dkreason.progress.robustness import margin, margins, robustness
 
 SETTINGS = settings(
     max_examples=int(os.environ.get("DKREASON_EXAMPLES", "150")),
@@ -218,3 +219,84 @@ def test_progress_gives_the_margin_of_a_state_file(
     assert main([*argv, "--json", "eventually[0, 1] X > 4"]) == 1
     out = json.loads(capsys.readouterr().out)
     assert out["robustness"]["value"] == -1 and out["robustness"]["atom"] == "X > 4"
+
+
+# ---- kept states: memory bounded by the windows, the margin all states give ---------------
+
+irregular = st.lists(
+    st.tuples(
+        st.sampled_from([1, 1, 2, 3]),
+        st.one_of(st.none(), st.integers(-4, 4)),
+        st.one_of(st.none(), st.integers(-4, 4)),
+    ),
+    min_size=1,
+    max_size=40,
+)
+shapes = st.one_of(
+    stl(),
+    st.builds(lambda f: f"always {f}", stl(2)),
+    st.builds(lambda f: f"eventually[1, oo] {f}", stl(2)),
+    st.builds(lambda a, b: f"always ({a} -> eventually[0, 3] {b})", comparisons, comparisons),
+    st.builds(lambda a, b: f"always {a} and not eventually {b}", stl(1), stl(1)),
+)
+
+
+def _trace(rows: list[tuple[int, Any, Any]]) -> list[tuple[int, dict[FeatureKey, Any]]]:
+    out, t = [], 0
+    for gap, x, y in rows:
+        t += gap
+        out.append((t, {FeatureKey("x"): x, FeatureKey("y"): y}))
+    return out
+
+
+@SETTINGS
+@given(shapes, irregular, st.sampled_from([None, 0, 2]), st.integers(0, 4))
+def test_the_states_kept_give_the_margin_every_state_gives(
+    formula: str, rows: list[tuple[int, Any, Any]], beyond: int | None, before: int
+) -> None:
+    """Also for a formula added after a few states (another formula's: it reads none)."""
+    everything = _trace(rows)
+    trace = everything[before:] or everything[-1:]
+    end = None if beyond is None else trace[-1][0] + beyond
+    kept = Kept(chunk=3)  # folds every few states, as it does every few thousand
+    kept.add("g", parse_formula("always historically (x > -9)"))
+    for t, values in everything:
+        if t == trace[0][0]:
+            kept.add("f", parse_formula(formula))
+        kept.append(t, values)
+    assert margin(kept.margin("f", trace[-1][0], end)) == robustness(
+        parse_formula(formula), trace, end
+    )
+
+
+@pytest.mark.parametrize(
+    "formula",
+    [
+        "always (x > 0)",
+        "always (x > 0 -> eventually[0, 5] y > 0)",
+        "always not always[0, 5] (x > 0)",
+        "eventually[0, 5] x > 3 and always historically[0, 2] y > -9",
+    ],
+)
+def test_a_long_run_keeps_only_the_states_its_windows_need(formula: str) -> None:
+    trace = [(t, {FeatureKey("x"): t % 7 - 1, FeatureKey("y"): t % 3}) for t in range(20_000)]
+    kept = Kept(chunk=64)
+    kept.add("f", parse_formula(formula))
+    most = 0
+    for t, values in trace:
+        kept.append(t, values)
+        most = max(most, len(kept.states))
+    assert most <= 2 * 64 + 10
+    assert margin(kept.margin("f", 19_999, None)) == robustness(parse_formula(formula), trace)
+
+
+def test_the_progressor_keeps_no_state_for_a_decided_formula() -> None:
+    p = Progressor(robustness=True)
+    p.add("always (X > 0)")
+    p.add("always (X > 5)")
+    for t in range(10_000):
+        verdicts = p.step(t, {"X": 1 + t % 3})
+        assert not verdicts or t == 0
+    assert len(p.kept.states) < 2 * CHUNK if p.kept is not None else False
+    (v,) = p.finish()
+    assert v.robustness is not None and v.robustness.value == 1

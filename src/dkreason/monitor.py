@@ -26,7 +26,8 @@ from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
 from .progress.compile import scaled
-from .progress.robustness import UNKNOWN, robustness
+from .progress.kept import Kept
+from .progress.robustness import UNKNOWN, margin
 from .progress.state import USE, feature_uses, features, terms
 from .progress.witness import Clock, Time, undecided
 from .stream.pace import paced
@@ -71,8 +72,9 @@ class _Group:
     def __init__(self, keys: frozenset[FeatureKey], formula: int | None) -> None:
         self.keys, self.formula = keys, formula
         self.progressor: Progressor
-        # with robustness: the states it was judged at, with what its formulas read
-        self.trace: list[tuple[int, dict[FeatureKey, Any]]] = []
+        # with robustness: the states it was judged at that a margin may still read, with
+        # what its formulas read
+        self.kept = Kept()
         self.reads: set[FeatureKey] = set()
 
 
@@ -107,10 +109,11 @@ class Monitor:
         self.watchers: list[Watch] = [self._keep] if keep_states else []
         if watch is not None:
             self.watchers.append(watch)
-        # robustness: each group keeps its states, and each instance where it began in them
-        # and its tree in stream units (`_margin`); Boolean monitoring does none of it
+        # robustness: each group keeps the states its instances' margins may read (`Kept`,
+        # trees in stream units), each instance its group (`_margin`); Boolean monitoring
+        # does none of it
         self.robust = robustness
-        self.begun: dict[str, tuple[_Group, int, Any]] = {}
+        self.begun: dict[str, _Group] = {}
         self._sources: dict[FeatureKey, str] | None = None
         self.request = match(plan)
         self.judged = [Judged(f) for f in plan.formulas]
@@ -228,8 +231,8 @@ class Monitor:
             group.progressor.add(name, instance.tree)
             if self.robust:
                 group.reads.update(features(instance.tree))
-                tree = scaled(instance.tree, Fraction(NS))
-                self.begun[name] = (group, len(group.trace), tree)
+                group.kept.add(name, scaled(instance.tree, Fraction(NS)))
+                self.begun[name] = group
         self.steps.clear()
 
     def _arm(self, group: _Group, deadline: Time) -> None:
@@ -295,7 +298,7 @@ class Monitor:
             steps = self.steps[fresh] = [g.progressor for g in self._due(fresh)]
         if self.robust:
             for g in self._due(fresh):
-                g.trace.append((time, {k: values[k] for k in g.reads}))
+                g.kept.append(time, {k: values[k] for k in g.reads})
         decided: Sequence[Verdict] = self._timers(fresh, time, steps) if self.timers else ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
@@ -361,19 +364,15 @@ class Monitor:
         """An instance's robustness over the states it was judged at, up to its verdict's;
         a window reaching past the data seen then (or past the end of the data, unless every
         window closes at the last state) unknown in its unseen part."""
-        if v.formula not in self.begun:
+        group = self.begun.pop(v.formula, None)
+        if group is None:
             return UNKNOWN  # never observed
-        group, start, tree = self.begun[v.formula]
-        upto = v.time
-        trace = group.trace[start:]
-        if upto is not None:
-            trace = [s for s in trace if s[0] <= upto]
-        end = upto
+        upto = end = v.time
         if at_end:
             assert self.processor is not None
             end = self.processor.horizon() if self.policy.end_of_data == "open" else None
-        clock = Clock(Fraction(1, NS), self.origin)
-        return robustness(tree, trace, end, clock, self.sources(), seconds)
+        found = group.kept.margin(v.formula, upto, end)
+        return margin(found, Clock(Fraction(1, NS), self.origin), self.sources(), seconds)
 
     def sources(self) -> dict[FeatureKey, str]:
         """Where each feature's values are read, as a margin names it: `platform/topic field`,

@@ -47,7 +47,8 @@ from .compile import scaled
 from .engine import Engine, Held, Report, Stepper, Timer
 from .fused import FusedSet
 from .general import General
-from .robustness import robustness
+from .kept import Kept
+from .robustness import margin
 from .state import base_features, features, is_state, terms
 from .verdict import Margin, UnknownSpan, Verdict
 from .witness import Clock, Time, Why, cut_of, refuted, since, undecided
@@ -166,12 +167,11 @@ class Progressor:
         self.decided: list[_Formula] = []
         self.keys: set[FeatureKey] = set()  # what `step` reads from the caller's states
         self.samples = Samples(unit)  # the terms over samples `step` writes into them
-        # robustness: the states `step` was given, and each formula's tree and first state
-        self.trace: list[tuple[Time, dict[FeatureKey, Any]]] | None = [] if robustness else None
-        self.trees: dict[int, tuple[Formula, int]] = {}
+        # robustness: the states `step` was given that a formula's margin may still read
+        self.kept = Kept() if robustness else None
         # what `step` does with a state besides judging it (one test a state when nothing)
         self.keeping: Callable[[Time, dict[FeatureKey, Any]], None] | None = (
-            self._keep if robustness else None
+            None if self.kept is None else self.kept.append
         )
         self.pos = -1
         self.last_input: Any = None
@@ -201,8 +201,8 @@ class Progressor:
         for n, part in enumerate(conjuncts(parsed)):
             report = judged.report(n)
             next(e for e in self.engines if e.add(part, report))
-        if self.trace is not None:
-            self.trees[id(judged)] = (parsed, len(self.trace))
+        if self.kept is not None:
+            self.kept.add(id(judged), parsed)
         self.formulas.append(judged)
         self.unstarted.append(judged)
         self.keys.update(base_features(parsed))
@@ -241,8 +241,8 @@ class Progressor:
         robustness."""
         if self.samples.terms:
             self.samples.fill(t, values)
-        if self.trace is not None:
-            self.trace.append((t, values))
+        if self.kept is not None:
+            self.kept.append(t, values)
 
     def step_state(
         self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
@@ -341,7 +341,7 @@ class Progressor:
                 )
                 pending = None if m.cut is None else m.cut[1].render()
                 witness = undecided(unknown, m.started, self.clock, pending)
-            margin = None if self.trace is None else self._margin(m, time, at_end)
+            margin = None if self.kept is None else self._margin(m, time, at_end)
             out.append(
                 Verdict(
                     m.text,
@@ -361,13 +361,11 @@ class Progressor:
         """A formula's robustness over the states from its first to its verdict's; a window
         reaching past the data then seen (at the end: past its end, with end of data "open")
         unknown in its unseen part."""
-        assert self.trace is not None
-        tree, start = self.trees[id(m)]
-        end = None if time is None else exact_time(time)
-        trace = [s for s in self.trace[start:] if end is None or s[0] <= end]
+        assert self.kept is not None
+        upto = end = None if time is None else exact_time(time)
         if at_end and self.end_of_data != "open":
             end = None
-        return robustness(tree, trace, end, self.clock)
+        return margin(self.kept.margin(id(m), upto, end), self.clock)
 
     def note_unknown(self, keys: Iterable[FeatureKey], pos: int, given: Any) -> None:
         """The engines' `Unknown`: these features were unknown at the state at `pos`."""
