@@ -403,7 +403,7 @@ def _serve(sub: a.Sub) -> None:
     a.definitions(p)
     p.add_argument(
         "--origin",
-        type=a.finite,
+        type=a.wall_time,
         help="wall time (Unix s) the replay starts at; nodes given the same one "
         "replay in step (default: now)",
     )
