@@ -780,12 +780,31 @@ def test_a_record_that_cannot_be_written_is_one_error_and_stops_the_run() -> Non
 
     from dkreason.live.record import RecordError
 
-    recorder = Recorder(Path("/dev/full"), STORE)
+    recorder = Recorder(Path("/dev/full"), STORE, force=True)
     with pytest.raises(RecordError, match=r"^--record /dev/full: No space left on device"):
         for n in range(10_000):  # incompressible: the writer's chunks reach the file
             recorder.message("/robot1/pose", POSE, n, n, os.urandom(1000))
         recorder.close()
     recorder.close()  # once failed, closing again is quiet
+
+
+def test_record_refuses_an_existing_file_unless_forced(
+    robots: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 27, defect 7: `--record` overwrote an existing file without a word."""
+    from dkreason.errors import DkError
+
+    kept = tmp_path / "yesterday.mcap"
+    kept.write_bytes(b"a run worth keeping")
+    argv = ["monitor", "--ros2", "--config", str(robots / "robot1.toml"), "--record", str(kept)]
+    assert main([*argv, "always (X[me] < 15)"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "exists" in err and "--force" in err
+    with pytest.raises(DkError, match="exists"):
+        Recorder(kept, STORE)
+    assert kept.read_bytes() == b"a run worth keeping"
+    Recorder(kept, STORE, force=True).close()
+    assert kept.read_bytes().startswith(b"\x89MCAP")  # overwritten, as asked
 
 
 def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(

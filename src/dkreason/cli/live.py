@@ -83,7 +83,7 @@ def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
     store = load_typestore(msg_types(args.msg), False, args.typestore or "ros2_jazzy")
     formulas = read_formulas(args)
     viewer = _viewer(args)
-    recorder = Recorder(args.record, store) if args.record is not None else None
+    recorder = Recorder(args.record, store, force=args.force) if args.record is not None else None
     session = _session(args)
     try:
         monitor = Ros2Monitor(

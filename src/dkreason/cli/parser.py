@@ -138,7 +138,10 @@ def _monitor(sub: a.Sub) -> None:
         metavar="OUT.mcap",
         help="recordings and --ros2: write the relevant topics' messages (byte for byte) and "
         "the verdicts (foxglove.Log on /dkreason/log, JSON on /dkreason/events) to one MCAP "
-        "file, which Foxglove opens and --source replays",
+        "file, which Foxglove opens and --source replays; an existing file is refused",
+    )
+    out.add_argument(
+        "--force", action="store_true", help="--record and --clips overwrite existing files"
     )
     out.add_argument(
         "--clips",
