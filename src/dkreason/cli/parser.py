@@ -9,6 +9,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any, NoReturn
 
+from ..live.wire import LIMITS
 from ..results import DEFAULT_DB, VERDICTS
 from ..stream.policy import APPROXIMATIONS, DEFAULT, END_OF_DATA
 from . import args as a
@@ -209,6 +210,22 @@ def _monitor(sub: a.Sub) -> None:
         metavar="KEYS",
         help="live: TOML of platform = Ed25519 public key (PEM); their samples "
         "must be signed (`serve --sign`)",
+    )
+    live.add_argument(
+        "--max-peer-topics",
+        type=a.whole,
+        default=LIMITS.topics,
+        metavar="N",
+        help=f"live: a platform whose specs hold more topics is refused "
+        f"(default {LIMITS.topics:,})",
+    )
+    live.add_argument(
+        "--max-peer-objects",
+        type=a.whole,
+        default=LIMITS.objects,
+        metavar="N",
+        help=f"live: a platform whose knowledge holds more object memberships is refused "
+        f"(default {LIMITS.objects:,})",
     )
     live.add_argument(
         "--domain",
