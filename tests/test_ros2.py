@@ -37,6 +37,7 @@ from dkreason.live.testing import cdr_clock, replay
 from dkreason.monitor import Monitor
 from dkreason.progress import Verdict
 from dkreason.stream.policy import StreamPolicy
+from dkreason.stream.processor import Violation
 from dkreason.stream.sources import RosbagSource
 from dkreason.stream.typestore import load_typestore, msg_types, ros_reader
 
@@ -805,6 +806,82 @@ def test_record_refuses_an_existing_file_unless_forced(
     assert kept.read_bytes() == b"a run worth keeping"
     Recorder(kept, STORE, force=True).close()
     assert kept.read_bytes().startswith(b"\x89MCAP")  # overwritten, as asked
+
+
+FLEET_TTL = """@prefix : <http://turtles.org/o#> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:Robot a owl:Class .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:X a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf (
+    :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Robot ] ) ] .
+:r1 a owl:NamedIndividual, :Robot .
+:r2 a owl:NamedIndividual, :Robot .
+"""
+
+
+@pytest.fixture
+def pair(tmp_path: Path) -> KnowledgeManager:
+    """One config, two robots' poses: X[r1] from /robot1/pose, X[r2] from /robot2/pose."""
+    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
+    (tmp_path / "pair.sslt").write_text(
+        "".join(
+            f"topic /robot{n}/pose:{POSE} contains X(r{n}) = msg.pose.position.x\n" for n in (1, 2)
+        )
+    )
+    (tmp_path / "pair.toml").write_text(
+        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
+    )
+    return KnowledgeManager.from_config(tmp_path / "pair.toml")
+
+
+class SimRobots:
+    """A /clock player and the two robots of `pair` on a Live monitor, on sim time."""
+
+    def __init__(self, run: Live) -> None:
+        self.run = run
+        self.player = Ros2Node(run.publishing, "player").publisher(
+            "/clock", "rosgraph_msgs/msg/Clock"
+        )
+        self.robots = [
+            Ros2Node(run.publishing, "turtle", f"/robot{n}").publisher(f"/robot{n}/pose", POSE)
+            for n in (1, 2)
+        ]
+        run.until(lambda: len(run.changes("subscribed")) == 2, "both robots subscribed")
+        run.until(lambda: any(s.topic == "/clock" for s in run.monitor.subs.values()), "/clock")
+        run.matched(self.player, *self.robots)
+
+    def second(self, t: float, clock: Any = None, **poses: float) -> None:
+        """A tick at t s (on `clock`, default the player), then each robot's pose stamped t."""
+        (clock or self.player).put(cdr_clock(int(t * S)))
+        for n, robot in enumerate(self.robots, 1):
+            if f"r{n}" in poses:
+                robot.put(pose(STORE, int(t * S), poses[f"r{n}"]))
+
+
+def test_a_sample_stamped_far_ahead_is_early_for_its_own_topic_only(
+    pair: KnowledgeManager, live: Callable[..., Live]
+) -> None:
+    """One pose of robot 2 stamped 60 s ahead of the clock made the data seem to run 60 s
+    longer, so robot 1's formula ended unknown ("silent for 57 s"): now that pose is an
+    `early` violation of X[r2] alone, and not taken."""
+    formulas = ["always (X[r1] < 15)", "always (X[r2] < 15)"]
+    run = live(pair, formulas, sim_time=True)
+    sim = SimRobots(run)
+    for n in range(1, 6):
+        sim.second(n, r1=1.0, r2=2.0)
+        if n == 2:
+            sim.robots[1].put(pose(STORE, 62 * S, 3.0))
+    run.until(lambda: run.monitor.received >= 10, "the poses taken")
+    run.finish()
+    assert [(v.formula, v.verdict) for v in run.verdicts()] == [
+        (formulas[0], True),
+        (formulas[1], True),
+    ]
+    violations = [e for e in run.events if isinstance(e, Violation)]
+    assert [(v.constraint, str(v.feature), v.time) for v in violations] == [("early", "X[r2]", 2)]
+    assert "valid at 62 s" in violations[0].detail
 
 
 def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(

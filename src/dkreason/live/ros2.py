@@ -9,10 +9,14 @@ files), only the fields the request needs (stream/fastread.py).
 Time.  A sample's valid time is its `header.stamp` when it has one (a zero stamp is none);
 otherwise the publisher's source time from the attachment (wall clock), or the sim clock at
 arrival (`sim_time`).  Its available time is its arrival: the wall clock, or with `sim_time` the
-latest `/clock`.  States are made as that clock passes (on the wall clock held back by each
-topic's lag, `held`; less the policy's delay), so a silent publisher's value turns unknown once
-it is older than the maximum age.  The inbox from zenoh's threads is bounded (`QUEUED`): a
-monitor that falls behind holds the link back, and past `PUT_WAIT` drops and says so.
+latest `/clock`.  A sample valid more than `EARLY_NS` past its available time is an `early`
+violation of its own features and is not taken (one stamp 60 s ahead would otherwise move the
+end of the data, and every other feature would end unknown); one valid long before it is late
+for its own features (the stream processor's `late`).  States are made as that clock passes
+(on the wall clock held back by each topic's lag, `held`; less the policy's delay), so a silent
+publisher's value turns unknown once it is older than the maximum age.  The inbox from zenoh's
+threads is bounded (`QUEUED`): a monitor that falls behind holds the link back, and past
+`PUT_WAIT` drops and says so.
 
 Change.  A publisher that appears later is subscribed when it appears; one whose token goes
 away is unsubscribed, and a feature left with no publisher is reported as source loss.  A
@@ -51,6 +55,7 @@ from .session import direct
 log = logging.getLogger("dkreason.ros2")
 MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
 HOLD_NS = NS  # how long a topic's newest sample may hold states back (wall clock)
+EARLY_NS = NS  # a sample valid further past the stream clock is early (a clock set wrong)
 QUEUED = 200_000  # events waiting for the monitor, at most (a sample's bytes and times each)
 PUT_WAIT = 1.0  # s a zenoh thread waits for room before an event is dropped
 
@@ -465,6 +470,9 @@ class Ros2Monitor:
         else:
             valid = source_time if source_time is not None else arrival
         available = (self.clock if self.clock is not None else valid) if self.sim_time else arrival
+        if valid - available > EARLY_NS:  # not taken: it would end the data for every topic
+            self.processor.early(sub.name, available, valid, values)
+            return
         self.processor.put(sub.name, available, valid, values)
         self.received += 1
         sub.arrived, sub.last_valid = arrival, valid
