@@ -884,6 +884,46 @@ def test_a_sample_stamped_far_ahead_is_early_for_its_own_topic_only(
     assert "valid at 62 s" in violations[0].detail
 
 
+def test_a_publisher_whose_type_hash_is_not_the_definitions_is_one_warning_and_skipped(
+    tmp_path: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A CarMsg of another layout (its fields reordered) was read as if it were ours (speed 50
+    read as 200.0): the hash in its token says so, and it is skipped unless --msg gives the
+    definition with that hash."""
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    for folder, text in ((ours, "int32 id\nfloat64 spd\n"), (theirs, "float64 spd\nint32 id\n")):
+        (folder / "dkreason_msgs" / "msg").mkdir(parents=True)
+        (folder / "dkreason_msgs" / "msg" / "CarMsg.msg").write_text(text)
+    stores = {
+        f: load_typestore(msg_types([f / "dkreason_msgs/msg/CarMsg.msg"]), False, "ros2_jazzy")
+        for f in (ours, theirs)
+    }
+    car = "dkreason_msgs/msg/CarMsg"
+    (tmp_path / "car.sslt").write_text(f"topic car:{car} contains X(me) = msg.spd\n")
+    ttl = REPO / "tests" / "data" / "turtles" / "turtle.ttl"
+    (tmp_path / "car.toml").write_text(
+        f'[platforms.robot1]\nontology = "{ttl}"\nspecs = "car.sslt"\nnamespace = "/robot1"\n'
+    )
+    km = KnowledgeManager.from_config(tmp_path / "car.toml")
+    their_hash = stores[theirs].hash_rihs01(car)
+    assert their_hash != stores[ours].hash_rihs01(car)
+
+    def watch(store: Any) -> Live:
+        run = live(km, ["always (X[me] < 100)"], store=store)
+        Ros2Node(run.publishing, "car", "/robot1").publisher("/robot1/car", car, their_hash)
+        return run
+
+    refused = watch(stores[ours])
+    refused.until(lambda: "type hash" in caplog.text, "the warning")
+    assert not refused.monitor.subs
+    refused.close()
+    taken = watch(stores[theirs])  # --msg gives their definition
+    taken.until(lambda: bool(taken.changes("subscribed")), "subscribed")
+    (line,) = [r.getMessage() for r in caplog.records if "type hash" in r.getMessage()]
+    assert line.startswith(f"/robot1/car ({car}) by /robot1/car: type hash {their_hash[:14]}")
+    assert line.endswith("skipped (give --msg with the definition it was built from)")
+
+
 def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(
     robots: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture
 ) -> None:

@@ -152,6 +152,7 @@ class Ros2Monitor:
         self.subs: dict[str, _Sub] = {}  # key expression → subscription
         self.feeding: dict[FeatureKey, set[str]] = {}  # feature → its subscribed keys
         self.warned: set[tuple[str, ...]] = set()
+        self.hashes: dict[str, str] = {}  # type → its definition's REP-2011 hash, here
         self.rejected: dict[tuple[str, str], int] = {}
         self.clock: int | None = None  # sim time: the latest /clock
         self.labelled = False  # the robots' attachments are in Jazzy's first layout
@@ -325,7 +326,7 @@ class Ros2Monitor:
         if not pub.bridged and pub.domain != self.domain:
             return []
         if self.sim_time and pub.topic == CLOCK:
-            return self._subscribe(pub, CLOCK, [])
+            return [] if self._another_layout(pub) else self._subscribe(pub, CLOCK, [])
         name = self._bound(pub)
         if name is None:
             return []
@@ -334,6 +335,8 @@ class Ros2Monitor:
                 f"{pub.topic}: type {pub.msgtype} is not known (give its .msg file "
                 f"with --msg, or --typestore); skipped"
             )
+            return []
+        if self._another_layout(pub):
             return []
         fits = []
         for key, m in self.wants[name]:
@@ -349,6 +352,29 @@ class Ros2Monitor:
             else:
                 fits.append(key)
         return self._subscribe(pub, name, list(dict.fromkeys(fits))) if fits else []
+
+    def _another_layout(self, pub: rmw.Publisher) -> bool:
+        """Whether the type hash a publisher announces (rmw_zenoh's tokens carry REP-2011's)
+        is not that of the definition used here, said in one warning: a type of the same
+        name but another layout would be read as garbage (a CarMsg whose fields were
+        reordered read speed 50 as 200.0).  A publisher announcing no hash is taken."""
+        if pub.type_hash in (None, rmw.NO_HASH) or pub.msgtype not in self.store.fielddefs:
+            return False
+        ours = self.hashes.get(pub.msgtype)
+        if ours is None:
+            try:
+                ours = self.store.hash_rihs01(pub.msgtype)
+            except Exception:  # rosbags cannot hash this definition: nothing to compare
+                ours = ""
+            self.hashes[pub.msgtype] = ours
+        if ours in ("", pub.type_hash):
+            return False
+        self._warn(
+            f"{pub.describe()}: type hash {pub.type_hash} is not that of the definition "
+            f"of {pub.msgtype} used here ({ours}): another layout; skipped (give --msg with "
+            f"the definition it was built from)"
+        )
+        return True
 
     def _bound(self, pub: rmw.Publisher) -> str | None:
         """The recording name a publisher's topic binds by: under a `bind` namespace (its
