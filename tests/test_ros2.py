@@ -30,6 +30,7 @@ from dkreason.live import rmw
 from dkreason.live.change import Change
 from dkreason.live.publish import Announcer
 from dkreason.live.record import Recorder
+from dkreason.live.rmw import CLOCK_TYPE
 from dkreason.live.ros2 import Ros2Monitor, decode, held
 from dkreason.live.ros2node import Ros2Node
 from dkreason.live.session import open_session
@@ -882,6 +883,60 @@ def test_a_sample_stamped_far_ahead_is_early_for_its_own_topic_only(
     violations = [e for e in run.events if isinstance(e, Violation)]
     assert [(v.constraint, str(v.feature), v.time) for v in violations] == [("early", "X[r2]", 2)]
     assert "valid at 62 s" in violations[0].detail
+
+
+def _sim_run(
+    pair: KnowledgeManager, live: Callable[..., Live], disturb: str
+) -> tuple[Live, list[Verdict]]:
+    """Robot 1 at x = 1 for 5 s, then 20 (a violation at 6 s), robot 2 at 2, on sim time:
+    `control` on a steady clock; `reset` with the simulator restarted after 4 s (its clock
+    back to 0); `stranger` with another node ticking /clock at 2^31 - 1 s after 3 s."""
+    formulas = ["always (X[r1] < 15)", "always (X[r2] < 15)"]
+    run = live(pair, formulas, sim_time=True)
+    sim = SimRobots(run)
+    timeline: list[tuple[int, int | None]] = [(n, n) for n in range(1, 7)]
+    if disturb == "reset":
+        timeline = [(1, 1), (2, 2), (3, 3), (4, 4), (0, None), (1, 5), (2, 6)]
+    rogue = Ros2Node(run.publishing, "rogue").publisher("/clock", CLOCK_TYPE)
+    run.until(lambda: len(run.monitor.subs[rogue.key].publishers) == 2, "both /clock seen")
+    for clock, second in timeline:
+        if second is None:
+            sim.second(clock)
+        else:
+            sim.second(clock, r1=20.0 if second == 6 else 1.0, r2=2.0)
+        if disturb == "stranger" and second == 3:
+            rogue.put(cdr_clock((2**31 - 1) * S))
+    run.until(lambda: run.monitor.received == 12, "every pose taken")
+    run.finish()
+    return run, run.verdicts()
+
+
+@pytest.mark.parametrize("disturb", ["reset", "stranger"])
+def test_a_clock_reset_or_a_strangers_tick_keeps_the_control_runs_verdicts(
+    pair: KnowledgeManager,
+    live: Callable[..., Live],
+    caplog: pytest.LogCaptureFixture,
+    disturb: str,
+) -> None:
+    """The sim clock only moved forward: a simulator reset (or a restarted `ros2 bag play`),
+    or one tick at 2^31 - 1 s from any node, made every formula unknown with a flood of
+    `late` events and missed the violation.  Now a backward jump is a reset (one event; the
+    stream goes on from where it was) and only the first /clock publisher is followed (the
+    others' ticks said in one line): the verdicts are the control run's, nothing is late."""
+    _, control = _sim_run(pair, live, "control")
+    assert [(v.verdict, v.time) for v in control] == [(False, 6), (True, 6)]
+    run, verdicts = _sim_run(pair, live, disturb)
+    assert verdicts == control
+    assert not [e for e in run.events if isinstance(e, Violation)]
+    resets = run.changes("clock_reset")
+    if disturb == "reset":
+        (reset,) = resets
+        assert str(reset) == (
+            "at 4 s: /clock reset (it went back from 4 s to 0 s; the stream goes on from 4 s)"
+        )
+    else:
+        assert not resets
+        assert "/clock: ticks from more than one publisher: only the first" in caplog.text
 
 
 def test_a_publisher_whose_type_hash_is_not_the_definitions_is_one_warning_and_skipped(

@@ -44,7 +44,7 @@ from ..stream import fields
 from ..stream.binding import message_type_fits, recording_names
 from ..stream.policy import StreamPolicy
 from ..stream.typestore import ros_reader
-from ..stream.units import NS
+from ..stream.units import NS, seconds
 from . import loop, rmw
 from .change import Event, change
 from .inbox import Inbox
@@ -58,6 +58,7 @@ HOLD_NS = NS  # how long a topic's newest sample may hold states back (wall cloc
 EARLY_NS = NS  # a sample valid further past the stream clock is early (a clock set wrong)
 QUEUED = 200_000  # events waiting for the monitor, at most (a sample's bytes and times each)
 PUT_WAIT = 1.0  # s a zenoh thread waits for room before an event is dropped
+_NO_EVENTS: list[Event] = []  # what a sample usually makes happen; read, never changed
 
 
 def decode(read: Callable[[bytes], Any], payload: bytes, msgtype: str) -> Any:
@@ -154,7 +155,11 @@ class Ros2Monitor:
         self.warned: set[tuple[str, ...]] = set()
         self.hashes: dict[str, str] = {}  # type → its definition's REP-2011 hash, here
         self.rejected: dict[tuple[str, str], int] = {}
-        self.clock: int | None = None  # sim time: the latest /clock
+        self.clock: int | None = None  # sim time: the latest /clock, shifted past resets
+        self.last_tick: int | None = None  # the latest /clock as its publisher put it
+        self.shift = 0  # ns added to /clock time: what its resets took back
+        self.ticker: tuple[bytes | None, ...] = ()  # (gid,) of the /clock publisher followed
+        self.foreign_ticks = 0  # ticks of other /clock publishers, not followed
         self.labelled = False  # the robots' attachments are in Jazzy's first layout
         self.received = 0
         self.report_at: float | None = None  # monotonic s: name the features nothing feeds
@@ -284,8 +289,7 @@ class Ros2Monitor:
     def handle(self, event: tuple[Any, ...]) -> list[Event]:
         try:
             if event[0] == "sample":
-                self._sample(*event[1:])
-                return []
+                return self._sample(*event[1:])
             return self._token(event[1], event[2])
         except WireError as exc:
             self._reject(event[1] if event[0] == "sample" else "tokens", exc.kind, str(exc))
@@ -442,6 +446,8 @@ class Ros2Monitor:
             return []
         sub = self.subs[key]
         sub.publishers.discard(token)
+        if sub.name == CLOCK:  # the next publisher to tick is followed (a player restarted)
+            self.ticker = ()
         if sub.publishers:
             return []
         del self.subs[key]
@@ -471,26 +477,26 @@ class Ros2Monitor:
 
     # ---- samples -------------------------------------------------------------------------
 
-    def _sample(self, key: str, payload: bytes, attachment: bytes | None, arrival: int) -> None:
+    def _sample(
+        self, key: str, payload: bytes, attachment: bytes | None, arrival: int
+    ) -> list[Event]:
         sub = self.subs.get(key)
         if sub is None:
-            return  # in flight when its subscription was dropped
+            return _NO_EVENTS  # in flight when its subscription was dropped
         rmw.check_cdr(payload, MAX_PAYLOAD)
         if not sub.checked:  # a topic's first message decodes in full, or is refused
             decode(lambda raw: self.store.deserialize_cdr(raw, sub.msgtype), payload, sub.msgtype)
             sub.checked = True
         values = decode(sub.read, payload, sub.msgtype)
         if sub.name == CLOCK:
-            t = values[0] * NS + values[1]
-            self.clock = t if self.clock is None else max(self.clock, t)
-            return
+            return self._tick(values[0] * NS + values[1], attachment)
         source_time = None
         if attachment is not None:
             source_time = rmw.parse_attachment(attachment)[1]
             self.labelled = len(attachment) != rmw.PLAIN_SIZE
         stamped = sub.stamped and bool(values[-2] or values[-1])  # zero: never set
         if stamped:
-            valid = values[-2] * NS + values[-1]
+            valid = values[-2] * NS + values[-1] + self.shift
         elif self.sim_time:
             valid = self.clock if self.clock is not None else arrival
         else:
@@ -498,7 +504,7 @@ class Ros2Monitor:
         available = (self.clock if self.clock is not None else valid) if self.sim_time else arrival
         if valid - available > EARLY_NS:  # not taken: it would end the data for every topic
             self.processor.early(sub.name, available, valid, values)
-            return
+            return _NO_EVENTS
         self.processor.put(sub.name, available, valid, values)
         self.received += 1
         sub.arrived, sub.last_valid = arrival, valid
@@ -512,6 +518,43 @@ class Ros2Monitor:
                 source_time if source_time is not None else arrival,
                 payload,
             )
+        return _NO_EVENTS
+
+    def _tick(self, t: int, attachment: bytes | None) -> list[Event]:
+        """/clock at `t`, as ROS takes it, but from one publisher: the first one heard (until
+        a /clock publisher goes away); other publishers' ticks are said and left (one tick
+        at 2^31 - 1 s from any node made every formula unknown).  Going back is a reset (a
+        simulator restarted, `ros2 bag play` again): said once, and /clock time is shifted
+        so that the stream goes on from where it was, its states and verdicts kept and
+        the samples after it not late."""
+        gid = rmw.parse_attachment(attachment)[2] if attachment is not None else None
+        if not self.ticker:
+            self.ticker = (gid,)
+        elif self.ticker != (gid,):
+            self.foreign_ticks += 1
+            if loop.logged(self.foreign_ticks):
+                log.warning(
+                    "/clock: ticks from more than one publisher: only the first one's are "
+                    "followed (%d others' so far; the last at %s s)",
+                    self.foreign_ticks,
+                    seconds(t),
+                )
+            return _NO_EVENTS
+        events = _NO_EVENTS
+        if self.last_tick is not None and t < self.last_tick and self.clock is not None:
+            self.shift = self.clock - t
+            events = [
+                change(
+                    "clock_reset",
+                    self.clock,
+                    "",
+                    f"it went back from {seconds(self.last_tick)} s to {seconds(t)} s; the stream "
+                    f"goes on from {seconds(self.clock)} s",
+                )
+            ]
+        self.last_tick = t
+        self.clock = t + self.shift
+        return events
 
     def close(self) -> None:
         for handle in [*self.declared, *(s.handle for s in self.subs.values())]:
