@@ -13,6 +13,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
 from pathlib import Path
@@ -1003,11 +1004,12 @@ def test_a_knowledge_reply_past_the_limits_refuses_that_platform_and_the_rest_is
 
 
 class _Replies:
-    """A session whose every query is answered by `answers` (what → payload), and that
-    declares nothing: a LiveMonitor's knowledge side, without a network."""
+    """A session whose every query is answered by `answers` (what → payload), signed by
+    `sign` (challenge, key expression, payload → attachment), and that declares nothing: a
+    LiveMonitor's knowledge side, without a network."""
 
-    def __init__(self, answers: dict[str, bytes]) -> None:
-        self.answers = answers
+    def __init__(self, answers: dict[str, bytes], sign: Any = None) -> None:
+        self.answers, self.sign = answers, sign
 
     def liveliness(self) -> _Replies:
         return self
@@ -1015,18 +1017,29 @@ class _Replies:
     def declare_subscriber(self, *_: Any, **__: Any) -> Any:
         return self
 
-    def get(self, key: str, **_: Any) -> list[Any]:
+    def get(self, key: str, attachment: bytes = b"", **_: Any) -> list[_Reply]:
         payload = self.answers[key.rsplit("/", 1)[1]]
+        signed = None if self.sign is None else _Bytes(self.sign(attachment, key, payload))
+        return [_Reply(_Sample(_Bytes(payload), signed))]
 
-        class Ok:
-            attachment = None
 
-            class payload:
-                @staticmethod
-                def to_bytes() -> bytes:
-                    return payload
+@dataclass
+class _Bytes:  # zenoh's ZBytes, Sample and Reply, as far as a monitor reads them
+    data: bytes
 
-        return [type("Reply", (), {"ok": Ok})]
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class _Sample:
+    payload: _Bytes
+    attachment: _Bytes | None
+
+
+@dataclass
+class _Reply:
+    ok: _Sample
 
 
 def test_a_hundred_thousand_topics_are_refused_before_they_are_parsed(
@@ -1108,6 +1121,43 @@ def test_trust_given_to_the_api_fails_closed_too(scenario: Path) -> None:
     for trust, message in (({}, "names no platform"), ({"Platform2": None}, "did you mean")):
         with pytest.raises(DkError, match=message):
             LiveMonitor(km, ["true"], StreamPolicy(), _Replies({}), trust=trust)
+
+
+def test_a_platform_that_signs_is_known_only_from_a_reply_signed_for_this_question() -> None:
+    """Knowledge replies were not signed: anyone answering as a platform was believed.  A
+    reply must now be signed by the platform's key for the challenge the monitor attached
+    (a reply recorded earlier answers another), and it says the node's nonce."""
+    import os
+
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+    from dkreason.errors import WireError
+    from dkreason.live import wire
+    from dkreason.live.monitor import LiveMonitor
+    from dkreason.live.signing import Signer
+    from dkreason.stream.policy import StreamPolicy
+
+    key = Ed25519PrivateKey.generate()
+    node, impostor = Signer(key, os.urandom(16)), Signer(Ed25519PrivateKey.generate(), b"x" * 16)
+    km = KnowledgeManager.from_config(REPO / "examples" / "live" / "monitor.toml", live=True)
+    specs = {"specs": wire.encode({"sslt": "topic t:CarMsg contains Speed(car1) = msg.spd\n"})}
+
+    def asked(sign: Any) -> LiveMonitor:
+        session = _Replies(specs, sign)
+        trust = {"platform1": key.public_key()}
+        monitor = LiveMonitor(km, ["true"], StreamPolicy(), session, trust=trust)
+        monitor._specs("platform1")
+        return monitor
+
+    assert asked(node.reply).nonces == {"platform1": node.nonce}
+    for sign, why in (
+        (None, "unsigned reply"),
+        (lambda _, k, p: node.reply(b"an earlier question", k, p), "bad signature on the reply"),
+        (impostor.reply, "bad signature on the reply"),
+        (lambda c, k, p: node.sample(k, p), "bad signature on the reply"),  # not a reply's
+    ):
+        with pytest.raises(WireError, match=why):
+            asked(sign)
 
 
 def test_a_signed_sample_replayed_from_another_run_is_rejected_and_counted(

@@ -9,6 +9,8 @@ machine's speed; waits are bounds on failure only.
 
 from __future__ import annotations
 
+import functools
+import itertools
 import json
 import logging
 import struct
@@ -937,6 +939,54 @@ def test_a_clock_reset_or_a_strangers_tick_keeps_the_control_runs_verdicts(
     else:
         assert not resets
         assert "/clock: ticks from more than one publisher: only the first" in caplog.text
+
+
+class _Quiet:
+    """A session that declares nothing: a Ros2Monitor's events handed to it directly."""
+
+    def liveliness(self) -> _Quiet:
+        return self
+
+    def declare_subscriber(self, *_: Any, **__: Any) -> _Quiet:
+        return self
+
+    def undeclare(self) -> None:
+        pass
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 2**40), st.booleans()),  # (tick in ns, from a stranger)
+        max_size=30,
+    )
+)
+def test_whatever_clock_publishers_put_the_stream_clock_never_goes_back(
+    ticks: list[tuple[int, bool]],
+) -> None:
+    """Each backward tick of the publisher followed is one reset; a stranger's tick never
+    moves the clock."""
+    monitor = Ros2Monitor(_turtle(), ["true"], StreamPolicy(), _Quiet(), store=STORE, sim_time=True)
+    token = rmw.publisher_token("aa", 1, 10, "/", "player", "/clock", CLOCK_TYPE)
+    key = rmw.data_key("/clock", CLOCK_TYPE)
+    assert monitor.handle(("token", token, True)) == []
+    clocks: list[int | None] = [None]
+    resets = 0
+    for t, stranger in ticks:
+        attachment = rmw.attachment(1, 0, (b"s" if stranger else b"p") * 16)
+        events = monitor.handle(("sample", key, cdr_clock(t), attachment, 0))
+        resets += sum(isinstance(e, Change) and e.event == "clock_reset" for e in events)
+        clocks.append(monitor.now())
+        if stranger != ticks[0][1]:  # the first publisher heard is the one followed
+            assert clocks[-1] == clocks[-2]
+    followed = [t for t, stranger in ticks if stranger == ticks[0][1]]
+    assert resets == sum(b < a for a, b in itertools.pairwise(followed))
+    assert all(b is not None and (a is None or a <= b) for a, b in itertools.pairwise(clocks))
+
+
+@functools.cache
+def _turtle() -> KnowledgeManager:
+    return KnowledgeManager.from_config(REPO / "tests" / "data" / "turtles" / "robot1.toml")
 
 
 def test_a_publisher_whose_type_hash_is_not_the_definitions_is_one_warning_and_skipped(
