@@ -632,6 +632,28 @@ def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path) -> None:
     assert request.warnings == ()
 
 
+def test_objects_a_peer_announces_at_once_are_added_in_one_step(
+    scenario: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A peer announcing thousands of objects in one change cost a name index and a
+    re-derivation each (quadratic): now one for the lot, and each is matched as before."""
+    map_car3_to_a_truck(scenario)
+    kb = KnowledgeBase.from_config(scenario / "federation.toml")
+    derivations: list[None] = []
+    materialize = kb.engine.materialize
+    monkeypatch.setattr(kb.engine, "materialize", lambda: derivations.append(materialize()))
+    trucks = [(f"t{n}", "Automobile", n) for n in range(2000)]
+    iris = kb.add_objects("platform2", [*trucks, ("truck1", "Automobile", None), trucks[0]])
+    assert len(derivations) == 1 and len(set(iris)) == 2001
+    assert {i for i in kb.platform("platform2").ontology.individuals if "#t" in i} >= set(
+        iris[:2000]
+    )
+    request = KnowledgeManager(kb).check_formula("always (Speed[car3] > 60)")
+    assert ("platform2", "carstopic1") in {
+        (t.platform, t.topic) for t in request.features[0].topics
+    }
+
+
 def test_a_node_publishes_json_lines_from_its_standard_input(
     procs: Processes, tmp_path: Path
 ) -> None:

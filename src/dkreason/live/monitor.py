@@ -173,11 +173,10 @@ class LiveMonitor:
         ontology = parse_ontology(
             ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p, fmt="turtle"
         )
-        objects = self._objects(p)
-        self.limits.check(p, "objects", len(ontology.types) + len(objects), self.limits.objects)
-        self.digests[p] = ont["digest"]
         told = set(ontology.types)
-        new = {(iri, sort): id_ for iri, sort, id_ in objects if (iri, sort) not in told}
+        new = {(iri, sort): id_ for iri, sort, id_ in self._objects(p) if (iri, sort) not in told}
+        self.limits.check(p, "objects", len(told) + len(new), self.limits.objects)
+        self.digests[p] = ont["digest"]
         ontology = with_objects(ontology, [(iri, sort, id_) for (iri, sort), id_ in new.items()])
         return make_platform(ontology, self._specs(p))
 
@@ -209,15 +208,11 @@ class LiveMonitor:
         """A known platform's specs and objects, asked again and applied as changes."""
         kb = self.km.kb
         specs = self._specs(p)
-        objects = self._objects(p)
-        self.limits.check(
-            p, "objects", len(kb.platform(p).ontology.types) + len(objects), self.limits.objects
-        )
-        added, removed = kb.replace_specs(p, list(specs))
         types = set(kb.platform(p).ontology.types)
-        new = [(iri, sort, id_) for iri, sort, id_ in objects if (iri, sort) not in types]
-        for iri, sort, id_ in new:
-            kb.add_object(p, f"<{iri}>", f"<{sort}>", id_)
+        new = [(iri, sort, id_) for iri, sort, id_ in self._objects(p) if (iri, sort) not in types]
+        self.limits.check(p, "objects", len(types) + len(new), self.limits.objects)
+        added, removed = kb.replace_specs(p, list(specs))
+        kb.add_objects(p, [(f"<{iri}>", f"<{sort}>", id_) for iri, sort, id_ in new])
         if added or removed or new:
             log.info(
                 "%s changed: specs added %s, removed %s; %d new object types",
