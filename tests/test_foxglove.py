@@ -298,3 +298,20 @@ def test_speed_is_for_recordings(capsys: pytest.CaptureFixture[str]) -> None:
         main([*base, "--speed", "-1"])
     assert stop.value.code == 2
     assert "expected 0 or more" in capsys.readouterr().err
+
+
+def test_record_refuses_an_existing_file_before_the_run_unless_forced(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Issue 27, defect 7: `--record` overwrote an existing file without a word."""
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", TYPES, car_rows())
+    kept = tmp_path / "yesterday.mcap"
+    kept.write_bytes(b"a run worth keeping")
+    argv = ["monitor", "--config", str(SINGLE), "--source", str(source), "--record", str(kept)]
+    assert main([*argv, SPEEDING]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the file exists (give --force to overwrite it)" in err
+    assert kept.read_bytes() == b"a run worth keeping"
+    assert main([*argv, "--force", SPEEDING]) == 1  # overwritten, as asked
+    assert read_mcap(kept)

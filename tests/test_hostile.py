@@ -340,6 +340,11 @@ def test_odd_individuals(tmp_path: Path, capsys: pytest.CaptureFixture[str], ext
         ["serve", "--config", str(SINGLE), "--origin", "nan"],
         ["serve", "--config", str(SINGLE), "--heartbeat", "nan"],
         ["monitor", "--config", str(SINGLE), "--live", "--wait", "nan", "P[a]"],
+        # numbers past what a clock or a timer holds (issue 27, defect 6): refused as given
+        ["serve", "--config", str(SINGLE), "--heartbeat", "1e300"],
+        ["monitor", "--config", str(SINGLE), "--live", "--wait", "1e300", "P[a]"],
+        ["monitor", "--config", str(SINGLE), "--live", "--duration", "1e300", "P[a]"],
+        ["batch", "--config", str(SINGLE), "--timeout", "1e300", "x.jsonl"],
         [
             "monitor",
             "--config",
@@ -359,6 +364,21 @@ def test_bad_numbers_on_the_command_line(
         main(argv)
     err = capsys.readouterr().err
     assert stop.value.code == 2 and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "option", [("--origin", "1e300"), ("--origin", "-1e300"), ("--speed", "1e300")]
+)
+def test_a_replay_clock_past_what_a_clock_holds_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: tuple[str, str]
+) -> None:
+    """Issue 27, defect 6: `serve --origin 1e300` overflowed the replay's clock (a
+    traceback, exit 1, which reads as "violated")."""
+    recording = rows(tmp_path / "r.jsonl", ['{"topic": "topic1", "time": 1, "msg": {"id": 1}}'])
+    with pytest.raises(SystemExit) as stop:
+        main(["serve", "--config", str(SINGLE), "--source", str(recording), *option])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and err.count("\n") == 1 and option[0] in err
 
 
 def test_plot_into_a_missing_directory_is_refused_before_the_run(

@@ -13,7 +13,9 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from decimal import Decimal
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -630,6 +632,28 @@ def test_an_object_joining_a_sort_reaches_the_matching(scenario: Path) -> None:
     assert request.warnings == ()
 
 
+def test_objects_a_peer_announces_at_once_are_added_in_one_step(
+    scenario: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A peer announcing thousands of objects in one change cost a name index and a
+    re-derivation each (quadratic): now one for the lot, and each is matched as before."""
+    map_car3_to_a_truck(scenario)
+    kb = KnowledgeBase.from_config(scenario / "federation.toml")
+    derivations: list[None] = []
+    materialize = kb.engine.materialize
+    monkeypatch.setattr(kb.engine, "materialize", lambda: derivations.append(materialize()))
+    trucks = [(f"t{n}", "Automobile", n) for n in range(2000)]
+    iris = kb.add_objects("platform2", [*trucks, ("truck1", "Automobile", None), trucks[0]])
+    assert len(derivations) == 1 and len(set(iris)) == 2001
+    assert {i for i in kb.platform("platform2").ontology.individuals if "#t" in i} >= set(
+        iris[:2000]
+    )
+    request = KnowledgeManager(kb).check_formula("always (Speed[car3] > 60)")
+    assert ("platform2", "carstopic1") in {
+        (t.platform, t.topic) for t in request.features[0].topics
+    }
+
+
 def test_a_node_publishes_json_lines_from_its_standard_input(
     procs: Processes, tmp_path: Path
 ) -> None:
@@ -679,7 +703,8 @@ class InProcess:
     """Platforms 1 and 2 of the thesis scenario, with car3 mapped to platform 2's truck1 (a
     GroundVehicle), as nodes in this process, and a monitor of Speed[car3] over them."""
 
-    def __init__(self, scenario: Path) -> None:
+    def __init__(self, scenario: Path, sign: Any = None, **options: Any) -> None:
+        """`sign`: platform 1's signing key (signing.Signer); `options`: the monitor's."""
         from dkreason.live.monitor import LiveMonitor
         from dkreason.live.session import open_session
         from dkreason.stream.policy import StreamPolicy
@@ -693,16 +718,18 @@ class InProcess:
         )
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
         self.sessions = [open_session([], [self.endpoint])]
-        self.nodes = [self.node(1), self.node(2)]
+        self.port = int(self.endpoint.rsplit(":", 1)[1])
+        self.nodes = [self.node(1, sign=sign), self.node(2)]
         self.monitor = LiveMonitor(
             KnowledgeManager.from_config(scenario / "monitor.toml", live=True),
             ["always (Speed[car3] > 60)"],
             StreamPolicy(),
             self.sessions[0],
             wait=10,
+            **options,
         )
 
-    def node(self, n: int) -> Any:
+    def node(self, n: int, sign: Any = None) -> Any:
         from dkreason.live.serve import PlatformNode
         from dkreason.live.session import open_session
 
@@ -712,7 +739,7 @@ class InProcess:
             f'specs = "specs/platform{n}.sslt"\n'
         )
         self.sessions.append(open_session([self.endpoint], []))
-        return PlatformNode(KnowledgeManager.from_config(config), self.sessions[-1])
+        return PlatformNode(KnowledgeManager.from_config(config), self.sessions[-1], sign=sign)
 
     def run(self, steps: list[tuple[set[tuple[str, str, str, str]], Any]]) -> list[tuple[str, ...]]:
         """The monitor's changes, taking each step once the changes it waits for are seen."""
@@ -951,6 +978,263 @@ def test_signed_samples_reject_an_injector(procs: Processes, tmp_path: Path) -> 
     (verdict,) = [e for e in seen if "verdict" in e]
     assert verdict["verdict"] is True
     assert "Traceback" not in "".join(log)
+
+
+# ---- issue 27: peers cannot blind the monitor -------------------------------------------------
+
+
+def test_a_knowledge_reply_past_the_limits_refuses_that_platform_and_the_rest_is_monitored(
+    scenario: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Platform 2 answers with more topics than the monitor takes (a 100,000-topic reply in
+    8 MB took 2 GB and 150 s): it is refused in one line, and platform 1's data is judged."""
+    from dkreason.live.change import Change
+    from dkreason.live.wire import Limits
+    from dkreason.progress import Verdict
+
+    specs = scenario / "specs" / "platform2.sslt"
+    specs.write_text(
+        specs.read_text()
+        + "".join(
+            f"topic extra{n}:AutomobileMsg contains Speed(Automobile) = msg.speed "
+            f"for some Automobile = msg.id\n"
+            for n in range(20)
+        )
+    )
+    fed = InProcess(scenario, limits=Limits(topics=10))  # platform 1 has 9, platform 2 23
+    events: list[Any] = []
+    try:
+        for event in fed.monitor.run(duration=30):
+            events.append(event)
+            if isinstance(event, Change) and (event.event, event.topic) == ("subscribed", "topic5"):
+                subscription_known(fed.port, "dkreason/platform1/topic/topic5")
+                for t in (1, 2):
+                    fed.nodes[0].publish("topic5", {"id": 3, "spd": 50.0}, t * 10**9)
+            elif isinstance(event, Verdict):
+                fed.monitor.stop.set()
+    finally:
+        for node in fed.nodes:
+            node.close()
+        for session in fed.sessions:
+            session.close()
+    verdict = next(e for e in events if isinstance(e, Verdict))
+    assert (verdict.verdict, verdict.time) == (False, 1)
+    assert not [e for e in events if isinstance(e, Change) and e.platform == "platform2"]
+    assert fed.monitor.rejected == {("platform2", "knowledge", "limit"): 1}
+    (line,) = [r.getMessage() for r in caplog.records if "rejected knowledge" in r.getMessage()]
+    assert line.endswith("platform2's topics: more than 10 (--max-peer-topics)")
+
+
+class _Replies:
+    """A session whose every query is answered by `answers` (what → payload), signed by
+    `sign` (challenge, key expression, payload → attachment), and that declares nothing: a
+    LiveMonitor's knowledge side, without a network."""
+
+    def __init__(self, answers: dict[str, bytes], sign: Any = None) -> None:
+        self.answers, self.sign = answers, sign
+
+    def liveliness(self) -> _Replies:
+        return self
+
+    def declare_subscriber(self, *_: Any, **__: Any) -> Any:
+        return self
+
+    def get(self, key: str, attachment: bytes = b"", **_: Any) -> list[_Reply]:
+        payload = self.answers[key.rsplit("/", 1)[1]]
+        signed = None if self.sign is None else _Bytes(self.sign(attachment, key, payload))
+        return [_Reply(_Sample(_Bytes(payload), signed))]
+
+
+@dataclass
+class _Bytes:  # zenoh's ZBytes, Sample and Reply, as far as a monitor reads them
+    data: bytes
+
+    def to_bytes(self) -> bytes:
+        return self.data
+
+
+@dataclass
+class _Sample:
+    payload: _Bytes
+    attachment: _Bytes | None
+
+
+@dataclass
+class _Reply:
+    ok: _Sample
+
+
+def test_a_hundred_thousand_topics_are_refused_before_they_are_parsed(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from dkreason.errors import WireError
+    from dkreason.live import wire
+    from dkreason.live.monitor import LiveMonitor
+    from dkreason.stream.policy import StreamPolicy
+
+    def parse_text(*_: Any) -> Any:
+        raise AssertionError("parsed before it was counted")
+
+    monkeypatch.setattr("dkreason.parse.sslt.parse_text", parse_text)
+    sslt = "".join(f"topic t{n}:CarMsg contains Speed(car1) = msg.spd\n" for n in range(100_000))
+    objects = {
+        f"http://x.org/o{n}": {"sorts": ["http://x.org/Car"], "id": n} for n in range(60_000)
+    }
+    monitor = LiveMonitor(
+        KnowledgeManager.from_config(REPO / "examples" / "live" / "monitor.toml", live=True),
+        ["true"],
+        StreamPolicy(),
+        _Replies({"specs": wire.encode({"sslt": sslt}), "objects": wire.encode(objects)}),
+    )
+    with pytest.raises(WireError, match=r"platform2's topics: more than 10,000"):
+        monitor._specs("platform2")
+    with pytest.raises(WireError, match=r"platform2's objects: more than 50,000"):
+        monitor._objects("platform2")
+
+
+def _keys(tmp_path: Path, text: str) -> Path:
+    from cryptography.hazmat.primitives import serialization
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+    (tmp_path / "p1.pub.pem").write_bytes(
+        Ed25519PrivateKey.generate()
+        .public_key()
+        .public_bytes(serialization.Encoding.PEM, serialization.PublicFormat.SubjectPublicKeyInfo)
+    )
+    (tmp_path / "keys.toml").write_text(text)
+    return tmp_path / "keys.toml"
+
+
+@pytest.mark.parametrize(
+    ("keys", "message"),
+    [
+        ('Platform1 = "p1.pub.pem"\n', "'Platform1' is not a platform of the config (did you mean"),
+        ('platform9 = "p1.pub.pem"\n', "'platform9' is not a platform of the config"),
+        ("", "names no platform's key"),
+        ("# every key commented out\n", "names no platform's key"),
+    ],
+)
+def test_trust_fails_closed_on_a_keys_file_naming_no_configured_platform(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], keys: str, message: str
+) -> None:
+    """A misspelt name left its platform unsigned and an injected sample was taken: now the
+    monitor does not start (one line, exit 2)."""
+    (tmp_path / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    code = main(
+        [
+            "monitor",
+            "--live",
+            "--config",
+            str(tmp_path / "monitor.toml"),
+            "--trust",
+            str(_keys(tmp_path, keys)),
+            "always (Speed[car1] < 100)",
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and message in err, err
+
+
+def test_trust_given_to_the_api_fails_closed_too(scenario: Path) -> None:
+    from dkreason.live.monitor import LiveMonitor
+    from dkreason.stream.policy import StreamPolicy
+
+    km = KnowledgeManager.from_config(REPO / "examples" / "live" / "monitor.toml", live=True)
+    for trust, message in (({}, "names no platform"), ({"Platform2": None}, "did you mean")):
+        with pytest.raises(DkError, match=message):
+            LiveMonitor(km, ["true"], StreamPolicy(), _Replies({}), trust=trust)
+
+
+def test_a_platform_that_signs_is_known_only_from_a_reply_signed_for_this_question() -> None:
+    """Knowledge replies were not signed: anyone answering as a platform was believed.  A
+    reply must now be signed by the platform's key for the challenge the monitor attached
+    (a reply recorded earlier answers another), and it says the node's nonce."""
+    import os
+
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+    from dkreason.errors import WireError
+    from dkreason.live import wire
+    from dkreason.live.monitor import LiveMonitor
+    from dkreason.live.signing import Signer
+    from dkreason.stream.policy import StreamPolicy
+
+    key = Ed25519PrivateKey.generate()
+    node, impostor = Signer(key, os.urandom(16)), Signer(Ed25519PrivateKey.generate(), b"x" * 16)
+    km = KnowledgeManager.from_config(REPO / "examples" / "live" / "monitor.toml", live=True)
+    specs = {"specs": wire.encode({"sslt": "topic t:CarMsg contains Speed(car1) = msg.spd\n"})}
+
+    def asked(sign: Any) -> LiveMonitor:
+        session = _Replies(specs, sign)
+        trust = {"platform1": key.public_key()}
+        monitor = LiveMonitor(km, ["true"], StreamPolicy(), session, trust=trust)
+        monitor._specs("platform1")
+        return monitor
+
+    assert asked(node.reply).nonces == {"platform1": node.nonce}
+    for sign, why in (
+        (None, "unsigned reply"),
+        (lambda _, k, p: node.reply(b"an earlier question", k, p), "bad signature on the reply"),
+        (impostor.reply, "bad signature on the reply"),
+        (lambda c, k, p: node.sample(k, p), "bad signature on the reply"),  # not a reply's
+    ):
+        with pytest.raises(WireError, match=why):
+            asked(sign)
+
+
+def test_a_signed_sample_replayed_from_another_run_is_rejected_and_counted(
+    scenario: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A sample platform 1 signed in an earlier run, put again by anyone, verifies but carries
+    that run's nonce: rejected as a replay, counted, said in the summary; the node's samples of
+    this run are taken."""
+    import os
+
+    import zenoh
+    from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+    from dkreason.live import wire
+    from dkreason.live.change import Change
+    from dkreason.live.session import open_session
+    from dkreason.live.signing import Signer
+    from dkreason.progress import Verdict
+
+    key = Ed25519PrivateKey.generate()
+    earlier, now = Signer(key, os.urandom(16)), Signer(key, os.urandom(16))
+    fed = InProcess(scenario, sign=now, trust={"platform1": key.public_key()})
+    rogue = open_session([fed.endpoint], [])
+    topic5 = wire.key("platform1", "topic", "topic5")
+    replayed = wire.encode({"valid": 10**9, "available": 10**9, "msg": {"id": 3, "spd": 50.0}})
+
+    def attack_then_publish() -> None:
+        bad = heard(
+            rogue.declare_publisher(topic5, congestion_control=zenoh.CongestionControl.BLOCK)
+        )
+        bad.put(replayed, attachment=earlier.sample(topic5, replayed))
+        deadline = time.monotonic() + 30
+        while ("platform1", "sample", "replay") not in fed.monitor.rejected:
+            assert time.monotonic() < deadline, "the replay was not seen"
+            time.sleep(0.01)
+        subscription_known(fed.port, topic5)
+        for t in (1, 2, 3):
+            fed.nodes[0].publish("topic5", {"id": 3, "spd": 70.0}, t * 10**9)
+
+    events: list[Any] = []
+    try:
+        for event in fed.monitor.run(until=Fraction(2), duration=60):
+            events.append(event)
+            if isinstance(event, Change) and (event.event, event.topic) == ("subscribed", "topic5"):
+                threading.Thread(target=attack_then_publish, daemon=True).start()
+    finally:
+        rogue.close()
+        for node in fed.nodes:
+            node.close()
+        for session in fed.sessions:
+            session.close()
+    assert fed.monitor.rejected == {("platform1", "sample", "replay"): 1}
+    assert fed.monitor.received == 2  # this run's samples up to 2 s
+    assert [e.verdict for e in events if isinstance(e, Verdict)] == [True]  # never below 60
+    assert "in all, rejected 1 sample from platform1 (replay)" in caplog.text
 
 
 # ---- the inbox from zenoh's threads -----------------------------------------------------------

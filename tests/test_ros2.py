@@ -9,6 +9,8 @@ machine's speed; waits are bounds on failure only.
 
 from __future__ import annotations
 
+import functools
+import itertools
 import json
 import logging
 import struct
@@ -30,6 +32,7 @@ from dkreason.live import rmw
 from dkreason.live.change import Change
 from dkreason.live.publish import Announcer
 from dkreason.live.record import Recorder
+from dkreason.live.rmw import CLOCK_TYPE
 from dkreason.live.ros2 import Ros2Monitor, decode, held
 from dkreason.live.ros2node import Ros2Node
 from dkreason.live.session import open_session
@@ -37,6 +40,7 @@ from dkreason.live.testing import cdr_clock, replay
 from dkreason.monitor import Monitor
 from dkreason.progress import Verdict
 from dkreason.stream.policy import StreamPolicy
+from dkreason.stream.processor import Violation
 from dkreason.stream.sources import RosbagSource
 from dkreason.stream.typestore import load_typestore, msg_types, ros_reader
 
@@ -780,12 +784,249 @@ def test_a_record_that_cannot_be_written_is_one_error_and_stops_the_run() -> Non
 
     from dkreason.live.record import RecordError
 
-    recorder = Recorder(Path("/dev/full"), STORE)
+    recorder = Recorder(Path("/dev/full"), STORE, force=True)
     with pytest.raises(RecordError, match=r"^--record /dev/full: No space left on device"):
         for n in range(10_000):  # incompressible: the writer's chunks reach the file
             recorder.message("/robot1/pose", POSE, n, n, os.urandom(1000))
         recorder.close()
     recorder.close()  # once failed, closing again is quiet
+
+
+def test_record_refuses_an_existing_file_unless_forced(
+    robots: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 27, defect 7: `--record` overwrote an existing file without a word."""
+    from dkreason.errors import DkError
+
+    kept = tmp_path / "yesterday.mcap"
+    kept.write_bytes(b"a run worth keeping")
+    argv = ["monitor", "--ros2", "--config", str(robots / "robot1.toml"), "--record", str(kept)]
+    assert main([*argv, "always (X[me] < 15)"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "exists" in err and "--force" in err
+    with pytest.raises(DkError, match="exists"):
+        Recorder(kept, STORE)
+    assert kept.read_bytes() == b"a run worth keeping"
+    Recorder(kept, STORE, force=True).close()
+    assert kept.read_bytes().startswith(b"\x89MCAP")  # overwritten, as asked
+
+
+FLEET_TTL = """@prefix : <http://turtles.org/o#> .
+@prefix owl: <http://www.w3.org/2002/07/owl#> .
+@prefix rdfs: <http://www.w3.org/2000/01/rdf-schema#> .
+:Robot a owl:Class .
+:UnaryRelation a owl:Class .
+:arg1 a owl:ObjectProperty .
+:X a owl:Class ; rdfs:subClassOf [ a owl:Class ; owl:intersectionOf (
+    :UnaryRelation [ a owl:Restriction ; owl:onProperty :arg1 ; owl:allValuesFrom :Robot ] ) ] .
+:r1 a owl:NamedIndividual, :Robot .
+:r2 a owl:NamedIndividual, :Robot .
+"""
+
+
+@pytest.fixture
+def pair(tmp_path: Path) -> KnowledgeManager:
+    """One config, two robots' poses: X[r1] from /robot1/pose, X[r2] from /robot2/pose."""
+    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
+    (tmp_path / "pair.sslt").write_text(
+        "".join(
+            f"topic /robot{n}/pose:{POSE} contains X(r{n}) = msg.pose.position.x\n" for n in (1, 2)
+        )
+    )
+    (tmp_path / "pair.toml").write_text(
+        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
+    )
+    return KnowledgeManager.from_config(tmp_path / "pair.toml")
+
+
+class SimRobots:
+    """A /clock player and the two robots of `pair` on a Live monitor, on sim time."""
+
+    def __init__(self, run: Live) -> None:
+        self.run = run
+        self.player = Ros2Node(run.publishing, "player").publisher(
+            "/clock", "rosgraph_msgs/msg/Clock"
+        )
+        self.robots = [
+            Ros2Node(run.publishing, "turtle", f"/robot{n}").publisher(f"/robot{n}/pose", POSE)
+            for n in (1, 2)
+        ]
+        run.until(lambda: len(run.changes("subscribed")) == 2, "both robots subscribed")
+        run.until(lambda: any(s.topic == "/clock" for s in run.monitor.subs.values()), "/clock")
+        run.matched(self.player, *self.robots)
+
+    def second(self, t: float, clock: Any = None, **poses: float) -> None:
+        """A tick at t s (on `clock`, default the player), then each robot's pose stamped t."""
+        (clock or self.player).put(cdr_clock(int(t * S)))
+        for n, robot in enumerate(self.robots, 1):
+            if f"r{n}" in poses:
+                robot.put(pose(STORE, int(t * S), poses[f"r{n}"]))
+
+
+def test_a_sample_stamped_far_ahead_is_early_for_its_own_topic_only(
+    pair: KnowledgeManager, live: Callable[..., Live]
+) -> None:
+    """One pose of robot 2 stamped 60 s ahead of the clock made the data seem to run 60 s
+    longer, so robot 1's formula ended unknown ("silent for 57 s"): now that pose is an
+    `early` violation of X[r2] alone, and not taken."""
+    formulas = ["always (X[r1] < 15)", "always (X[r2] < 15)"]
+    run = live(pair, formulas, sim_time=True)
+    sim = SimRobots(run)
+    for n in range(1, 6):
+        sim.second(n, r1=1.0, r2=2.0)
+        if n == 2:
+            sim.robots[1].put(pose(STORE, 62 * S, 3.0))
+    run.until(lambda: run.monitor.received >= 10, "the poses taken")
+    run.finish()
+    assert [(v.formula, v.verdict) for v in run.verdicts()] == [
+        (formulas[0], True),
+        (formulas[1], True),
+    ]
+    violations = [e for e in run.events if isinstance(e, Violation)]
+    assert [(v.constraint, str(v.feature), v.time) for v in violations] == [("early", "X[r2]", 2)]
+    assert "valid at 62 s" in violations[0].detail
+
+
+def _sim_run(
+    pair: KnowledgeManager, live: Callable[..., Live], disturb: str
+) -> tuple[Live, list[Verdict]]:
+    """Robot 1 at x = 1 for 5 s, then 20 (a violation at 6 s), robot 2 at 2, on sim time:
+    `control` on a steady clock; `reset` with the simulator restarted after 4 s (its clock
+    back to 0); `stranger` with another node ticking /clock at 2^31 - 1 s after 3 s."""
+    formulas = ["always (X[r1] < 15)", "always (X[r2] < 15)"]
+    run = live(pair, formulas, sim_time=True)
+    sim = SimRobots(run)
+    timeline: list[tuple[int, int | None]] = [(n, n) for n in range(1, 7)]
+    if disturb == "reset":
+        timeline = [(1, 1), (2, 2), (3, 3), (4, 4), (0, None), (1, 5), (2, 6)]
+    rogue = Ros2Node(run.publishing, "rogue").publisher("/clock", CLOCK_TYPE)
+    run.until(lambda: len(run.monitor.subs[rogue.key].publishers) == 2, "both /clock seen")
+    for clock, second in timeline:
+        if second is None:
+            sim.second(clock)
+        else:
+            sim.second(clock, r1=20.0 if second == 6 else 1.0, r2=2.0)
+        if disturb == "stranger" and second == 3:
+            rogue.put(cdr_clock((2**31 - 1) * S))
+    run.until(lambda: run.monitor.received == 12, "every pose taken")
+    run.finish()
+    return run, run.verdicts()
+
+
+@pytest.mark.parametrize("disturb", ["reset", "stranger"])
+def test_a_clock_reset_or_a_strangers_tick_keeps_the_control_runs_verdicts(
+    pair: KnowledgeManager,
+    live: Callable[..., Live],
+    caplog: pytest.LogCaptureFixture,
+    disturb: str,
+) -> None:
+    """The sim clock only moved forward: a simulator reset (or a restarted `ros2 bag play`),
+    or one tick at 2^31 - 1 s from any node, made every formula unknown with a flood of
+    `late` events and missed the violation.  Now a backward jump is a reset (one event; the
+    stream goes on from where it was) and only the first /clock publisher is followed (the
+    others' ticks said in one line): the verdicts are the control run's, nothing is late."""
+    _, control = _sim_run(pair, live, "control")
+    assert [(v.verdict, v.time) for v in control] == [(False, 6), (True, 6)]
+    run, verdicts = _sim_run(pair, live, disturb)
+    assert verdicts == control
+    assert not [e for e in run.events if isinstance(e, Violation)]
+    resets = run.changes("clock_reset")
+    if disturb == "reset":
+        (reset,) = resets
+        assert str(reset) == (
+            "at 4 s: /clock reset (it went back from 4 s to 0 s; the stream goes on from 4 s)"
+        )
+    else:
+        assert not resets
+        assert "/clock: ticks from more than one publisher: only the first" in caplog.text
+
+
+class _Quiet:
+    """A session that declares nothing: a Ros2Monitor's events handed to it directly."""
+
+    def liveliness(self) -> _Quiet:
+        return self
+
+    def declare_subscriber(self, *_: Any, **__: Any) -> _Quiet:
+        return self
+
+    def undeclare(self) -> None:
+        pass
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(0, 2**40), st.booleans()),  # (tick in ns, from a stranger)
+        max_size=30,
+    )
+)
+def test_whatever_clock_publishers_put_the_stream_clock_never_goes_back(
+    ticks: list[tuple[int, bool]],
+) -> None:
+    """Each backward tick of the publisher followed is one reset; a stranger's tick never
+    moves the clock."""
+    monitor = Ros2Monitor(_turtle(), ["true"], StreamPolicy(), _Quiet(), store=STORE, sim_time=True)
+    token = rmw.publisher_token("aa", 1, 10, "/", "player", "/clock", CLOCK_TYPE)
+    key = rmw.data_key("/clock", CLOCK_TYPE)
+    assert monitor.handle(("token", token, True)) == []
+    clocks: list[int | None] = [None]
+    resets = 0
+    for t, stranger in ticks:
+        attachment = rmw.attachment(1, 0, (b"s" if stranger else b"p") * 16)
+        events = monitor.handle(("sample", key, cdr_clock(t), attachment, 0))
+        resets += sum(isinstance(e, Change) and e.event == "clock_reset" for e in events)
+        clocks.append(monitor.now())
+        if stranger != ticks[0][1]:  # the first publisher heard is the one followed
+            assert clocks[-1] == clocks[-2]
+    followed = [t for t, stranger in ticks if stranger == ticks[0][1]]
+    assert resets == sum(b < a for a, b in itertools.pairwise(followed))
+    assert all(b is not None and (a is None or a <= b) for a, b in itertools.pairwise(clocks))
+
+
+@functools.cache
+def _turtle() -> KnowledgeManager:
+    return KnowledgeManager.from_config(REPO / "tests" / "data" / "turtles" / "robot1.toml")
+
+
+def test_a_publisher_whose_type_hash_is_not_the_definitions_is_one_warning_and_skipped(
+    tmp_path: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture
+) -> None:
+    """A CarMsg of another layout (its fields reordered) was read as if it were ours (speed 50
+    read as 200.0): the hash in its token says so, and it is skipped unless --msg gives the
+    definition with that hash."""
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    for folder, text in ((ours, "int32 id\nfloat64 spd\n"), (theirs, "float64 spd\nint32 id\n")):
+        (folder / "dkreason_msgs" / "msg").mkdir(parents=True)
+        (folder / "dkreason_msgs" / "msg" / "CarMsg.msg").write_text(text)
+    stores = {
+        f: load_typestore(msg_types([f / "dkreason_msgs/msg/CarMsg.msg"]), False, "ros2_jazzy")
+        for f in (ours, theirs)
+    }
+    car = "dkreason_msgs/msg/CarMsg"
+    (tmp_path / "car.sslt").write_text(f"topic car:{car} contains X(me) = msg.spd\n")
+    ttl = REPO / "tests" / "data" / "turtles" / "turtle.ttl"
+    (tmp_path / "car.toml").write_text(
+        f'[platforms.robot1]\nontology = "{ttl}"\nspecs = "car.sslt"\nnamespace = "/robot1"\n'
+    )
+    km = KnowledgeManager.from_config(tmp_path / "car.toml")
+    their_hash = stores[theirs].hash_rihs01(car)
+    assert their_hash != stores[ours].hash_rihs01(car)
+
+    def watch(store: Any) -> Live:
+        run = live(km, ["always (X[me] < 100)"], store=store)
+        Ros2Node(run.publishing, "car", "/robot1").publisher("/robot1/car", car, their_hash)
+        return run
+
+    refused = watch(stores[ours])
+    refused.until(lambda: "type hash" in caplog.text, "the warning")
+    assert not refused.monitor.subs
+    refused.close()
+    taken = watch(stores[theirs])  # --msg gives their definition
+    taken.until(lambda: bool(taken.changes("subscribed")), "subscribed")
+    (line,) = [r.getMessage() for r in caplog.records if "type hash" in r.getMessage()]
+    assert line.startswith(f"/robot1/car ({car}) by /robot1/car: type hash {their_hash[:14]}")
+    assert line.endswith("skipped (give --msg with the definition it was built from)")
 
 
 def test_an_unset_stamp_is_no_stamp_and_features_nobody_feeds_are_named(

@@ -122,6 +122,7 @@ class KnowledgeManager:
         robustness: bool = False,
         foxglove: str | None = None,
         speed: float | None = None,
+        force: bool = False,
     ) -> MonitorRun:
         """A monitoring run exactly as `dkreason monitor` makes it, with its defaults: over
         recordings (`[PLATFORM=]PATH`, one or several: MCAP, ROS 1 bag, rosbag2 folder, JSON
@@ -130,13 +131,13 @@ class KnowledgeManager:
         violations as they happen; all times are seconds.  Over ROS recordings, once iterated
         it writes `record` (an MCAP file: the relevant topics byte for byte, the events as
         `foxglove.Log` and JSON) and into the folder `clips` one MCAP file per violation
-        (`margin` s around its witness window; `run.written` names them).  `robustness`: each
-        verdict, and each instance's, says by how much it held or failed and what decided it
-        (its `robustness`: progress.robustness).  `foxglove` (`[HOST:]PORT`): the run served
-        to Foxglove over its WebSocket protocol as it goes (`run.watcher.url`: where;
-        iterating waits for a subscription), until the run is closed.  `speed`: the
-        recordings replayed at that many times their pace (0: at once; default 1 with
-        `foxglove`, else 0)."""
+        (`margin` s around its witness window; `run.written` names them); an existing file is
+        refused unless `force`.  `robustness`: each verdict, and each instance's, says by how
+        much it held or failed and what decided it (its `robustness`: progress.robustness).
+        `foxglove` (`[HOST:]PORT`): the run served to Foxglove over its WebSocket protocol as
+        it goes (`run.watcher.url`: where; iterating waits for a subscription), until the run
+        is closed.  `speed`: the recordings replayed at that many times their pace (0: at
+        once; default 1 with `foxglove`, else 0)."""
         # loaded when first monitoring: `match` and `explain` need no stream readers
         from .monitor import Monitor, MonitorRun
         from .stream.binding import open_recordings
@@ -190,6 +191,7 @@ class KnowledgeManager:
             Fraction(margin),
             speed=pace,
             watcher=watcher,
+            force=force,
         )
 
     def info(

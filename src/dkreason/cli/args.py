@@ -116,6 +116,10 @@ def bound(text: str) -> str:
     return text
 
 
+LARGEST = 1e9  # a wait, duration or speed factor: 31 years, within what a timer holds
+LATEST = 1e10  # a Unix time (s): the year 2286, within what a clock of int64 ns holds
+
+
 def finite(text: str) -> float:
     try:
         value = float(text)
@@ -127,9 +131,21 @@ def finite(text: str) -> float:
 
 
 def positive(text: str) -> float:
+    """A wait, duration or factor: positive and at most LARGEST (a timer given 1e300 s
+    overflows)."""
     value = finite(text)
     if value <= 0:
         raise argparse.ArgumentTypeError(f"must be positive: {text}")
+    if value > LARGEST:
+        raise argparse.ArgumentTypeError(f"must be at most {LARGEST:g}: {text}")
+    return value
+
+
+def wall_time(text: str) -> float:
+    """A Unix time in seconds, from 0 to LATEST (a replay's clock at 1e300 overflows)."""
+    value = finite(text)
+    if not 0 <= value <= LATEST:
+        raise argparse.ArgumentTypeError(f"expected a Unix time from 0 to {LATEST:g} s: {text}")
     return value
 
 

@@ -13,7 +13,7 @@ from typing import Any
 
 from ..errors import DkError
 from ..live.change import Change
-from ..live.monitor import LiveMonitor
+from ..live.monitor import LiveMonitor, configured
 from ..live.publish import Announcer
 from ..live.record import Recorder
 from ..live.ros2 import Ros2Monitor
@@ -21,6 +21,7 @@ from ..live.serve import PlatformNode
 from ..live.session import open_session
 from ..live.signing import signer, trusted_keys
 from ..live.viewer import Viewer
+from ..live.wire import Limits
 from ..manager import KnowledgeManager
 from ..monitor import Monitor, Watch
 from ..progress import Verdict
@@ -37,14 +38,22 @@ def monitor_live(args: argparse.Namespace, policy: StreamPolicy) -> int:
     if args.source or args.plot is not None:
         raise DkError("--live takes no --source and no --plot")
     _logging()
-    trust = trusted_keys(args.trust) if args.trust is not None else None
     formulas = read_formulas(args)
     km = KnowledgeManager.from_config(args.config, live=True)  # read before the session opens
+    trust = trusted_keys(args.trust, configured(km)) if args.trust is not None else None
+    limits = Limits(topics=args.max_peer_topics, objects=args.max_peer_objects)
     viewer = _viewer(args)
     session = _session(args)
     try:
         monitor = LiveMonitor(
-            km, formulas, policy, session, args.wait, trust=trust, watch=_watch(viewer)
+            km,
+            formulas,
+            policy,
+            session,
+            args.wait,
+            trust=trust,
+            limits=limits,
+            watch=_watch(viewer),
         )
         _on_signals(lambda *_: monitor.stop.set())
         return _report(
@@ -83,7 +92,7 @@ def monitor_ros2(args: argparse.Namespace, policy: StreamPolicy) -> int:
     store = load_typestore(msg_types(args.msg), False, args.typestore or "ros2_jazzy")
     formulas = read_formulas(args)
     viewer = _viewer(args)
-    recorder = Recorder(args.record, store) if args.record is not None else None
+    recorder = Recorder(args.record, store, force=args.force) if args.record is not None else None
     session = _session(args)
     try:
         monitor = Ros2Monitor(

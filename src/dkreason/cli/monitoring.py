@@ -72,6 +72,7 @@ def monitor(args: argparse.Namespace) -> int:
         robustness=args.robustness,
         foxglove=args.foxglove,
         speed=args.speed,
+        force=args.force,
     )
     with run:
         return _monitored(args, run)

@@ -9,6 +9,7 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any, NoReturn
 
+from ..live.wire import LIMITS
 from ..results import DEFAULT_DB, VERDICTS
 from ..stream.policy import APPROXIMATIONS, DEFAULT, END_OF_DATA
 from . import args as a
@@ -138,7 +139,10 @@ def _monitor(sub: a.Sub) -> None:
         metavar="OUT.mcap",
         help="recordings and --ros2: write the relevant topics' messages (byte for byte) and "
         "the verdicts (foxglove.Log on /dkreason/log, JSON on /dkreason/events) to one MCAP "
-        "file, which Foxglove opens and --source replays",
+        "file, which Foxglove opens and --source replays; an existing file is refused",
+    )
+    out.add_argument(
+        "--force", action="store_true", help="--record and --clips overwrite existing files"
     )
     out.add_argument(
         "--clips",
@@ -206,6 +210,22 @@ def _monitor(sub: a.Sub) -> None:
         metavar="KEYS",
         help="live: TOML of platform = Ed25519 public key (PEM); their samples "
         "must be signed (`serve --sign`)",
+    )
+    live.add_argument(
+        "--max-peer-topics",
+        type=a.whole,
+        default=LIMITS.topics,
+        metavar="N",
+        help=f"live: a platform whose specs hold more topics is refused "
+        f"(default {LIMITS.topics:,})",
+    )
+    live.add_argument(
+        "--max-peer-objects",
+        type=a.whole,
+        default=LIMITS.objects,
+        metavar="N",
+        help=f"live: a platform whose knowledge holds more object memberships is refused "
+        f"(default {LIMITS.objects:,})",
     )
     live.add_argument(
         "--domain",
@@ -403,7 +423,7 @@ def _serve(sub: a.Sub) -> None:
     a.definitions(p)
     p.add_argument(
         "--origin",
-        type=a.finite,
+        type=a.wall_time,
         help="wall time (Unix s) the replay starts at; nodes given the same one "
         "replay in step (default: now)",
     )

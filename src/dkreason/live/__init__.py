@@ -6,7 +6,8 @@ Shared:      session.py  a Zenoh session opened (endpoints, config file); how ca
              change.py   what a live monitor says besides verdicts and violations
 The federation (`dkreason serve`, `dkreason monitor --live`):
              wire.py     its wire format: key expressions, the payload codec
-             signing.py  Ed25519-signed samples and the trusted keys
+             signing.py  Ed25519-signed samples and knowledge replies (a nonce per run,
+                         a challenge per query), the trusted keys, checked to fail closed
              serve.py    a platform node
              monitor.py  the monitor that finds the nodes (LiveMonitor)
 ROS 2 (`dkreason monitor --ros2`):

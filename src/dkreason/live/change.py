@@ -17,7 +17,8 @@ from ..stream.units import seconds
 class Change:
     """Something the federation did: joined, left, subscribed, unsubscribed, source_lost; or
     an instance of a quantified formula (`feature`: its bindings, `detail`: the formula)
-    judged from now on, its object having joined the formula's sort."""
+    judged from now on, its object having joined the formula's sort; or (ROS 2, sim time)
+    clock_reset: /clock went back, and the stream goes on from where it was."""
 
     event: str
     time: float | int | None  # s on the stream clock, like every event's; None before a clock
@@ -47,6 +48,7 @@ class Change:
             "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
             "source_lost": f"source lost: {self.feature} has no topic left",
             "instance": f"instance {self.feature} judged from now",
+            "clock_reset": "/clock reset",
         }[self.event]
         if self.last_sample is not None:
             what += f"; its last sample is from {_shown(self.last_sample)}"

@@ -15,13 +15,16 @@ platforms running at different paces are never late for each other.  A topic jus
 holds the others back until its first tick, for at most `HOLD` seconds.
 
 Trust: knowledge and samples are taken only from the platforms in the config; anything else
-seen is logged once.  Payloads are bounded and checked (wire.py), signatures too when the
-platform must sign (signing.py); a bad one is logged and dropped.
+seen is logged once.  Payloads are bounded and checked (wire.py), knowledge by what it holds
+too (`wire.Limits`: topics, objects), signatures when the platform must sign (signing.py:
+knowledge replies signed for the monitor's challenge, samples under the node's current
+nonce); a bad one is logged and dropped, a bad knowledge reply refuses that platform only.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import threading
 import time
 from collections.abc import Iterator, Sequence
@@ -30,9 +33,9 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import DkError, WireError
-from ..kb import Platform, make_platform, with_object
+from ..kb import Platform, make_platform, with_objects
 from ..manager import KnowledgeManager
-from ..model import FeatureKey, StreamRequest
+from ..model import FeatureKey, StreamRequest, TopicSpec
 from ..monitor import Monitor, Watch
 from ..plan import Parsed, parse
 from ..stream.policy import StreamPolicy
@@ -42,10 +45,16 @@ from ..stream.units import NS
 from . import loop, wire
 from .change import Event, change
 from .inbox import Inbox
-from .signing import verify
+from .signing import NONCE, check_trust, verify_reply, verify_sample
 
 log = logging.getLogger("dkreason.live")
 HOLD = 1.0  # wall seconds a new subscription may hold back states before its first tick
+
+
+def configured(km: KnowledgeManager) -> set[str]:
+    """The platforms a live monitor trusts by name: its config's (online or not yet)."""
+    config = km.kb.config
+    return {p.name for p in config.platforms} if config else set(km.kb.platforms)
 
 
 class LiveMonitor:
@@ -58,19 +67,24 @@ class LiveMonitor:
         wait: float = 10.0,
         ask_timeout: float = 3.0,
         trust: dict[str, Any] | None = None,
+        limits: wire.Limits = wire.LIMITS,
         watch: Watch | None = None,
     ) -> None:
         """`km`: the knowledge at hand (`KnowledgeManager.from_config(path, live=True)`: the
         platforms whose files the config names, none online); the others' is asked of their
         nodes as they appear.  The platforms its config names are the only ones trusted.
-        `trust`: platform → Ed25519 public key (signing.trusted_keys); the samples of those
-        platforms must be signed by it.  `watch`: told each state (a Foxglove viewer)."""
+        `trust`: platform → Ed25519 public key (signing.trusted_keys); the knowledge and
+        samples of those platforms must be signed by it, and every one must be a platform of
+        the config.  `limits`: what one platform's knowledge may hold.  `watch`: told each
+        state (a Foxglove viewer)."""
         self.formulas = parse(formulas)  # a typo is reported at once, not after the wait
         self.km, self.policy, self.session = km, policy, session
-        self.wait, self.ask_timeout = wait, ask_timeout
+        self.wait, self.ask_timeout, self.limits = wait, ask_timeout, limits
+        self.names = configured(km)
+        if trust is not None:
+            check_trust(trust, self.names, "trust")
         self.trust, self.watch = trust or {}, watch
-        config = km.kb.config
-        self.names = {p.name for p in config.platforms} if config else set(km.kb.platforms)
+        self.nonces: dict[str, bytes] = {}  # platform → its signing node's current run
         self.digests: dict[str, str] = {}  # of the ontology each platform served
         self.inbox = Inbox()
         self.present: set[str] = set()
@@ -114,10 +128,30 @@ class LiveMonitor:
     # ---- knowledge ---------------------------------------------------------------------
 
     def _ask(self, p: str, what: str) -> Any:
-        for reply in self.session.get(wire.key(p, what), timeout=self.ask_timeout):
-            if reply.ok is not None:
-                return wire.decode(reply.ok.payload.to_bytes(), wire.MAX_KNOWLEDGE, f"{p}'s {what}")
-        raise WireError(f"{p} did not answer the query for its {what}")
+        """A platform's answer; a platform that signs must sign it for this query's challenge
+        (other replies, a stranger's or one recorded earlier, are passed over)."""
+        key_expr, key = wire.key(p, what), self.trust.get(p)
+        challenge = os.urandom(NONCE)
+        refused: WireError | None = None
+        for reply in self.session.get(key_expr, timeout=self.ask_timeout, attachment=challenge):
+            if reply.ok is None:
+                continue
+            payload = reply.ok.payload.to_bytes()
+            if key is not None:
+                signature = reply.ok.attachment
+                try:
+                    self.nonces[p] = verify_reply(
+                        key,
+                        challenge,
+                        key_expr,
+                        payload,
+                        None if signature is None else signature.to_bytes(),
+                    )
+                except WireError as exc:
+                    refused = exc
+                    continue
+            return wire.decode(payload, self.limits.reply_bytes, f"{p}'s {what}")
+        raise refused or WireError(f"{p} did not answer the query for its {what}")
 
     def _ontology(self, p: str) -> dict[str, str]:
         ont = self._ask(p, "ontology")
@@ -133,48 +167,52 @@ class LiveMonitor:
         """A platform's whole knowledge, asked over the network (the ontology reply may be
         at hand already)."""
         from ..parse.owl import parse_ontology
-        from ..parse.sslt import parse_text
 
         ont = ont or self._ontology(p)
         name = Path(ont["file"]).name or "ontology"  # shown in messages only
         ontology = parse_ontology(
             ont["text"].encode(), f"{wire.key(p, 'ontology')}/{name}", p, fmt="turtle"
         )
+        told = set(ontology.types)
+        new = {(iri, sort): id_ for iri, sort, id_ in self._objects(p) if (iri, sort) not in told}
+        self.limits.check(p, "objects", len(told) + len(new), self.limits.objects)
         self.digests[p] = ont["digest"]
-        for iri, sort, id_ in self._objects(p):
-            if (iri, sort) not in ontology.types:
-                ontology = with_object(ontology, iri, sort, id_)
-        return make_platform(ontology, parse_text(self._specs_text(p), wire.key(p, "specs")).specs)
+        ontology = with_objects(ontology, [(iri, sort, id_) for (iri, sort), id_ in new.items()])
+        return make_platform(ontology, self._specs(p))
 
-    def _specs_text(self, p: str) -> str:
+    def _specs(self, p: str) -> tuple[TopicSpec, ...]:
+        """A platform's topic specifications, counted before they are parsed (every one
+        says `contains`: the count bounds theirs)."""
+        from ..parse.sslt import parse_text
+
         specs = self._ask(p, "specs")
         if not isinstance(specs, dict) or not isinstance(specs.get("sslt"), str):
             raise WireError(f'{p}\'s specs: expected {{"sslt": …}}')
-        return str(specs["sslt"])
+        text = str(specs["sslt"])
+        self.limits.check(p, "topics", text.count("contains"), self.limits.topics)
+        return parse_text(text, wire.key(p, "specs")).specs
 
     def _objects(self, p: str) -> list[tuple[str, str, Any]]:
         objects = self._ask(p, "objects")
-        out = []
+        out: list[tuple[str, str, Any]] = []
         for iri, info in objects.items() if isinstance(objects, dict) else ():
             sorts = info.get("sorts") if isinstance(info, dict) else None
             id_ = info.get("id") if isinstance(info, dict) else None
             if not isinstance(sorts, list) or not isinstance(id_, (int, str, type(None))):
                 raise WireError(f"{p}'s objects: {iri!r} needs sorts and an id")
             out += [(iri, str(s), id_) for s in sorts]
+            self.limits.check(p, "objects", len(out), self.limits.objects)
         return out
 
     def _update(self, p: str) -> None:
         """A known platform's specs and objects, asked again and applied as changes."""
-        from ..parse.sslt import parse_text
-
         kb = self.km.kb
-        specs = parse_text(self._specs_text(p), wire.key(p, "specs")).specs
-        objects = self._objects(p)
-        added, removed = kb.replace_specs(p, list(specs))
+        specs = self._specs(p)
         types = set(kb.platform(p).ontology.types)
-        new = [(iri, sort, id_) for iri, sort, id_ in objects if (iri, sort) not in types]
-        for iri, sort, id_ in new:
-            kb.add_object(p, f"<{iri}>", f"<{sort}>", id_)
+        new = [(iri, sort, id_) for iri, sort, id_ in self._objects(p) if (iri, sort) not in types]
+        self.limits.check(p, "objects", len(types) + len(new), self.limits.objects)
+        added, removed = kb.replace_specs(p, list(specs))
+        kb.add_objects(p, [(f"<{iri}>", f"<{sort}>", id_) for iri, sort, id_ in new])
         if added or removed or new:
             log.info(
                 "%s changed: specs added %s, removed %s; %d new object types",
@@ -201,6 +239,8 @@ class LiveMonitor:
         yield from monitor.events()
         self.end = None if until is None else int(until * NS)
         yield from loop.run(monitor, processor, self, self.end, duration)
+        for (p, what, kind), n in sorted(self.rejected.items()):
+            log.warning("in all, rejected %d %s from %s (%s)", n, _plural(what, n), p, kind)
 
     def _gather(self) -> Iterator[Event]:
         """Wait up to `wait` s for the local platform's knowledge (formulas are written in its
@@ -301,7 +341,9 @@ class LiveMonitor:
         if p not in self.present or pt not in self.subs:
             return  # in flight when its subscription was dropped
         if p in self.trust:
-            verify(self.trust[p], wire.key(p, "topic", topic), payload, signature)
+            verify_sample(
+                self.trust[p], self.nonces.get(p), wire.key(p, "topic", topic), payload, signature
+            )
         available, valid, msg = wire.topic_message(payload, name)
         if msg is wire.END:
             self.ended[pt] = available
@@ -329,13 +371,13 @@ class LiveMonitor:
             try:
                 kb.add_platform(self._fetch(p))  # online
             except DkError as exc:
-                self._reject(p, "knowledge", str(exc))
+                self._reject(p, "knowledge", str(exc), getattr(exc, "kind", "knowledge"))
                 return []
         else:
             try:
                 self._refresh(p)
             except DkError as exc:
-                self._reject(p, "knowledge", str(exc))
+                self._reject(p, "knowledge", str(exc), getattr(exc, "kind", "knowledge"))
             kb.set_online(p, True)
         self.present.add(p)
         return [change("joined", self.watermark(), p), *self._rematch(p, f"platform {p} joined")]
@@ -444,3 +486,7 @@ class LiveMonitor:
         for sub in [*self.declared, *self.subs.values()]:
             sub.undeclare()
         self.declared, self.subs = [], {}
+
+
+def _plural(what: str, n: int) -> str:
+    return what if n == 1 or what == "knowledge" else f"{what}s"

@@ -53,14 +53,21 @@ class RecordError(DkError):
 
 
 class Recorder:
-    def __init__(self, path: Path, store: Any = None, option: str = "--record") -> None:
-        """`store`: the rosbags typestore live messages' definitions come from."""
+    def __init__(
+        self, path: Path, store: Any = None, option: str = "--record", *, force: bool = False
+    ) -> None:
+        """`store`: the rosbags typestore live messages' definitions come from.  An existing
+        file is refused (a run recorded before is not lost to a typo) unless `force`."""
         from mcap.writer import Writer
 
         if not path.parent.is_dir():
             raise DkError(f"{option} {path}: no such directory {path.parent}")
-        try:
-            self.file = path.open("wb")
+        try:  # "x": created here, or refused if it exists, in one step (no race to lose)
+            self.file = path.open("wb" if force else "xb")
+        except FileExistsError:
+            raise DkError(
+                f"{option} {path}: the file exists (give --force to overwrite it)"
+            ) from None
         except OSError as exc:
             raise DkError(f"{option} {path}: {exc.strerror}") from None
         self.path, self.store, self.option = path, store, option
@@ -170,10 +177,14 @@ class RecordedRun(MonitorRun):
         *,
         speed: float = 0,
         watcher: Watcher | None = None,
+        force: bool = False,
     ) -> None:
+        """`force`: existing files are overwritten (else refused: `record` before the run)."""
         problem = None
         if record is not None and not record.parent.is_dir():
             problem = f"--record {record}: no such directory {record.parent}"
+        elif record is not None and record.exists() and not force:
+            problem = f"--record {record}: the file exists (give --force to overwrite it)"
         elif clips is not None and not clips.is_dir():
             problem = f"--clips {clips}: no such directory"
         if problem is not None:
@@ -183,6 +194,7 @@ class RecordedRun(MonitorRun):
             raise DkError(problem)
         super().__init__(monitor, source, speed=speed, watcher=watcher)
         self.recordings, self.record, self.clips, self.margin = source, record, clips, margin
+        self.force = force
         self.written: list[tuple[Path, Verdict]] = []
         """The clips written, each with the verdict it shows."""
 
@@ -204,7 +216,7 @@ class RecordedRun(MonitorRun):
         outs: list[_Out] = []
         try:
             if self.record is not None:
-                outs.append(_Out(Recorder(self.record), None, events, end))
+                outs.append(_Out(Recorder(self.record, force=self.force), None, events, end))
                 start = self.source.first_record()
                 if start is not None:  # the copy's time axis starts where the original's did
                     outs[0].recorder.note(start, f"monitoring {self.source.name}")
@@ -217,7 +229,8 @@ class RecordedRun(MonitorRun):
                 assert self.clips is not None and v.window is not None
                 path = self.clips / f"violation-{n}.mcap"
                 span = (ns(v.window[0], end) - cut, ns(v.window[1], end) + cut)
-                outs.append(_Out(Recorder(path, option="--clips"), span, [v], end))
+                clip = Recorder(path, option="--clips", force=self.force)
+                outs.append(_Out(clip, span, [v], end))
                 self.written.append((path, v))
             for message in raw:
                 for out in outs:

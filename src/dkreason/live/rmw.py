@@ -58,6 +58,7 @@ class Publisher:
     namespace: str | None
     domain: int | None  # ROS_DOMAIN_ID (rmw_zenoh)
     bridged: bool  # announced by zenoh-bridge-ros2dds
+    type_hash: str | None = None  # REP-2011's hash of its definition (rmw_zenoh; NO_HASH: none)
 
     def describe(self) -> str:
         where = (
@@ -131,7 +132,7 @@ def parse_token(key: str) -> Publisher | None:
     if not _HASH.match(parts[11]):
         raise WireError(f"type hash {parts[11][:80]!r} is not one: {key[:120]}", "token")
     data_key = f"{domain}/{topic.strip('/')}/{parts[10]}/{parts[11]}"
-    return Publisher(key, topic, msgtype, data_key, parts[8], namespace, domain, False)
+    return Publisher(key, topic, msgtype, data_key, parts[8], namespace, domain, False, parts[11])
 
 
 def publisher_token(
@@ -143,8 +144,10 @@ def publisher_token(
     topic: str,
     msgtype: str,
     domain: int = 0,
+    type_hash: str | None = None,
 ) -> str:
-    """rmw_zenoh's token for a publisher (what `Ros2Node` declares)."""
+    """rmw_zenoh's token for a publisher (what `Ros2Node` declares); `type_hash`: its
+    definition's (default: the one known here, or none)."""
     return "/".join(
         (
             ADMIN,
@@ -158,7 +161,7 @@ def publisher_token(
             node,
             _mangle(topic),
             dds_type(msgtype),
-            HASHES.get(msgtype, NO_HASH),
+            type_hash or HASHES.get(msgtype, NO_HASH),
             QOS,
         )
     )
@@ -178,8 +181,9 @@ def bridge_token(bridge: str, topic: str, msgtype: str) -> str:
     )
 
 
-def data_key(topic: str, msgtype: str, domain: int = 0) -> str:
-    return f"{domain}/{topic.strip('/')}/{dds_type(msgtype)}/{HASHES.get(msgtype, NO_HASH)}"
+def data_key(topic: str, msgtype: str, domain: int = 0, type_hash: str | None = None) -> str:
+    hashed = type_hash or HASHES.get(msgtype, NO_HASH)
+    return f"{domain}/{topic.strip('/')}/{dds_type(msgtype)}/{hashed}"
 
 
 def _mangle(name: str) -> str:

@@ -9,10 +9,14 @@ files), only the fields the request needs (stream/fastread.py).
 Time.  A sample's valid time is its `header.stamp` when it has one (a zero stamp is none);
 otherwise the publisher's source time from the attachment (wall clock), or the sim clock at
 arrival (`sim_time`).  Its available time is its arrival: the wall clock, or with `sim_time` the
-latest `/clock`.  States are made as that clock passes (on the wall clock held back by each
-topic's lag, `held`; less the policy's delay), so a silent publisher's value turns unknown once
-it is older than the maximum age.  The inbox from zenoh's threads is bounded (`QUEUED`): a
-monitor that falls behind holds the link back, and past `PUT_WAIT` drops and says so.
+latest `/clock`.  A sample valid more than `EARLY_NS` past its available time is an `early`
+violation of its own features and is not taken (one stamp 60 s ahead would otherwise move the
+end of the data, and every other feature would end unknown); one valid long before it is late
+for its own features (the stream processor's `late`).  States are made as that clock passes
+(on the wall clock held back by each topic's lag, `held`; less the policy's delay), so a silent
+publisher's value turns unknown once it is older than the maximum age.  The inbox from zenoh's
+threads is bounded (`QUEUED`): a monitor that falls behind holds the link back, and past
+`PUT_WAIT` drops and says so.
 
 Change.  A publisher that appears later is subscribed when it appears; one whose token goes
 away is unsubscribed, and a feature left with no publisher is reported as source loss.  A
@@ -40,7 +44,7 @@ from ..stream import fields
 from ..stream.binding import message_type_fits, recording_names
 from ..stream.policy import StreamPolicy
 from ..stream.typestore import ros_reader
-from ..stream.units import NS
+from ..stream.units import NS, seconds
 from . import loop, rmw
 from .change import Event, change
 from .inbox import Inbox
@@ -51,8 +55,10 @@ from .session import direct
 log = logging.getLogger("dkreason.ros2")
 MAX_PAYLOAD = 16 * 1024 * 1024  # bytes of one message
 HOLD_NS = NS  # how long a topic's newest sample may hold states back (wall clock)
+EARLY_NS = NS  # a sample valid further past the stream clock is early (a clock set wrong)
 QUEUED = 200_000  # events waiting for the monitor, at most (a sample's bytes and times each)
 PUT_WAIT = 1.0  # s a zenoh thread waits for room before an event is dropped
+_NO_EVENTS: list[Event] = []  # what a sample usually makes happen; read, never changed
 
 
 def decode(read: Callable[[bytes], Any], payload: bytes, msgtype: str) -> Any:
@@ -147,8 +153,13 @@ class Ros2Monitor:
         self.subs: dict[str, _Sub] = {}  # key expression → subscription
         self.feeding: dict[FeatureKey, set[str]] = {}  # feature → its subscribed keys
         self.warned: set[tuple[str, ...]] = set()
+        self.hashes: dict[str, str] = {}  # type → its definition's REP-2011 hash, here
         self.rejected: dict[tuple[str, str], int] = {}
-        self.clock: int | None = None  # sim time: the latest /clock
+        self.clock: int | None = None  # sim time: the latest /clock, shifted past resets
+        self.last_tick: int | None = None  # the latest /clock as its publisher put it
+        self.shift = 0  # ns added to /clock time: what its resets took back
+        self.ticker: tuple[bytes | None, ...] = ()  # (gid,) of the /clock publisher followed
+        self.foreign_ticks = 0  # ticks of other /clock publishers, not followed
         self.labelled = False  # the robots' attachments are in Jazzy's first layout
         self.received = 0
         self.report_at: float | None = None  # monotonic s: name the features nothing feeds
@@ -278,8 +289,7 @@ class Ros2Monitor:
     def handle(self, event: tuple[Any, ...]) -> list[Event]:
         try:
             if event[0] == "sample":
-                self._sample(*event[1:])
-                return []
+                return self._sample(*event[1:])
             return self._token(event[1], event[2])
         except WireError as exc:
             self._reject(event[1] if event[0] == "sample" else "tokens", exc.kind, str(exc))
@@ -320,7 +330,7 @@ class Ros2Monitor:
         if not pub.bridged and pub.domain != self.domain:
             return []
         if self.sim_time and pub.topic == CLOCK:
-            return self._subscribe(pub, CLOCK, [])
+            return [] if self._another_layout(pub) else self._subscribe(pub, CLOCK, [])
         name = self._bound(pub)
         if name is None:
             return []
@@ -329,6 +339,8 @@ class Ros2Monitor:
                 f"{pub.topic}: type {pub.msgtype} is not known (give its .msg file "
                 f"with --msg, or --typestore); skipped"
             )
+            return []
+        if self._another_layout(pub):
             return []
         fits = []
         for key, m in self.wants[name]:
@@ -344,6 +356,29 @@ class Ros2Monitor:
             else:
                 fits.append(key)
         return self._subscribe(pub, name, list(dict.fromkeys(fits))) if fits else []
+
+    def _another_layout(self, pub: rmw.Publisher) -> bool:
+        """Whether the type hash a publisher announces (rmw_zenoh's tokens carry REP-2011's)
+        is not that of the definition used here, said in one warning: a type of the same
+        name but another layout would be read as garbage (a CarMsg whose fields were
+        reordered read speed 50 as 200.0).  A publisher announcing no hash is taken."""
+        if pub.type_hash in (None, rmw.NO_HASH) or pub.msgtype not in self.store.fielddefs:
+            return False
+        ours = self.hashes.get(pub.msgtype)
+        if ours is None:
+            try:
+                ours = self.store.hash_rihs01(pub.msgtype)
+            except Exception:  # rosbags cannot hash this definition: nothing to compare
+                ours = ""
+            self.hashes[pub.msgtype] = ours
+        if ours in ("", pub.type_hash):
+            return False
+        self._warn(
+            f"{pub.describe()}: type hash {pub.type_hash} is not that of the definition "
+            f"of {pub.msgtype} used here ({ours}): another layout; skipped (give --msg with "
+            f"the definition it was built from)"
+        )
+        return True
 
     def _bound(self, pub: rmw.Publisher) -> str | None:
         """The recording name a publisher's topic binds by: under a `bind` namespace (its
@@ -411,6 +446,8 @@ class Ros2Monitor:
             return []
         sub = self.subs[key]
         sub.publishers.discard(token)
+        if sub.name == CLOCK:  # the next publisher to tick is followed (a player restarted)
+            self.ticker = ()
         if sub.publishers:
             return []
         del self.subs[key]
@@ -440,31 +477,34 @@ class Ros2Monitor:
 
     # ---- samples -------------------------------------------------------------------------
 
-    def _sample(self, key: str, payload: bytes, attachment: bytes | None, arrival: int) -> None:
+    def _sample(
+        self, key: str, payload: bytes, attachment: bytes | None, arrival: int
+    ) -> list[Event]:
         sub = self.subs.get(key)
         if sub is None:
-            return  # in flight when its subscription was dropped
+            return _NO_EVENTS  # in flight when its subscription was dropped
         rmw.check_cdr(payload, MAX_PAYLOAD)
         if not sub.checked:  # a topic's first message decodes in full, or is refused
             decode(lambda raw: self.store.deserialize_cdr(raw, sub.msgtype), payload, sub.msgtype)
             sub.checked = True
         values = decode(sub.read, payload, sub.msgtype)
         if sub.name == CLOCK:
-            t = values[0] * NS + values[1]
-            self.clock = t if self.clock is None else max(self.clock, t)
-            return
+            return self._tick(values[0] * NS + values[1], attachment)
         source_time = None
         if attachment is not None:
             source_time = rmw.parse_attachment(attachment)[1]
             self.labelled = len(attachment) != rmw.PLAIN_SIZE
         stamped = sub.stamped and bool(values[-2] or values[-1])  # zero: never set
         if stamped:
-            valid = values[-2] * NS + values[-1]
+            valid = values[-2] * NS + values[-1] + self.shift
         elif self.sim_time:
             valid = self.clock if self.clock is not None else arrival
         else:
             valid = source_time if source_time is not None else arrival
         available = (self.clock if self.clock is not None else valid) if self.sim_time else arrival
+        if valid - available > EARLY_NS:  # not taken: it would end the data for every topic
+            self.processor.early(sub.name, available, valid, values)
+            return _NO_EVENTS
         self.processor.put(sub.name, available, valid, values)
         self.received += 1
         sub.arrived, sub.last_valid = arrival, valid
@@ -478,6 +518,43 @@ class Ros2Monitor:
                 source_time if source_time is not None else arrival,
                 payload,
             )
+        return _NO_EVENTS
+
+    def _tick(self, t: int, attachment: bytes | None) -> list[Event]:
+        """/clock at `t`, as ROS takes it, but from one publisher: the first one heard (until
+        a /clock publisher goes away); other publishers' ticks are said and left (one tick
+        at 2^31 - 1 s from any node made every formula unknown).  Going back is a reset (a
+        simulator restarted, `ros2 bag play` again): said once, and /clock time is shifted
+        so that the stream goes on from where it was, its states and verdicts kept and
+        the samples after it not late."""
+        gid = rmw.parse_attachment(attachment)[2] if attachment is not None else None
+        if not self.ticker:
+            self.ticker = (gid,)
+        elif self.ticker != (gid,):
+            self.foreign_ticks += 1
+            if loop.logged(self.foreign_ticks):
+                log.warning(
+                    "/clock: ticks from more than one publisher: only the first one's are "
+                    "followed (%d others' so far; the last at %s s)",
+                    self.foreign_ticks,
+                    seconds(t),
+                )
+            return _NO_EVENTS
+        events = _NO_EVENTS
+        if self.last_tick is not None and t < self.last_tick and self.clock is not None:
+            self.shift = self.clock - t
+            events = [
+                change(
+                    "clock_reset",
+                    self.clock,
+                    "",
+                    f"it went back from {seconds(self.last_tick)} s to {seconds(t)} s; the stream "
+                    f"goes on from {seconds(self.clock)} s",
+                )
+            ]
+        self.last_tick = t
+        self.clock = t + self.shift
+        return events
 
     def close(self) -> None:
         for handle in [*self.declared, *(s.handle for s in self.subs.values())]:

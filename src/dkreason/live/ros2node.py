@@ -17,7 +17,10 @@ from . import rmw
 
 
 class Ros2Publisher:
-    def __init__(self, node: Ros2Node, topic: str, msgtype: str) -> None:
+    def __init__(
+        self, node: Ros2Node, topic: str, msgtype: str, type_hash: str | None = None
+    ) -> None:
+        """`type_hash`: the one its token announces (default: rmw.HASHES' or none)."""
         import zenoh
 
         self.node, self.topic, self.msgtype = node, topic, msgtype
@@ -35,8 +38,9 @@ class Ros2Publisher:
                 topic,
                 msgtype,
                 domain,
+                type_hash,
             )
-            self.key = rmw.data_key(topic, msgtype, domain)
+            self.key = rmw.data_key(topic, msgtype, domain, type_hash)
         self.gid = hashlib.blake2b(token.encode(), digest_size=16).digest()
         self.sequence = 0
         self.publisher = session.declare_publisher(
@@ -85,8 +89,8 @@ class Ros2Node:
         self.entities = itertools.count(10)
         self.publishers: list[Ros2Publisher] = []
 
-    def publisher(self, topic: str, msgtype: str) -> Ros2Publisher:
-        pub = Ros2Publisher(self, topic, msgtype)
+    def publisher(self, topic: str, msgtype: str, type_hash: str | None = None) -> Ros2Publisher:
+        pub = Ros2Publisher(self, topic, msgtype, type_hash)
         self.publishers.append(pub)
         return pub
 

@@ -24,15 +24,20 @@ from ..parse.owl import served
 from ..stream.sources import Record
 from ..stream.units import NS
 from . import wire
+from .signing import Signer
 
 log = logging.getLogger("dkreason.live")
 
 
 class PlatformNode:
     def __init__(
-        self, km: KnowledgeManager, session: Any, heartbeat: float = 0.02, sign: Any = None
+        self,
+        km: KnowledgeManager,
+        session: Any,
+        heartbeat: float = 0.02,
+        sign: Signer | None = None,
     ) -> None:
-        """`sign`: (key expression, payload) → signature (signing.signer), or None."""
+        """`sign`: the key samples and knowledge replies are signed with (signing.signer)."""
         self.km, self.session, self.sign = km, session, sign
         self.name = km.local
         self.heartbeat = heartbeat
@@ -71,9 +76,16 @@ class PlatformNode:
         return served((main,))  # a knowledge base built without a config: its one file
 
     def _answer(self, query: Any, what: str) -> None:
+        """A knowledge reply; signed for the query's challenge (its attachment) when the
+        node signs, so a reply recorded earlier cannot answer a later query."""
         with self.lock:
             payload = self._answers[what]()
-        query.reply(wire.key(self.name, what), payload)
+        key_expr = wire.key(self.name, what)
+        if self.sign is None:
+            query.reply(key_expr, payload)
+            return
+        challenge = b"" if query.attachment is None else query.attachment.to_bytes()
+        query.reply(key_expr, payload, attachment=self.sign.reply(challenge, key_expr, payload))
 
     def _specs(self) -> bytes:
         from ..parse.sslt import format_spec
@@ -186,7 +198,7 @@ class PlatformNode:
             self._publisher(topic).put(payload)
         else:
             key_expr = wire.key(self.name, "topic", topic)
-            self._publisher(topic).put(payload, attachment=self.sign(key_expr, payload))
+            self._publisher(topic).put(payload, attachment=self.sign.sample(key_expr, payload))
 
     def _clock(self, now: int, end: bool = False) -> None:
         """Tell every topic (specified or published) that all of it up to `now` is sent (and

@@ -26,6 +26,7 @@ attachment (signing.py).
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from typing import Any
 
 import orjson
@@ -36,6 +37,24 @@ from ..inputs.files import json_value
 MAX_SAMPLE = 64 * 1024  # bytes of one sample or clock payload
 MAX_KNOWLEDGE = 16 * 1024 * 1024  # bytes of one ontology, specs or objects reply
 ROOT = "dkreason"
+
+
+@dataclass(frozen=True, slots=True)
+class Limits:
+    """What one platform's knowledge may hold, checked before it is parsed or stored: bytes
+    alone let a peer answering as a platform send 100,000 topics in 8 MB, which took 2 GB
+    and minutes to load.  A reply past a limit refuses that platform only."""
+
+    reply_bytes: int = MAX_KNOWLEDGE  # of each reply
+    topics: int = 10_000  # topic specifications
+    objects: int = 50_000  # (object, sort) memberships: the ontology's and the announced
+
+    def check(self, p: str, what: str, count: int, limit: int) -> None:
+        if count > limit:
+            raise WireError(f"{p}'s {what}: more than {limit:,} (--max-peer-{what})", "limit")
+
+
+LIMITS = Limits()  # the defaults
 
 
 def key(platform: str, *parts: str) -> str:

@@ -339,6 +339,20 @@ class StreamProcessor:
         for _ in self._take(self._windowed(message) if self.windowed else message, None):
             pass
 
+    def early(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
+        """A message a live source refuses, valid too far past its stream clock
+        (`available`): an `early` violation of each feature it would feed, and nothing
+        taken, so the end of the data, up to which every other feature is judged, stays."""
+        for group in self.groups.get(topic, ()):
+            for route in group.routes(values):
+                self._violation(
+                    "early",
+                    available,
+                    route,
+                    f"sample valid at {seconds(valid)} s arrived at {seconds(available)} s "
+                    f"on the stream clock, {seconds(valid - available)} s ahead of it: not taken",
+                )
+
     def _windowed(self, messages: Iterable[Message]) -> Iterator[Message]:
         """The messages valid within the window, until the recording passes its end by the
         delay (no state in the window is left to make then).  The first message is read now,
