@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 
 from .errors import DkError, MissingIdError, Span
 from .kb import KnowledgeBase
@@ -44,13 +45,27 @@ def wanted_rows(ground: list[GroundFeature]) -> list[tuple[int | str, ...]]:
     return [(q, g.iri, *padded(g.arg_iris)) for q, g in enumerate(ground)]
 
 
-def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], list[Rejected]]:
-    wanted = wanted_rows(ground)
-    if not wanted:
+def given_rows(
+    ground: list[GroundFeature], max_delay: Fraction | None = None
+) -> dict[str, list[tuple[int | str, ...]]]:
+    """What a formula tells the rules while they are asked: its ground features (`wanted`)
+    and the monitor's --max-delay in whole nanoseconds (`max_delay`), if any."""
+    given = {"wanted": wanted_rows(ground)}
+    if max_delay is not None:
+        given["max_delay"] = [(round(max_delay * 10**9),)]
+    return given
+
+
+def match(
+    kb: KnowledgeBase, ground: list[GroundFeature], max_delay: Fraction | None = None
+) -> tuple[list[Match], list[Rejected]]:
+    """`max_delay`: the monitor's (seconds), which a policy may veto slower topics by."""
+    given = given_rows(ground, max_delay)
+    if not given["wanted"]:
         return [], []
     engine = kb.engine
     relation = engine.schema["match_result"]
-    with engine.given({"wanted": wanted}):
+    with engine.given(given):
         rows = engine.query("match_result", *[None] * relation.arity)
         # the rank hook, asked only of a policy that derives it
         ranks = (

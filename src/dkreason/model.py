@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from fractions import Fraction
 from typing import Any, Literal, NamedTuple
 
 from .errors import Span
@@ -44,13 +45,18 @@ class TopicFeature:
 
 @dataclass(frozen=True, slots=True)
 class TopicSpec:
-    """A topic and what it carries: features, or the objects of a sort, or one object."""
+    """A topic and what it carries: features, or the objects of a sort, or one object.
+
+    `rate` (Hz) and `delay` (seconds: the most a sample's valid time may lag its arrival) are
+    the stream's declared quality, None where the spec leaves them out (thesis 8.2)."""
 
     name: str
     msgtype: str
     features: tuple[TopicFeature, ...] = ()
     entity: TopicArg | None = None
     span: Span = dataclasses.field(default=Span("<api>"), compare=False)
+    rate: Fraction | None = None
+    delay: Fraction | None = None
 
     @property
     def kind(self) -> Literal["features", "sort", "object"]:

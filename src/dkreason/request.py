@@ -4,6 +4,7 @@ field to read and the id filter that selects the feature's objects in the topic'
 from __future__ import annotations
 
 from collections import defaultdict
+from fractions import Fraction
 
 from .kb import KnowledgeBase
 from .match import Match, Rejected, match
@@ -12,11 +13,19 @@ from .names import local_name
 from .plan import Plan
 
 
-def request(kb: KnowledgeBase, plan: Plan) -> StreamRequest:
-    """The topics of every ground feature of the plan, matched in one query."""
+def request(
+    kb: KnowledgeBase,
+    plan: Plan,
+    *,
+    max_delay: Fraction | None = None,
+    best_source: bool = False,
+) -> StreamRequest:
+    """The topics of every ground feature of the plan, matched in one query (`max_delay`:
+    the monitor's, which the policy may veto topics by; `best_source`: each feature's first
+    topic only)."""
     ground = list(plan.ground)
-    matches, rejected = match(kb, ground)
-    return build_request(kb, plan.text, ground, matches, rejected)
+    matches, rejected = match(kb, ground, max_delay)
+    return build_request(kb, plan.text, ground, matches, rejected, best_source=best_source)
 
 
 def build_request(
@@ -25,7 +34,11 @@ def build_request(
     ground: list[GroundFeature],
     matches: list[Match],
     rejected: list[Rejected],
+    *,
+    best_source: bool = False,
 ) -> StreamRequest:
+    """`best_source`: of each feature's topics in the policy's order, the first only, not
+    their merge (the thesis merges them all)."""
     per_feature: dict[int, dict[TopicMatch, int]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
@@ -45,7 +58,7 @@ def build_request(
                         t.filter,
                     ),
                 )
-            ),
+            )[: 1 if best_source else None],
         )
         for q, g in enumerate(ground)
     )
