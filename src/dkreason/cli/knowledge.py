@@ -16,9 +16,7 @@ def match(args: argparse.Namespace) -> int:
     km = KnowledgeManager.from_config(args.config)
     loaded = time.perf_counter()
     render.warnings(km.rule_warnings)
-    request = km.check_formula(
-        args.formula, max_delay=args.max_delay, best_source=args.best_source
-    )
+    request = km.check_formula(args.formula, max_delay=args.max_delay, best_source=args.best_source)
     if args.stats:
         print(
             f"stats: load {(loaded - start) * 1e3:.1f} ms, match "

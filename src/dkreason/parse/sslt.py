@@ -99,6 +99,12 @@ class _ToModel(Transformer[Token, Any]):
 
     def quality_item(self, children: list[Token]) -> tuple[str, Fraction, Span]:
         name, value = children
+        if name not in QUALITIES:
+            raise ParseError(
+                f"unknown stream property {str(name)!r} (a topic declares "
+                f"{' and '.join(QUALITIES)})",
+                _span(name),
+            )
         return (str(name), quality_value(str(name), str(value), _span(value)), _span(name))
 
     def quality(self, children: list[tuple[str, Fraction, Span]]) -> _Quality:
@@ -201,25 +207,19 @@ _RATE = re.compile(r"(.*?)\s*(hz)?", re.I)
 
 
 def quality_value(name: str, text: str, span: Span) -> Fraction:
-    """A declared stream property from its text: `rate` in Hz (`20 Hz`, `0.5Hz`, `20`),
-    positive; `delay` a duration as formulas write it (`50ms`, `0.05`, `2 s`)."""
+    """A declared stream property (one of QUALITIES) from its text: `rate` in Hz (`20 Hz`,
+    `0.5Hz`, `20`), positive; `delay` a duration as formulas write it (`50ms`, `0.05`)."""
     text = text.strip()
     try:
         if name == "delay":
             return duration(text, "delay")
-        if name == "rate":
-            rate = exact(_RATE.fullmatch(text).group(1), "rate")  # type: ignore[union-attr]
-            if rate <= 0:
-                raise ParseError(f"rate {text!r} must be positive", span)
-            return rate
-    except ParseError:
-        raise
+        rate = exact(_RATE.fullmatch(text).group(1), "rate")  # type: ignore[union-attr]
     except DkError:
         what = "a rate in Hz, like 20 Hz" if name == "rate" else "a duration, like 50ms"
         raise ParseError(f"{name} {text!r} is not {what}", span) from None
-    raise ParseError(
-        f"unknown stream property {name!r} (a topic declares {' and '.join(QUALITIES)})", span
-    )
+    if rate <= 0:
+        raise ParseError(f"rate {text!r} must be positive", span)
+    return rate
 
 
 def quality_of(items: list[tuple[str, Fraction, Span]]) -> tuple[Fraction | None, ...]:
@@ -390,7 +390,11 @@ def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
             raise ParseError(f"topic {name} must hold features, or one sort, or one object", tspan)
         entity = None if features else _xml_arg(children[0], span(children[0]), in_feature=False)
         quality = quality_of(
-            [(q, quality_value(q, topic.get(q), tspan), tspan) for q in QUALITIES if q in topic.keys()]
+            [
+                (q, quality_value(q, value, tspan), tspan)
+                for q in QUALITIES
+                if (value := topic.get(q)) is not None
+            ]
         )
         specs.append(TopicSpec(name, msgtype, tuple(features), entity, tspan, *quality))
         extents.append((where[topic].start, where[topic].end))

@@ -1,0 +1,143 @@
+"""Streams with declared quality (issue 31; thesis 8.2): specs state a topic's rate and delay,
+matching vetoes a topic whose delay exceeds the monitor's --max-delay and ranks a feature's
+topics by what they declare, explanations cite it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from dkreason import KnowledgeManager
+from dkreason.cli import main
+from dkreason.model import FeatureRequest
+
+ALTITUDE = "always (Altitude[uav1] > 1)"
+# topic1: its freshest sample at most 1.02 s old; topic2: 220 ms, but it lags 200 ms
+SLOW = "topic1:UavMsg [rate 1 Hz, delay 20ms]"
+LAGGING = "topic2:UavMsg [rate 50 Hz, delay 200ms]"
+
+
+def declare(scenario: Path, *brackets: str) -> Path:
+    """The single-platform scenario with these topics' quality declared; its config."""
+    specs = scenario / "specs" / "platform1.sslt"
+    text = specs.read_text(encoding="utf-8")
+    for bracket in brackets:
+        head = bracket.split(" [")[0]
+        text = text.replace(f"topic {head} contains", f"topic {bracket} contains")
+    specs.write_text(text, encoding="utf-8")
+    return scenario / "single.toml"
+
+
+def topics(features: tuple[FeatureRequest, ...]) -> list[str]:
+    (feature,) = features
+    return [t.topic for t in feature.topics]
+
+
+def test_the_thesis_scenarios_declare_nothing_and_match_as_before(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(scenario / "federation.toml")
+    assert km.stored().get("topic_property", ("input", 0))[1] == 0
+    plain = km.check_formula("always (Altitude[uav1] > Altitude[uav2])")
+    assert (
+        km.check_formula("always (Altitude[uav1] > Altitude[uav2])", max_delay="1ms").to_json()
+        == plain.to_json()
+    )
+    assert not any(
+        line.startswith("rank")
+        for f in km.explain(ALTITUDE).features
+        for w in f.why
+        for line in w.summary
+    )
+
+
+def test_declared_properties_are_facts_in_nanoseconds(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(declare(scenario, SLOW))
+    rows = km.query("topic_property(P, 'topic1', Property, Value)").rows
+    assert sorted(rows) == [
+        ("platform1", "age", 1_020_000_000),
+        ("platform1", "delay", 20_000_000),
+        ("platform1", "period", 1_000_000_000),
+    ]
+
+
+def test_topics_are_ranked_by_declared_quality_and_best_source_takes_the_best(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic2", "topic1"]  # merged
+    assert topics(km.check_formula(ALTITUDE, best_source=True).features) == ["topic2"]
+    assert main(["match", "--config", str(config), "--best-source", "--json", ALTITUDE]) == 0
+    (feature,) = json.loads(capsys.readouterr().out)["features"]
+    assert [t["topic"] for t in feature["topics"]] == ["topic2"]
+
+
+def test_a_topic_declaring_nothing_comes_after_those_that_declare(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(declare(scenario, SLOW))
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic1", "topic2"]
+    km = KnowledgeManager.from_config(declare(scenario, LAGGING))
+    assert topics(km.check_formula(ALTITUDE, best_source=True).features) == ["topic2"]
+
+
+def test_a_delay_over_max_delay_excludes_the_topic_with_an_explanation(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    assert topics(km.check_formula(ALTITUDE, max_delay="100ms").features) == ["topic1"]
+    assert topics(km.check_formula(ALTITUDE, max_delay=0.2).features) == ["topic2", "topic1"]
+    (why_not,) = km.explain(ALTITUDE, topic="topic2", max_delay="100ms").features[0].why_not
+    assert "[rules/quality.dl:" in why_not.reason
+    assert "topic2 declares delay 200ms" in why_not.reason
+    assert "the monitor's --max-delay is 100ms" in why_not.reason
+    argv = ["explain", "--config", str(config), "--max-delay", "100ms", "--topic", "topic2"]
+    assert main([*argv, ALTITUDE]) == 0
+    assert "topic2 declares delay 200ms" in capsys.readouterr().out
+    assert main(["match", "--config", str(config), "--max-delay", "0.1", "--json", ALTITUDE]) == 0
+    (feature,) = json.loads(capsys.readouterr().out)["features"]
+    assert [t["topic"] for t in feature["topics"]] == ["topic1"]
+
+
+def test_explanations_cite_declared_properties_and_what_ranks_a_topic(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(declare(scenario, SLOW, LAGGING))
+    why = {w.topic: w.summary for w in km.explain(ALTITUDE).features[0].why}
+    assert "declared: rate 1 Hz, delay 20ms [" in "\n".join(why["topic1"])
+    (ranked,) = [line for line in why["topic1"] if line.startswith("rank")]
+    assert ranked.startswith("rank 1020000000: ") and "topic1 declares age 1.02s" in ranked
+    (ranked,) = [line for line in why["topic2"] if line.startswith("rank")]
+    assert "topic2 declares age 220ms" in ranked
+
+
+def test_a_rule_file_changes_the_ranking_without_python(scenario: Path) -> None:
+    """Rank by the declared delay alone: the smallest rank a topic gets is its rank."""
+    declare(scenario, SLOW, LAGGING)
+    (scenario / "own.dl").write_text(
+        "rank(Q, R, T, D) <= declaring(R) & carried(Q, R, T) & topic_property(R, T, 'delay', D)\n",
+        encoding="utf-8",
+    )
+    config = scenario / "own.toml"
+    config.write_text(
+        'rules = ["own.dl"]\n' + (scenario / "single.toml").read_text(encoding="utf-8")
+    )
+    km = KnowledgeManager.from_config(config)
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic1", "topic2"]
+    assert topics(km.check_formula(ALTITUDE, best_source=True).features) == ["topic1"]
+
+
+def test_specs_add_and_show_take_and_show_declared_properties(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = str(scenario / "single.toml")
+    spec = "topic fast:UavMsg [rate 100 Hz, delay 5ms] contains Altitude(uav2) = msg.alt"
+    assert main(["specs", "add", "--config", config, spec]) == 0
+    assert "[rate 100 Hz, delay 5ms]" in (scenario / "specs" / "platform1.sslt").read_text()
+    capsys.readouterr()
+    assert main(["specs", "show", "--config", config, "fast"]) == 0
+    assert capsys.readouterr().out.strip() == spec
+    assert main(["specs", "show", "--config", config, "--xml", "fast"]) == 0
+    assert 'rate="100 Hz" delay="5ms"' in capsys.readouterr().out
+    bad = "topic slow:UavMsg [rate -1 Hz] contains Altitude(uav2) = msg.alt"
+    assert main(["specs", "add", "--config", config, bad]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: <topic>:1:25:") and "must be positive" in err and "\n" not in err
