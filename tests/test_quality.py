@@ -141,3 +141,21 @@ def test_specs_add_and_show_take_and_show_declared_properties(
     assert main(["specs", "add", "--config", config, bad]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: <topic>:1:25:") and "must be positive" in err and "\n" not in err
+
+
+def test_a_window_finer_than_every_topics_period_is_one_warning_before_reading(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW)
+    km = KnowledgeManager.from_config(config)
+    fine = "always (Speed[uav1] > 1 -> eventually[0, 50ms] Speed[uav1] < 1)"
+    (warning,) = km.check_formula(fine).warnings
+    assert warning == (
+        f"{fine}: eventually[0, 0.05] is finer than the period of every topic of "
+        "Speed[uav1] (topic1 at 1 Hz): a sample need not fall inside it"
+    )
+    assert not km.check_formula(fine.replace("50ms", "2")).warnings
+    # Altitude[uav1] is also read from topic2, which declares no rate: no warning
+    assert not km.check_formula("always eventually[0, 50ms] Altitude[uav1] > 1").warnings
+    assert main(["match", "--config", str(config), fine]) == 0
+    assert "Warning: " + warning in capsys.readouterr().out

@@ -4,11 +4,23 @@ field to read and the id filter that selects the feature's objects in the topic'
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Iterator
+from dataclasses import replace
 from fractions import Fraction
 
 from .kb import KnowledgeBase
 from .match import Match, Rejected, match
-from .model import FeatureRequest, GroundFeature, IdValue, StreamRequest, TopicMatch
+from .inputs.numbers import decimal
+from .model import (
+    FeatureKey,
+    FeatureRequest,
+    GroundFeature,
+    IdValue,
+    StreamRequest,
+    TopicMatch,
+)
+from .parse.formula import Formula, Temporal, Until, children
+from .parse.formula import features as refs
 from .names import local_name
 from .plan import Plan
 
@@ -25,7 +37,46 @@ def request(
     topic only)."""
     ground = list(plan.ground)
     matches, rejected = match(kb, ground, max_delay)
-    return build_request(kb, plan.text, ground, matches, rejected, best_source=best_source)
+    made = build_request(kb, plan.text, ground, matches, rejected, best_source=best_source)
+    coarse = too_fine(kb, plan, made.features)
+    return replace(made, warnings=(*made.warnings, *coarse)) if coarse else made
+
+
+def too_fine(kb: KnowledgeBase, plan: Plan, features: tuple[FeatureRequest, ...]) -> list[str]:
+    """A bounded window finer than the declared period of every topic feeding a feature it
+    reads (`eventually[0, 50ms]` over a 1 Hz topic): no sample need fall inside it.  One line
+    per formula, window and feature, said before any message is read."""
+    feeding = {f.feature.key: f.topics for f in features}
+    out: dict[str, None] = {}
+    for formula in plan.formulas:
+        for instance in formula.instances:
+            for node in _windows(instance.tree):
+                assert node.interval.hi is not None
+                width = node.interval.hi - node.interval.lo
+                for ref in refs(node):
+                    key = FeatureKey(ref.name, tuple(a.name for a in ref.args))
+                    rates = [
+                        (t, kb.platforms[t.platform].specs[t.topic].rate)
+                        for t in feeding.get(key, ())
+                    ]
+                    if rates and all(r is not None and width < 1 / r for _, r in rates):
+                        slowest = ", ".join(f"{t.topic} at {decimal(r)} Hz" for t, r in rates if r)
+                        window = (
+                            f"{node.op}[{decimal(node.interval.lo)}, {decimal(node.interval.hi)}]"
+                        )
+                        out[
+                            f"{formula.text}: {window} is finer than the period of every topic "
+                            f"of {key} ({slowest}): a sample need not fall inside it"
+                        ] = None
+    return list(out)
+
+
+def _windows(node: Formula) -> Iterator[Temporal | Until]:
+    """The bounded temporal operators of a formula."""
+    if isinstance(node, Temporal | Until) and node.interval.hi is not None:
+        yield node
+    for child in children(node):
+        yield from _windows(child)
 
 
 def build_request(
