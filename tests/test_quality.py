@@ -5,6 +5,9 @@ topics by what they declare, explanations cite it."""
 from __future__ import annotations
 
 import json
+import random
+from collections import Counter
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -12,6 +15,10 @@ import pytest
 from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.model import FeatureRequest
+from dkreason.stream.processor import Violation
+from dkreason.stream.recording import Row, write_recording
+
+from .conftest import REPO
 
 ALTITUDE = "always (Altitude[uav1] > 1)"
 # topic1: its freshest sample at most 1.02 s old; topic2: 220 ms, but it lags 200 ms
@@ -159,3 +166,84 @@ def test_a_window_finer_than_every_topics_period_is_one_warning_before_reading(
     assert not km.check_formula("always eventually[0, 50ms] Altitude[uav1] > 1").warnings
     assert main(["match", "--config", str(config), fine]) == 0
     assert "Warning: " + warning in capsys.readouterr().out
+
+
+# ---- measured against declared ------------------------------------------------------------
+
+MSGS = REPO / "examples" / "traffic" / "msg" / "dkreason_msgs" / "msg"
+TYPES = {f"dkreason_msgs/msg/{p.stem}": p.read_text() for p in MSGS.glob("*.msg")}
+AUTO, CAR = "dkreason_msgs/msg/AutomobileMsg", "dkreason_msgs/msg/CarMsg"
+MS = 10**6
+
+
+def car11(t_ns: int, lag_ns: int) -> Row:
+    """car11 on platform 2's carstopic2, recorded at t_ns, stamped lag_ns earlier."""
+    stamp = Fraction(t_ns - lag_ns, 10**9)
+    return (
+        "/platform2/carstopic2",
+        AUTO,
+        t_ns,
+        {"header": {"stamp": stamp}, "id": 11, "speed": 50.0},
+    )
+
+
+def test_info_reports_each_topics_observed_rate_and_delay(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    jitter = random.Random(31)
+    rows = [car11(n * 50 * MS + jitter.randrange(-MS, MS), 30 * MS) for n in range(1, 201)]
+    rows += [("topic3", CAR, n * 250 * MS, {"id": 1, "spd": 40.0}) for n in range(1, 41)]
+    path = tmp_path / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    (info,) = KnowledgeManager.describe([path], timing=True)
+    timing = {t.name: t.timing for t in info.topics}
+    cars, topic3 = timing["/platform2/carstopic2"], timing["topic3"]
+    assert cars is not None and topic3 is not None
+    assert cars.rate_median == pytest.approx(20, rel=0.02)
+    assert cars.rate_p5 is not None and cars.rate_p5 < 20 * 0.98  # the jitter's slow moments
+    assert cars.delay_median == pytest.approx(0.03, rel=0.02)
+    assert cars.delay_p95 == pytest.approx(0.03, rel=0.02)
+    assert topic3.rate_median == pytest.approx(4, rel=0.02)
+    assert topic3.delay_median is None  # no header stamps
+    assert main(["info", "--timing", "--json", str(path)]) == 0
+    (shown,) = json.loads(capsys.readouterr().out)["recordings"]
+    by_name = {t["topic"]: t for t in shown["topics"]}
+    assert by_name["topic3"]["rate"]["median"] == pytest.approx(4, rel=0.02)
+    assert main(["info", "--timing", str(path)]) == 0
+    shown_text = capsys.readouterr().out
+    assert "delay 0.03 s (p95 0.03)" in shown_text and "40  rate 4 Hz (p5 4)" in shown_text
+
+
+def test_monitor_reports_a_topic_below_its_declared_rate_or_over_its_delay(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """carstopic2 declares 20 Hz and 50 ms; it runs at 20 Hz for 5 s, at 2 Hz for 5 s, and
+    lags 80 ms over its last second.  Each kind is said at most once a second."""
+    specs = scenario / "specs" / "platform2.sslt"
+    specs.write_text(
+        specs.read_text().replace(
+            "carstopic2:AutomobileMsg contains",
+            "carstopic2:AutomobileMsg [rate 20 Hz, delay 50ms] contains",
+        )
+    )
+    rows = [car11(n * 50 * MS, 10 * MS) for n in range(1, 101)]
+    rows += [car11(5_000 * MS + n * 500 * MS, (80 if n > 8 else 10) * MS) for n in range(1, 11)]
+    path = tmp_path / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    km = KnowledgeManager.from_config(scenario / "federation.toml")
+    formula = "always (Speed[car1] < 100)"
+    with km.monitor(formula, [path]) as run:
+        found = [e for e in run if isinstance(e, Violation)]
+    kinds = Counter(v.constraint for v in found)
+    assert set(kinds) == {"declared_rate", "declared_delay"}
+    assert 1 <= kinds["declared_rate"] <= 5 and kinds["declared_delay"] == 1
+    first = next(v for v in found if v.constraint == "declared_rate")
+    assert first.topic == "platform2/carstopic2" and str(first.feature) == "Speed[car1]"
+    assert first.time > 5 and "below the declared 20 Hz" in first.detail
+    (late,) = [v for v in found if v.constraint == "declared_delay"]
+    assert late.detail == "delay 0.08 s exceeds 0.05 s"
+    code = main(
+        ["monitor", "--config", str(scenario / "federation.toml"), "--source", str(path), formula]
+    )
+    out = capsys.readouterr().out
+    assert code == 0 and "declared_rate" in out and "declared_delay" in out

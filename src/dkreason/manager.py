@@ -206,13 +206,19 @@ class KnowledgeManager:
         fields: bool = False,
         msg: Sequence[str | Path] = (),
         typestore: str | None = None,
+        timing: bool = False,
     ) -> tuple[list[RecordingInfo], list[Binding]]:
         """What `dkreason info --config` shows: each recording described (`describe`), and
         every spec topic of every platform with the recording topic it binds to."""
         from .stream.info import inspect
 
         infos, binds = inspect(
-            sources, self.kb, fields=fields, msg=[Path(m) for m in msg], typestore=typestore
+            sources,
+            self.kb,
+            fields=fields,
+            msg=[Path(m) for m in msg],
+            typestore=typestore,
+            timing=timing,
         )
         return infos, binds or []
 
@@ -223,13 +229,18 @@ class KnowledgeManager:
         fields: bool = False,
         msg: Sequence[str | Path] = (),
         typestore: str | None = None,
+        timing: bool = False,
     ) -> list[RecordingInfo]:
         """What `dkreason info` shows of recordings (a folder of several: each of them): their
         topics, types, counts, span, clock and damage; with `fields`, each topic's field paths
-        a spec can read and their types."""
+        a spec can read and their types; with `timing`, each topic's observed rate (median
+        and 5th percentile) and delay (header stamp to record time: median and 95th
+        percentile), every message read."""
         from .stream.info import inspect
 
-        return inspect(sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore)[0]
+        return inspect(
+            sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore, timing=timing
+        )[0]
 
     def plot(
         self,

@@ -213,6 +213,8 @@ class TopicMatch:
     filter: tuple[tuple[str, IdValue], ...]
     as_feature: str
     as_args: tuple[str, ...]
+    rate: Fraction | None = None  # the topic's declared quality (TopicSpec's), if any
+    delay: Fraction | None = None
 
     def to_json(self, local: str, namespace: str | None = None) -> dict[str, object]:
         """`namespace`: the platform's, which gives the topic its ROS name (`ros_name`)."""
@@ -222,6 +224,10 @@ class TopicMatch:
         out |= {"msgtype": self.msgtype, "field": self.field, "filter": dict(self.filter)}
         if self.platform != local:
             out["as"] = {"feature": self.as_feature, "args": list(self.as_args)}
+        if self.rate is not None:
+            out["rate"] = float(self.rate)  # Hz
+        if self.delay is not None:
+            out["delay"] = float(self.delay)  # s
         return out
 
 

@@ -8,9 +8,9 @@ from collections.abc import Iterator
 from dataclasses import replace
 from fractions import Fraction
 
+from .inputs.numbers import decimal
 from .kb import KnowledgeBase
 from .match import Match, Rejected, match
-from .inputs.numbers import decimal
 from .model import (
     FeatureKey,
     FeatureRequest,
@@ -19,9 +19,9 @@ from .model import (
     StreamRequest,
     TopicMatch,
 )
+from .names import local_name
 from .parse.formula import Formula, Temporal, Until, children
 from .parse.formula import features as refs
-from .names import local_name
 from .plan import Plan
 
 
@@ -38,11 +38,11 @@ def request(
     ground = list(plan.ground)
     matches, rejected = match(kb, ground, max_delay)
     made = build_request(kb, plan.text, ground, matches, rejected, best_source=best_source)
-    coarse = too_fine(kb, plan, made.features)
+    coarse = too_fine(plan, made.features)
     return replace(made, warnings=(*made.warnings, *coarse)) if coarse else made
 
 
-def too_fine(kb: KnowledgeBase, plan: Plan, features: tuple[FeatureRequest, ...]) -> list[str]:
+def too_fine(plan: Plan, features: tuple[FeatureRequest, ...]) -> list[str]:
     """A bounded window finer than the declared period of every topic feeding a feature it
     reads (`eventually[0, 50ms]` over a 1 Hz topic): no sample need fall inside it.  One line
     per formula, window and feature, said before any message is read."""
@@ -55,10 +55,7 @@ def too_fine(kb: KnowledgeBase, plan: Plan, features: tuple[FeatureRequest, ...]
                 width = node.interval.hi - node.interval.lo
                 for ref in refs(node):
                     key = FeatureKey(ref.name, tuple(a.name for a in ref.args))
-                    rates = [
-                        (t, kb.platforms[t.platform].specs[t.topic].rate)
-                        for t in feeding.get(key, ())
-                    ]
+                    rates = [(t, t.rate) for t in feeding.get(key, ())]
                     if rates and all(r is not None and width < 1 / r for _, r in rates):
                         slowest = ", ".join(f"{t.topic} at {decimal(r)} Hz" for t, r in rates if r)
                         window = (
@@ -144,6 +141,8 @@ def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
         tuple(filter_.items()),
         local_name(feature.iri),
         tuple(local_name(o) for o in m.objects),
+        spec.rate,
+        spec.delay,
     )
 
 

@@ -163,12 +163,20 @@ def progress(args: argparse.Namespace) -> int:
 def info(args: argparse.Namespace) -> int:
     if args.config:
         infos, binds = KnowledgeManager.from_config(args.config).info(
-            args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+            args.source,
+            fields=args.fields,
+            msg=args.msg,
+            typestore=args.typestore,
+            timing=args.timing,
         )
     else:
         infos, binds = (
             KnowledgeManager.describe(
-                args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+                args.source,
+                fields=args.fields,
+                msg=args.msg,
+                typestore=args.typestore,
+                timing=args.timing,
             ),
             None,
         )

@@ -469,6 +469,13 @@ def _info(sub: a.Sub) -> None:
         help="each topic's field paths a spec can read (msg.pose.position.z), with their "
         "types; array elements as msg.ranges[i] (any length) or msg.covariance[0..35]",
     )
+    p.add_argument(
+        "--timing",
+        action="store_true",
+        help="each topic's observed rate (median and 5th percentile of the inter-arrival "
+        "rate) and delay (header stamp to record time: median and 95th percentile); reads "
+        "every message",
+    )
     a.definitions(p)
     p.add_argument(
         "source",
