@@ -120,7 +120,8 @@ def test_a_rule_file_changes_the_ranking_without_python(scenario: Path) -> None:
     """Rank by the declared delay alone: the smallest rank a topic gets is its rank."""
     declare(scenario, SLOW, LAGGING)
     (scenario / "own.dl").write_text(
-        "rank(Q, R, T, D) <= declaring(R) & carried(Q, R, T) & topic_property(R, T, 'delay', D)\n",
+        "rank(Q, R, T, D) <= declaring(R) & topic_property(R, T, 'delay', D) "
+        "& wanted(Q, _F, _O1, _O2, _O3)\n",
         encoding="utf-8",
     )
     config = scenario / "own.toml"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 
 from .errors import DkError, MissingIdError, Span
@@ -67,23 +67,20 @@ def match(
     relation = engine.schema["match_result"]
     with engine.given(given):
         rows = engine.query("match_result", *[None] * relation.arity)
-        # the rank hook, asked only of a policy that derives it
-        ranks = (
-            _ranks(engine.query("rank", None, None, None, None)) if engine.derives("rank") else {}
-        )
-    matches, rejected = [], []
+    matches, rejected, ranks = [], [], []
     for row in rows:
         c = relation.row(row)
-        q, k = int(c["Query"]), int(c["K"])
+        q = int(c["Query"])
         n = len(ground[q].args)
         objects = tuple(str(c[f"Arg{i}"]) for i in range(1, n + 1))
         platform, what = str(c["Platform"]), str(c["What"])
         if c["Answer"] == "topic":
+            k = int(c["K"])
             _check_answer(kb, ground[q], platform, what, k)
             ids = tuple(c[f"Filter{i}"] for i in range(1, n + 1))
-            matches.append(
-                Match(q, platform, what, k, objects, ids, ranks.get((q, platform, what), 0))
-            )
+            matches.append(Match(q, platform, what, k, objects, ids))
+        elif c["Answer"] == "rank":  # the rank hook, K the rank
+            ranks.append((q, platform, what, c["K"]))
         elif c["Answer"] == "rejected":
             rejected.append(Rejected(q, platform, what, objects))
         else:
@@ -93,6 +90,9 @@ def match(
                 f"{what} filters on {c['Filter1']}",
                 Span(kb.platforms[platform].ontology.file),
             )
+    if ranks:
+        ranked = _ranks(ranks)
+        matches = [replace(m, rank=ranked.get((m.query, m.platform, m.topic), 0)) for m in matches]
     return matches, rejected
 
 

@@ -49,7 +49,8 @@ def _ranked(replay: Replayer, m: Match) -> tuple[str, ...]:
     proof = replay.prove(("rank", m.query, m.platform, m.topic, m.rank))
     where = f" [{proof.rule.span}]" if proof is not None and proof.rule else ""
     text = proof.text if proof is not None else f"rank {m.rank}"
-    by = [c.text for c in proof.children if c.fact[0] == "topic_property"] if proof else []
+    steps = proof.find("topic_property") if proof else iter(())
+    by = dict.fromkeys(p.text for p in steps if p.fact[1:3] == (m.platform, m.topic))
     return (f"rank {m.rank}: {text}{where}" + "".join(f", by {b}" for b in by),)
 
 
