@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
@@ -96,7 +97,7 @@ def match(
     return matches, rejected
 
 
-def _ranks(rows: list[tuple[Value, ...]]) -> dict[tuple[Value, ...], int]:
+def _ranks(rows: Sequence[tuple[Value, ...]]) -> dict[tuple[Value, ...], int]:
     """rank(Q, Platform, Topic, Rank) rows: each topic's smallest rank."""
     out: dict[tuple[Value, ...], int] = {}
     for q, platform, topic, rank in rows:
