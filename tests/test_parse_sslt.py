@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+from decimal import Decimal
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -202,3 +205,75 @@ def test_a_name_beginning_with_an_sslt_keyword_is_a_name(keyword: str, rest: str
     ).specs
     assert [f.name for f in spec.features] == [name, name, "Other"]
     assert spec.features[1].args[0].name == name
+
+
+# ---- declared stream quality (issue 31) ----------------------------------------------------
+
+
+def test_a_topic_declares_its_rate_and_delay_in_a_bracket_after_the_message_type() -> None:
+    text = (
+        "topic topic1:UavMsg [rate 20 Hz, delay 50ms] contains Altitude(uav1) = msg.alt "
+        "for uav1 = msg.id\n"
+        "topic t2:M [delay 0.2] contains Speed(uav1) = msg.s\n"
+        "topic t3:M [rate 0.5Hz] contains uav2 = msg.id\n"
+        "topic t4:M contains Speed(uav2) = msg.s\n"
+    )
+    specs = parse_text(text, "q.sslt").specs
+    assert [(s.rate, s.delay) for s in specs] == [
+        (20, Fraction(1, 20)),
+        (None, Fraction(1, 5)),
+        (Fraction(1, 2), None),
+        (None, None),
+    ]
+    assert format_spec(specs[0]).startswith("topic topic1:UavMsg [rate 20 Hz, delay 50ms] contains")
+    assert format_spec(specs[3]) == "topic t4:M contains Speed(uav2) = msg.s"
+    assert 'rate="20 Hz" delay="50ms"' in format_xml(specs)
+    assert parse_xml(format_xml(specs).encode()).specs == specs
+    assert parse_text("\n".join(map(format_spec, specs))).specs == specs
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    rate=st.none() | st.decimals(min_value="0.001", max_value="100000", places=3),
+    delay=st.none() | st.decimals(min_value="0", max_value="3600", places=4),
+)
+def test_declared_quality_survives_text_to_xml_to_text(
+    rate: Decimal | None, delay: Decimal | None
+) -> None:
+    (spec,) = parse_text("topic t:M contains Speed(uav1) = msg.s").specs
+    spec = replace(
+        spec,
+        rate=None if rate is None or rate <= 0 else Fraction(rate),
+        delay=None if delay is None else Fraction(delay),
+    )
+    (via_xml,) = parse_xml(format_xml((spec,)).encode()).specs
+    (back,) = parse_text(format_spec(via_xml)).specs
+    assert (back.rate, back.delay) == (spec.rate, spec.delay)
+
+
+@pytest.mark.parametrize(
+    ("bracket", "where", "says"),
+    [
+        ("[rate fast]", "q.sslt:1:17", "rate 'fast' is not a rate in Hz"),
+        ("[rate 0 Hz]", "q.sslt:1:17", "must be positive"),
+        ("[delay -3ms]", "q.sslt:1:18", "delay '-3ms' is not a duration"),
+        ("[delay 5 parsecs]", "q.sslt:1:18", "is not a duration"),
+        ("[speed 3]", "q.sslt:1:12", "unknown stream property 'speed'"),
+        ("[rate 3 Hz, rate 4 Hz]", "q.sslt:1:23", "rate is declared twice"),
+        ("[rate]", "q.sslt:1:16", "expected a value, like 20 Hz or 50ms"),
+        ("[]", "q.sslt:1:12", "expected a name"),
+    ],
+)
+def test_a_bad_declared_property_is_one_line_naming_file_line_column(
+    bracket: str, where: str, says: str
+) -> None:
+    with pytest.raises(ParseError) as err:
+        parse_text(f"topic t:M {bracket} contains Speed(uav1) = msg.s", "q.sslt")
+    assert str(err.value).startswith(where + ":") and says in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_a_bad_declared_property_in_xml_names_its_line() -> None:
+    xml = b"<Topic_specs>\n<Topic name='a' msgtype='M' rate='-1 Hz'><object name='x' value='f'/>"
+    with pytest.raises(ParseError, match=r"^s\.xml:2:.*rate '-1 Hz' must be positive"):
+        parse_xml(xml + b"</Topic></Topic_specs>", "s.xml")

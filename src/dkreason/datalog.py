@@ -108,6 +108,10 @@ class Datalog:
         self._derived: set[str] = set()  # the relations rules derive or files tell
         self._clauses: dict[Rule, object] = {}  # each rule's clause in the engine
         self._pruned: dict[str, set[Rule]] = defaultdict(set)  # empty relation → rules negating it
+        # relations empty for want of facts (no input rows, an empty view, nothing to derive
+        # them from): a rule that needs one holds nowhere, a negation of one always holds
+        self._void: frozenset[str] = frozenset()
+        self._void_key: tuple[bool, ...] | None = None
 
     def _activate(self) -> None:
         from pyDatalog import Logic
@@ -161,10 +165,13 @@ class Datalog:
         frozen view's): without its negations of relations that are empty."""
         from pyDatalog import pyEngine
 
+        void = self._void
         pruned = [
             b.predicate
             for b in rule.body
-            if isinstance(b, Literal) and b.negated and self._empty(b.predicate)
+            if isinstance(b, Literal)
+            and b.negated
+            and (self._empty(b.predicate) or b.predicate in void)
         ]
         clause = _clause(rule, pruned)
         old = self._clauses.get(rule)
@@ -174,10 +181,54 @@ class Datalog:
         else:
             if old is not None:
                 pyEngine.retract(old)
+            if any(
+                isinstance(b, Literal) and not b.negated and b.predicate in void for b in rule.body
+            ):
+                self._clauses.pop(rule, None)  # it holds nowhere: out of the engine
+                return
             pyEngine.assert_(clause)
         self._clauses[rule] = clause
         for name in pruned:
             self._pruned[name].add(rule)
+
+    def _refresh(self) -> None:
+        """Rules out of the engine while they need a relation that is empty for want of
+        facts (an input without rows, a materialized view without rows, or one derived only
+        from such), and their negations of it left out: a policy's rules over facts nobody
+        told (declared stream quality in the thesis' scenarios) cost a query nothing.  Asked
+        before each query; recomputed when an input or a view gains or loses its last row."""
+        from pyDatalog import Logic
+
+        db = Logic.tl.logic.Db
+        watched = [r for r in self.schema.values() if r.kind == "input" or r.name in self._frozen]
+        key = tuple(
+            (pred := db.get(f"{r.name}/{r.arity}")) is not None and len(pred.db) > len(pred.clauses)
+            for r in watched
+        )
+        if key == self._void_key:
+            return
+        self._void_key = key
+        live = {r.name for r, rows in zip(watched, key, strict=True) if rows}
+        live |= {r.name for r in self.schema.values() if r.kind == "given"}
+        live |= {t[0] for t in self.told if isinstance(t[0], str)}
+        rules = [r for r in self.rules if r.head.predicate not in self._frozen]
+        grown = True
+        while grown:  # the least fixpoint: a relation lives if a rule of it can hold
+            grown = False
+            for rule in rules:
+                head = rule.head.predicate
+                if head not in live and all(
+                    b.predicate in live
+                    for b in rule.body
+                    if isinstance(b, Literal) and not b.negated
+                ):
+                    live.add(head)
+                    grown = True
+        void = frozenset(self.schema) - live
+        changed, self._void = void ^ self._void, void
+        for rule in self.rules:
+            if any(isinstance(b, Literal) and b.predicate in changed for b in rule.body):
+                self._assert(rule)
 
     @property
     def views(self) -> dict[str, int]:
@@ -372,6 +423,7 @@ class Datalog:
         if relation is not None and len(args) != relation.arity:
             raise TypeError(f"{predicate} has {relation.arity} columns, asked with {len(args)}")
         self._activate()
+        self._refresh()
         if relation is not None and f"{predicate}/{relation.arity}" not in self._logic.Db:
             return []  # declared, and neither derived nor told: empty
         terms = [
@@ -388,6 +440,7 @@ class Datalog:
         from pyDatalog import pyEngine
 
         self._activate()
+        self._refresh()
         for lit in body:
             relation = self.schema.get(lit.predicate) if isinstance(lit, Literal) else None
             if relation is not None and f"{relation.name}/{relation.arity}" not in self._logic.Db:

@@ -10,6 +10,7 @@ import re
 from collections import defaultdict
 from collections.abc import Iterable
 from dataclasses import dataclass
+from fractions import Fraction
 from functools import lru_cache
 
 from .errors import DkError
@@ -49,6 +50,26 @@ class ResolvedSpec:
     msgtype: str
     features: tuple[ResolvedFeature, ...]
     entity: ResolvedArg | None
+    rate: Fraction | None = None  # declared, Hz
+    delay: Fraction | None = None  # declared, seconds
+
+
+NS = 10**9
+
+
+def quality_rows(platform: str, spec: ResolvedSpec) -> list[Row]:
+    """topic_property(Platform, Topic, Property, Ns): the declared stream quality as whole
+    nanoseconds the rules compare: `period` (one over the rate), `delay`, and `age`, the
+    oldest the freshest sample may be (a period plus the delay, what is declared of them)."""
+    told = {"period": NS / spec.rate if spec.rate else None, "delay": spec.delay}
+    rows: list[Row] = [
+        (platform, spec.name, name, round(v * NS if name == "delay" else v))
+        for name, v in told.items()
+        if v is not None
+    ]
+    if rows:
+        rows.append((platform, spec.name, "age", sum(int(r[3]) for r in rows)))
+    return rows
 
 
 def ontology_facts(ont: Ontology) -> Facts:
@@ -231,6 +252,7 @@ def spec_facts(platform: str, spec: ResolvedSpec) -> Facts:
     if spec.entity is not None:
         e = spec.entity
         out["topic_entity"] = [(platform, spec.name, e.kind, e.iri, e.id_field)]
+    out["topic_property"] = quality_rows(platform, spec)
     return out
 
 

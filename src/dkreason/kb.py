@@ -710,4 +710,4 @@ def resolve_spec(p: Platform, spec: TopicSpec) -> ResolvedSpec:
             )
         features.append(ResolvedFeature(iri, f.field, tuple(arg(a) for a in f.args)))
     entity = arg(spec.entity) if spec.entity is not None else None
-    return ResolvedSpec(spec.name, spec.msgtype, tuple(features), entity)
+    return ResolvedSpec(spec.name, spec.msgtype, tuple(features), entity, spec.rate, spec.delay)

@@ -28,6 +28,12 @@ if TYPE_CHECKING:
     from .stream.sources import Source
 
 
+def _seconds(value: float | Fraction | str | None, what: str) -> Fraction | None:
+    from .inputs.numbers import duration
+
+    return None if value is None else duration(value, what)
+
+
 class KnowledgeManager:
     """The one front door: everything the CLI does (match, explain, monitor, batch, info,
     plot, init, the knowledge edited), with the CLI's defaults, over one knowledge base
@@ -84,26 +90,57 @@ class KnowledgeManager:
         """Formulas parsed, checked against the local ontology and expanded, once each."""
         return plan(self.kb, [formulas] if isinstance(formulas, str) else formulas)
 
-    def request(self, plan: Plan) -> StreamRequest:
+    def request(
+        self,
+        plan: Plan,
+        *,
+        max_delay: float | Fraction | str | None = None,
+        best_source: bool = False,
+    ) -> StreamRequest:
         """The stream request of a plan: every ground feature and the topics to merge (matched
-        again whenever it is asked, so it follows the knowledge base as it changes)."""
-        return request(self.kb, plan)
+        again whenever it is asked, so it follows the knowledge base as it changes).
+        `max_delay` (seconds, or text like "100ms"): the monitor's, past which a topic's
+        declared delay makes it irrelevant; `best_source`: each feature's best-ranked topic
+        only, not the merge of them all."""
+        return request(
+            self.kb, plan, max_delay=_seconds(max_delay, "max_delay"), best_source=best_source
+        )
 
-    def check_formula(self, formula: str) -> StreamRequest:
-        """The stream request for `formula`: every ground feature and the topics to merge."""
-        return self.request(self.plan(formula))
+    def _matcher(self, policy: StreamPolicy) -> Callable[[Plan], StreamRequest]:
+        """How a monitor under `policy` matches: with its --max-delay and --best-source."""
+        return lambda plan: self.request(
+            plan, max_delay=policy.max_delay, best_source=policy.best_source
+        )
+
+    def check_formula(
+        self,
+        formula: str,
+        *,
+        max_delay: float | Fraction | str | None = None,
+        best_source: bool = False,
+    ) -> StreamRequest:
+        """The stream request for `formula`: every ground feature and the topics to merge
+        (`max_delay`, `best_source` as `request`'s)."""
+        return self.request(self.plan(formula), max_delay=max_delay, best_source=best_source)
 
     def explain(
-        self, formula: str, feature: str | None = None, topic: str | None = None
+        self,
+        formula: str,
+        feature: str | None = None,
+        topic: str | None = None,
+        *,
+        max_delay: float | Fraction | str | None = None,
     ) -> Explanation:
         """Why each topic of the request matched; for a feature without topics, or a named
-        topic that was not chosen, the closest candidates and the first condition that failed."""
+        topic that was not chosen, the closest candidates and the first condition that failed
+        (`max_delay` as `request`'s: a topic it excludes is explained by its declared delay)."""
         from .explain import explain
         from .match import match
 
         ground = list(self.plan(formula).ground)
-        matches, _ = match(self.kb, ground)
-        return explain(self.kb, formula, ground, matches, feature, topic)
+        limit = _seconds(max_delay, "max_delay")
+        matches, _ = match(self.kb, ground, limit)
+        return explain(self.kb, formula, ground, matches, feature, topic, limit)
 
     def monitor(
         self,
@@ -157,11 +194,12 @@ class KnowledgeManager:
             if isinstance(source, Sequence)
             else source
         )
+        policy = policy or StreamPolicy()
         try:
             engine = Monitor(
                 self.plan(formulas),
-                self.request,
-                policy or StreamPolicy(),
+                self._matcher(policy),
+                policy,
                 keep_states=keep_states,
                 robustness=robustness,
             )
@@ -201,13 +239,19 @@ class KnowledgeManager:
         fields: bool = False,
         msg: Sequence[str | Path] = (),
         typestore: str | None = None,
+        timing: bool = False,
     ) -> tuple[list[RecordingInfo], list[Binding]]:
         """What `dkreason info --config` shows: each recording described (`describe`), and
         every spec topic of every platform with the recording topic it binds to."""
         from .stream.info import inspect
 
         infos, binds = inspect(
-            sources, self.kb, fields=fields, msg=[Path(m) for m in msg], typestore=typestore
+            sources,
+            self.kb,
+            fields=fields,
+            msg=[Path(m) for m in msg],
+            typestore=typestore,
+            timing=timing,
         )
         return infos, binds or []
 
@@ -218,13 +262,18 @@ class KnowledgeManager:
         fields: bool = False,
         msg: Sequence[str | Path] = (),
         typestore: str | None = None,
+        timing: bool = False,
     ) -> list[RecordingInfo]:
         """What `dkreason info` shows of recordings (a folder of several: each of them): their
         topics, types, counts, span, clock and damage; with `fields`, each topic's field paths
-        a spec can read and their types."""
+        a spec can read and their types; with `timing`, each topic's observed rate (median
+        and 5th percentile) and delay (header stamp to record time: median and 95th
+        percentile), every message read."""
         from .stream.info import inspect
 
-        return inspect(sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore)[0]
+        return inspect(
+            sources, fields=fields, msg=[Path(m) for m in msg], typestore=typestore, timing=timing
+        )[0]
 
     def plot(
         self,
@@ -325,10 +374,11 @@ class KnowledgeManager:
 
         runs = find_runs([str(s) for s in sources])
         plan = self.plan(formulas)
+        policy = policy or StreamPolicy()
         job = Job(
             plan,
-            self.request(plan),
-            policy or StreamPolicy(),
+            self._matcher(policy)(plan),
+            policy,
             tuple(self.platforms),
             tuple((remap if isinstance(remap, Mapping) else remaps(remap or ())).items()),
             clock,

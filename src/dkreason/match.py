@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from fractions import Fraction
 
 from .errors import DkError, MissingIdError, Span
 from .kb import KnowledgeBase
@@ -44,31 +46,42 @@ def wanted_rows(ground: list[GroundFeature]) -> list[tuple[int | str, ...]]:
     return [(q, g.iri, *padded(g.arg_iris)) for q, g in enumerate(ground)]
 
 
-def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], list[Rejected]]:
-    wanted = wanted_rows(ground)
-    if not wanted:
+def given_rows(
+    ground: list[GroundFeature], max_delay: Fraction | None = None
+) -> dict[str, list[tuple[int | str, ...]]]:
+    """What a formula tells the rules while they are asked: its ground features (`wanted`)
+    and the monitor's --max-delay in whole nanoseconds (`max_delay`), if any."""
+    given = {"wanted": wanted_rows(ground)}
+    if max_delay is not None:
+        given["max_delay"] = [(round(max_delay * 10**9),)]
+    return given
+
+
+def match(
+    kb: KnowledgeBase, ground: list[GroundFeature], max_delay: Fraction | None = None
+) -> tuple[list[Match], list[Rejected]]:
+    """`max_delay`: the monitor's (seconds), which a policy may veto slower topics by."""
+    given = given_rows(ground, max_delay)
+    if not given["wanted"]:
         return [], []
     engine = kb.engine
     relation = engine.schema["match_result"]
-    with engine.given({"wanted": wanted}):
+    with engine.given(given):
         rows = engine.query("match_result", *[None] * relation.arity)
-        # the rank hook, asked only of a policy that derives it
-        ranks = (
-            _ranks(engine.query("rank", None, None, None, None)) if engine.derives("rank") else {}
-        )
-    matches, rejected = [], []
+    matches, rejected, ranks = [], [], []
     for row in rows:
         c = relation.row(row)
-        q, k = int(c["Query"]), int(c["K"])
+        q = int(c["Query"])
         n = len(ground[q].args)
         objects = tuple(str(c[f"Arg{i}"]) for i in range(1, n + 1))
         platform, what = str(c["Platform"]), str(c["What"])
         if c["Answer"] == "topic":
+            k = int(c["K"])
             _check_answer(kb, ground[q], platform, what, k)
             ids = tuple(c[f"Filter{i}"] for i in range(1, n + 1))
-            matches.append(
-                Match(q, platform, what, k, objects, ids, ranks.get((q, platform, what), 0))
-            )
+            matches.append(Match(q, platform, what, k, objects, ids))
+        elif c["Answer"] == "rank":  # the rank hook, K the rank
+            ranks.append((q, platform, what, c["K"]))
         elif c["Answer"] == "rejected":
             rejected.append(Rejected(q, platform, what, objects))
         else:
@@ -78,10 +91,13 @@ def match(kb: KnowledgeBase, ground: list[GroundFeature]) -> tuple[list[Match], 
                 f"{what} filters on {c['Filter1']}",
                 Span(kb.platforms[platform].ontology.file),
             )
+    if ranks:
+        ranked = _ranks(ranks)
+        matches = [replace(m, rank=ranked.get((m.query, m.platform, m.topic), 0)) for m in matches]
     return matches, rejected
 
 
-def _ranks(rows: list[tuple[Value, ...]]) -> dict[tuple[Value, ...], int]:
+def _ranks(rows: Sequence[tuple[Value, ...]]) -> dict[tuple[Value, ...], int]:
     """rank(Q, Platform, Topic, Rank) rows: each topic's smallest rank."""
     out: dict[tuple[Value, ...], int] = {}
     for q, platform, topic, rank in rows:

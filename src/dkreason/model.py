@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from fractions import Fraction
 from typing import Any, Literal, NamedTuple
 
 from .errors import Span
@@ -49,13 +50,18 @@ class TopicFeature:
 
 @dataclass(frozen=True, slots=True)
 class TopicSpec:
-    """A topic and what it carries: features, or the objects of a sort, or one object."""
+    """A topic and what it carries: features, or the objects of a sort, or one object.
+
+    `rate` (Hz) and `delay` (seconds: the most a sample's valid time may lag its arrival) are
+    the stream's declared quality, None where the spec leaves them out (thesis 8.2)."""
 
     name: str
     msgtype: str
     features: tuple[TopicFeature, ...] = ()
     entity: TopicArg | None = None
     span: Span = dataclasses.field(default=Span("<api>"), compare=False)
+    rate: Fraction | None = None
+    delay: Fraction | None = None
 
     @property
     def kind(self) -> Literal["features", "sort", "object"]:
@@ -252,6 +258,8 @@ class TopicMatch:
     filter: tuple[tuple[str, IdValue], ...]
     as_feature: str
     as_args: tuple[str, ...]
+    rate: Fraction | None = None  # the topic's declared quality (TopicSpec's), if any
+    delay: Fraction | None = None
 
     def to_json(self, local: str, namespace: str | None = None) -> dict[str, object]:
         """`namespace`: the platform's, which gives the topic its ROS name (`ros_name`)."""
@@ -261,6 +269,10 @@ class TopicMatch:
         out |= {"msgtype": self.msgtype, "field": self.field, "filter": dict(self.filter)}
         if self.platform != local:
             out["as"] = {"feature": self.as_feature, "args": list(self.as_args)}
+        if self.rate is not None:
+            out["rate"] = float(self.rate)  # Hz
+        if self.delay is not None:
+            out["delay"] = float(self.delay)  # s
         return out
 
 

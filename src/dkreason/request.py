@@ -4,20 +4,78 @@ field to read and the id filter that selects the feature's objects in the topic'
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import replace
+from fractions import Fraction
 
+from .inputs.numbers import decimal
 from .kb import KnowledgeBase
 from .match import Match, Rejected, match
-from .model import FeatureRequest, GroundFeature, IdValue, StreamRequest, TopicMatch
+from .model import (
+    FeatureKey,
+    FeatureRequest,
+    GroundFeature,
+    IdValue,
+    StreamRequest,
+    TopicMatch,
+)
 from .names import local_name
+from .parse.formula import Formula, Temporal, Until, children
+from .parse.formula import features as refs
 from .plan import Plan
 
 
-def request(kb: KnowledgeBase, plan: Plan) -> StreamRequest:
-    """The topics of every ground feature of the plan, matched in one query."""
+def request(
+    kb: KnowledgeBase,
+    plan: Plan,
+    *,
+    max_delay: Fraction | None = None,
+    best_source: bool = False,
+) -> StreamRequest:
+    """The topics of every ground feature of the plan, matched in one query (`max_delay`:
+    the monitor's, which the policy may veto topics by; `best_source`: each feature's first
+    topic only)."""
     ground = list(plan.ground)
-    matches, rejected = match(kb, ground)
-    return build_request(kb, plan.text, ground, matches, rejected, plan.warnings)
+    matches, rejected = match(kb, ground, max_delay)
+    made = build_request(
+        kb, plan.text, ground, matches, rejected, plan.warnings, best_source=best_source
+    )
+    coarse = too_fine(plan, made.features)
+    return replace(made, warnings=(*made.warnings, *coarse)) if coarse else made
+
+
+def too_fine(plan: Plan, features: tuple[FeatureRequest, ...]) -> list[str]:
+    """A bounded window finer than the declared period of every topic feeding a feature it
+    reads (`eventually[0, 50ms]` over a 1 Hz topic): no sample need fall inside it.  One line
+    per formula, window and feature, said before any message is read."""
+    feeding = {f.feature.key: f.topics for f in features}
+    out: dict[str, None] = {}
+    for formula in plan.formulas:
+        for instance in formula.instances:
+            for node in _windows(instance.tree):
+                assert node.interval.hi is not None
+                width = node.interval.hi - node.interval.lo
+                for ref in refs(node):
+                    key = FeatureKey(ref.name, tuple(a.name for a in ref.args))
+                    rates = [(t, t.rate) for t in feeding.get(key, ())]
+                    if rates and all(r is not None and width < 1 / r for _, r in rates):
+                        slowest = ", ".join(f"{t.topic} at {decimal(r)} Hz" for t, r in rates if r)
+                        window = (
+                            f"{node.op}[{decimal(node.interval.lo)}, {decimal(node.interval.hi)}]"
+                        )
+                        out[
+                            f"{formula.text}: {window} is finer than the period of every topic "
+                            f"of {key} ({slowest}): a sample need not fall inside it"
+                        ] = None
+    return list(out)
+
+
+def _windows(node: Formula) -> Iterator[Temporal | Until]:
+    """The bounded temporal operators of a formula."""
+    if isinstance(node, Temporal | Until) and node.interval.hi is not None:
+        yield node
+    for child in children(node):
+        yield from _windows(child)
 
 
 def build_request(
@@ -27,8 +85,12 @@ def build_request(
     matches: list[Match],
     rejected: list[Rejected],
     notes: Sequence[str] = (),
+    *,
+    best_source: bool = False,
 ) -> StreamRequest:
-    """`notes`: warnings about the formula itself (plan.FormulaPlan.warnings), said first."""
+    """`notes`: warnings about the formula itself (plan.FormulaPlan.warnings), said first;
+    `best_source`: of each feature's topics in the policy's order, the first only, not their
+    merge (the thesis merges them all)."""
     per_feature: dict[int, dict[TopicMatch, int]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
@@ -48,7 +110,7 @@ def build_request(
                         t.filter,
                     ),
                 )
-            ),
+            )[: 1 if best_source else None],
         )
         for q, g in enumerate(ground)
     )
@@ -83,6 +145,8 @@ def topic_match(kb: KnowledgeBase, m: Match) -> TopicMatch | None:
         tuple(filter_.items()),
         local_name(feature.iri),
         tuple(local_name(o) for o in m.objects),
+        spec.rate,
+        spec.delay,
     )
 
 

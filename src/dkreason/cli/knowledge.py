@@ -16,7 +16,7 @@ def match(args: argparse.Namespace) -> int:
     km = KnowledgeManager.from_config(args.config)
     loaded = time.perf_counter()
     render.warnings(km.rule_warnings)
-    request = km.check_formula(args.formula)
+    request = km.check_formula(args.formula, max_delay=args.max_delay, best_source=args.best_source)
     if args.stats:
         print(
             f"stats: load {(loaded - start) * 1e3:.1f} ms, match "
@@ -37,7 +37,7 @@ def explain(args: argparse.Namespace) -> int:
 
     km = KnowledgeManager.from_config(args.config)
     render.warnings(km.rule_warnings)
-    result = km.explain(args.formula, args.feature, args.topic)
+    result = km.explain(args.formula, args.feature, args.topic, max_delay=args.max_delay)
     print(why.render(result, args.format, proof=args.proof, depth=args.depth))
     return 0
 

@@ -191,12 +191,20 @@ def info(args: argparse.Namespace) -> int:
         return _features(KnowledgeManager.from_config(args.config), args.json)
     if args.config:
         infos, binds = KnowledgeManager.from_config(args.config).info(
-            args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+            args.source,
+            fields=args.fields,
+            msg=args.msg,
+            typestore=args.typestore,
+            timing=args.timing,
         )
     else:
         infos, binds = (
             KnowledgeManager.describe(
-                args.source, fields=args.fields, msg=args.msg, typestore=args.typestore
+                args.source,
+                fields=args.fields,
+                msg=args.msg,
+                typestore=args.typestore,
+                timing=args.timing,
             ),
             None,
         )

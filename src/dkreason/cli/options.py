@@ -36,4 +36,9 @@ def policy(args: argparse.Namespace) -> StreamPolicy:
     chosen = {k: v for k, v in given.items() if v is not None}
     if chosen.get("max_age") == "inf":
         chosen["max_age"] = None
-    return StreamPolicy(**chosen, ordered_on_valid_time=args.ordered, unique_valid_time=args.unique)
+    return StreamPolicy(
+        **chosen,
+        ordered_on_valid_time=args.ordered,
+        unique_valid_time=args.unique,
+        best_source=args.best_source,
+    )

@@ -67,6 +67,8 @@ def _match(sub: a.Sub) -> None:
         help="on stderr: load and match times, and the rows of every stored "
         "relation (told facts and materialized views)",
     )
+    _max_delay(p)
+    _best_source(p)
     p.add_argument("formula")
     p.set_defaults(run="knowledge:match")
 
@@ -314,10 +316,28 @@ def _policy(p: argparse.ArgumentParser) -> None:
         metavar="TIME",
         help="judge up to this time, the end of the data (as --start); later messages are not read",
     )
-    pol.add_argument("--max-delay", type=a.seconds, help="largest allowed sample delay (s)")
+    _max_delay(pol)
+    _best_source(pol)
     pol.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
     pol.add_argument("--unique", action="store_true", help="valid times must be unique")
     _end_of_data(pol)
+
+
+def _max_delay(p: Any) -> None:
+    p.add_argument(
+        "--max-delay",
+        type=a.seconds,
+        help="largest allowed sample delay (s); a topic declaring a larger delay is not read",
+    )
+
+
+def _best_source(p: Any) -> None:
+    p.add_argument(
+        "--best-source",
+        action="store_true",
+        help="read each feature from its best-ranked topic only (by declared rate and delay), "
+        "not from the merge of every relevant topic",
+    )
 
 
 def _end_of_data(p: Any) -> None:
@@ -449,6 +469,7 @@ def _explain(sub: a.Sub) -> None:
     p.add_argument("formula")
     p.add_argument("--feature", help='only this ground feature, e.g. "Altitude[uav2]"')
     p.add_argument("--topic", help="only this topic; explains why it was not chosen if not")
+    _max_delay(p)
     p.add_argument("--format", choices=("text", "json", "dot"), default="text")
     p.add_argument(
         "--proof",
@@ -496,6 +517,13 @@ def _info(sub: a.Sub) -> None:
         action="store_true",
         help="each topic's field paths a spec can read (msg.pose.position.z), with their "
         "types; array elements as msg.ranges[i] (any length) or msg.covariance[0..35]",
+    )
+    p.add_argument(
+        "--timing",
+        action="store_true",
+        help="each topic's observed rate (median and 5th percentile of the inter-arrival "
+        "rate) and delay (header stamp to record time: median and 95th percentile); reads "
+        "every message",
     )
     a.definitions(p)
     p.add_argument(

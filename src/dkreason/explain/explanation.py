@@ -4,10 +4,11 @@ for a feature without topics (or a named topic that was not chosen) why not."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 
 from ..errors import DkError
 from ..kb import KnowledgeBase
-from ..match import Match, wanted_rows
+from ..match import Match, given_rows
 from ..model import GroundFeature
 from ..parse.formula import feature_key
 from .provenance import Reader
@@ -41,6 +42,7 @@ def explain(
     matches: list[Match],
     feature: str | None = None,
     topic: str | None = None,
+    max_delay: Fraction | None = None,
 ) -> Explanation:
     """Why the `matches` of `formula`'s ground features hold (only `feature`'s, only `topic`'s
     if given), and for a feature without them why not, computed on demand: `check_formula`
@@ -58,7 +60,7 @@ def explain(
         raise DkError(f"no topic {topic!r} on any platform")
     reader = Reader(kb, ground)
     replay = Replayer(kb, reader)
-    with kb.engine.given({"wanted": wanted_rows(ground)}):
+    with kb.engine.given(given_rows(ground, max_delay)):
         features = []
         for q in selected:
             mine = [m for m in matches if m.query == q and topic in (None, m.topic)]

@@ -4,13 +4,16 @@ ontology axiom (subject, axiom kind, file), the bridge rule (file:line), the for
 from __future__ import annotations
 
 from collections import defaultdict
+from fractions import Fraction
 from typing import Any
 
 from ..adapt import origin
 from ..facts import THING, told_types
+from ..inputs.numbers import decimal
 from ..kb import KnowledgeBase
-from ..model import GroundFeature
+from ..model import GroundFeature, TopicSpec
 from ..names import local_name
+from ..parse.sslt import format_quality
 from ..policy.syntax import Row, Rule, Value
 
 Pattern = tuple[Value | None, ...]  # (predicate, *args); None = any value
@@ -47,6 +50,16 @@ WORDED = {
     "accepts": ("Platform", "Topic", "K", "Position", "Object"),
     "carries": ("Platform", "Feature", "Position", "Object", "Topic", "K"),
 }
+
+
+def nanoseconds(ns: int) -> str:
+    """A duration the rules hold in whole nanoseconds, as a person writes it."""
+    return f"{decimal(Fraction(ns, 10**6))}ms" if ns < 10**9 else f"{decimal(Fraction(ns, 10**9))}s"
+
+
+def declared(spec: TopicSpec) -> str:
+    """A topic's declared quality in words ('' if it declares none)."""
+    return ", ".join(f"{name} {value}" for name, value in format_quality(spec))
 
 
 class Reader:
@@ -105,6 +118,12 @@ class Reader:
                 return "{} : {Sort} ({Platform} axiom), in the sameAs class of {Class}".format(
                     self.name(told), **named
                 )
+        if pred == "topic_property" and None not in args and isinstance(c["Value"], int):
+            return "{Topic} declares {Property} {} ({Platform})".format(
+                nanoseconds(c["Value"]), **named
+            )
+        if pred == "max_delay" and None not in args and isinstance(c["Delay"], int):
+            return f"the monitor's --max-delay is {nanoseconds(c['Delay'])}"
         if pred in _GLOSSES and None not in args:
             if pred == "bridge":
                 named["Type"] = BRIDGE.get(str(c["Type"]), str(c["Type"]))
@@ -159,7 +178,7 @@ class Reader:
         if pred == "bridge":
             span = self.bridges.get(tuple(args))  # type: ignore[arg-type]
             return str(span) if span else "bridge rule"
-        if pred in ("topic", "topic_feature", "topic_arg", "topic_filter"):
+        if pred in ("topic", "topic_feature", "topic_arg", "topic_filter", "topic_property"):
             spec = kb.platforms[str(c["Platform"])].specs.get(str(c["Topic"]))
             if spec is None:
                 return "topic specification"
@@ -170,6 +189,8 @@ class Reader:
             if pred == "topic_arg":
                 return str(spec.features[int(c["K"]) - 1].args[int(c["Position"]) - 1].span)
             return str(spec.span)
+        if pred == "max_delay":
+            return "--max-delay"
         if pred == "wanted":
             q = int(c["Query"])
             return str(self.ground[q].span) if q < len(self.ground) else "<formula>"

@@ -13,7 +13,7 @@ from ..kb import KnowledgeBase
 from ..match import Match, padded
 from ..policy.syntax import Row, Value
 from ..request import topic_match
-from .provenance import BRIDGE, Reader
+from .provenance import BRIDGE, Reader, declared
 from .replay import MAX_DEPTH, Proof, Replayer
 
 
@@ -31,18 +31,35 @@ class TopicWhy:
 def topic_why(kb: KnowledgeBase, replay: Replayer, m: Match) -> TopicWhy:
     proof = _proof(replay, m)
     entry = topic_match(kb, m)
-    summary = _summary(replay.reader, proof) + _ranked(replay, m)
+    summary = _summary(replay.reader, proof) + _declared(kb, m) + _ranked(replay, m)
     return TopicWhy(m.platform, m.topic, entry.filter if entry else (), summary, proof)
 
 
+def _declared(kb: KnowledgeBase, m: Match) -> tuple[str, ...]:
+    """The topic's declared rate and delay, where its spec says them."""
+    spec = kb.platforms[m.platform].specs.get(m.topic)
+    quality = declared(spec) if spec is not None else ""
+    return (f"declared: {quality} [{spec.span}]",) if spec is not None and quality else ()
+
+
 def _ranked(replay: Replayer, m: Match) -> tuple[str, ...]:
-    """The policy's rank of a topic it ranks, and the rule that ranks it."""
+    """The policy's rank of a topic it ranks (its match_result 'rank' row), the rule that
+    ranks it and the declared properties it ranks by."""
     if not m.rank:
         return ()
-    proof = replay.prove(("rank", m.query, m.platform, m.topic, m.rank))
+    row = ("match_result", m.query, "rank", m.platform, m.topic, m.rank, *("",) * 6)
+    answer = replay.prove(row)
+    # the step that ranks it (rank, or the shipped quality_rank), not the answer's routing
+    proof = (
+        next((c for c in answer.children if c.fact[0] != "relevant_topic"), answer)
+        if answer
+        else None
+    )
     where = f" [{proof.rule.span}]" if proof is not None and proof.rule else ""
     text = proof.text if proof is not None else f"rank {m.rank}"
-    return (f"rank {m.rank}: {text}{where}",)
+    steps = proof.find("topic_property") if proof else iter(())
+    by = dict.fromkeys(p.text for p in steps if p.fact[1:3] == (m.platform, m.topic))
+    return (f"rank {m.rank}: {text}{where}" + "".join(f", by {b}" for b in by),)
 
 
 # A match no clause replays (a derivation deeper than a replay goes, say) is shown as the

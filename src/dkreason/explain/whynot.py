@@ -102,7 +102,8 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
             return f"an incompat bridge rule excludes {name(c['Feature'])} here"
         because = failure.because
         rule = because.rule if isinstance(because, Proof) else None
-        return f"{failure.condition_text} holds" + (f" [{rule.span}]" if rule else "")
+        rests = _told(because) if isinstance(because, Proof) else ""
+        return f"{failure.condition_text} holds" + (f" [{rule.span}]" if rule else "") + rests
     misfit = _misfit(kb, c) if pred == "fits" and c["Entity"] else None
     if misfit:
         return misfit
@@ -134,6 +135,16 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
         return _reason(kb, replay, failure.because)
     nearby = f" (there is: {failure.nearby[0]})" if failure.nearby else ""
     return f"no {failure.condition_text}{nearby}"
+
+
+# Told facts a veto's proof rests on that say why in words (the declared quality).
+_WHY_VETOED = ("topic_property", "max_delay")
+
+
+def _told(proof: Proof) -> str:
+    """What a proof of a negated condition (a veto) rests on, of the facts that say why."""
+    said = dict.fromkeys(leaf.text for leaf in proof.leaves() if leaf.fact[0] in _WHY_VETOED)
+    return f": {', '.join(said)}" if said else ""
 
 
 def _misfit(kb: KnowledgeBase, fits: dict[str, Any]) -> str | None:

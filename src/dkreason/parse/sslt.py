@@ -10,9 +10,10 @@ from __future__ import annotations
 import re
 from contextvars import ContextVar
 from dataclasses import dataclass, replace
+from fractions import Fraction
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 from xml.sax.saxutils import quoteattr
 
 from lark import Lark, Token, Transformer
@@ -20,6 +21,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..errors import DkError, ParseError, Span
 from ..inputs.files import decode, read_bytes
+from ..inputs.numbers import decimal, duration, exact
 from ..model import ArgKind, TopicArg, TopicFeature, TopicSpec
 from .grammar import lalr
 
@@ -71,6 +73,11 @@ class _Feature:
     observations: bool = False  # `observations of NAME`: name is a sensor's
 
 
+class _Quality(NamedTuple):
+    rate: Fraction | None
+    delay: Fraction | None
+
+
 _FILE: ContextVar[str] = ContextVar("sslt_file", default="<sslt>")  # the file being parsed
 
 
@@ -90,6 +97,19 @@ class _ToModel(Transformer[Token, Any]):
         if not text:
             raise ParseError("an empty topic name", _span(token))
         return text
+
+    def quality_item(self, children: list[Token]) -> tuple[str, Fraction, Span]:
+        name, value = children
+        if name not in QUALITIES:
+            raise ParseError(
+                f"unknown stream property {str(name)!r} (a topic declares "
+                f"{' and '.join(QUALITIES)})",
+                _span(name),
+            )
+        return (str(name), quality_value(str(name), str(value), _span(value)), _span(name))
+
+    def quality(self, children: list[tuple[str, Fraction, Span]]) -> _Quality:
+        return _Quality(*quality_of(children))
 
     def arg(self, children: list[Any]) -> _Arg:
         return _Arg(
@@ -123,6 +143,7 @@ class _ToModel(Transformer[Token, Any]):
 
     def topic(self, children: list[Any]) -> tuple[TopicSpec, int, int]:
         keyword, name, msgtype, *items = children
+        quality = items.pop(0) if isinstance(items[0], _Quality) else _Quality(None, None)
         flat = [x for item in items for x in (item if isinstance(item, list) else [item])]
         span, lines = _span(keyword), (keyword.start_pos or 0, max(x.end for x in flat))
         if isinstance(flat[0], _Entry):
@@ -134,7 +155,10 @@ class _ToModel(Transformer[Token, Any]):
                 )
             entry = flat[0]
             entity = TopicArg(entry.kind, entry.name, entry.field, entry.span)
-            return (TopicSpec(str(name), str(msgtype), (), entity, span), *lines)
+            return (
+                TopicSpec(str(name), str(msgtype), (), entity, span, *quality),
+                *lines,
+            )
         features: list[TopicFeature] = []
         pending: list[_Entry] = []
         current: _Feature | None = None
@@ -145,7 +169,10 @@ class _ToModel(Transformer[Token, Any]):
             if current is not None:
                 features.append(_bind(current, pending))
             current, pending = x, []
-        return (TopicSpec(str(name), str(msgtype), tuple(features), None, span), *lines)
+        return (
+            TopicSpec(str(name), str(msgtype), tuple(features), None, span, *quality),
+            *lines,
+        )
 
 
 def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
@@ -180,6 +207,47 @@ def _bind(feature: _Feature, entries: list[_Entry]) -> TopicFeature:
     return TopicFeature(
         feature.name, feature.field, tuple(args), feature.span, feature.observations
     )
+
+
+QUALITIES = ("rate", "delay")
+_RATE = re.compile(r"(.*?)\s*(hz)?", re.I)
+
+
+def quality_value(name: str, text: str, span: Span) -> Fraction:
+    """A declared stream property (one of QUALITIES) from its text: `rate` in Hz (`20 Hz`,
+    `0.5Hz`, `20`), positive; `delay` a duration as formulas write it (`50ms`, `0.05`)."""
+    text = text.strip()
+    try:
+        if name == "delay":
+            return duration(text, "delay")
+        rate = exact(_RATE.fullmatch(text).group(1), "rate")  # type: ignore[union-attr]
+    except DkError:
+        what = "a rate in Hz, like 20 Hz" if name == "rate" else "a duration, like 50ms"
+        raise ParseError(f"{name} {text!r} is not {what}", span) from None
+    if rate <= 0:
+        raise ParseError(f"rate {text!r} must be positive", span)
+    return rate
+
+
+def quality_of(items: list[tuple[str, Fraction, Span]]) -> tuple[Fraction | None, ...]:
+    """(rate, delay) from the declared properties, each at most once."""
+    found: dict[str, Fraction] = {}
+    for name, value, span in items:
+        if name in found:
+            raise ParseError(f"{name} is declared twice", span)
+        found[name] = value
+    return tuple(found.get(q) for q in QUALITIES)
+
+
+def format_quality(spec: TopicSpec) -> list[tuple[str, str]]:
+    """The declared properties as SSL_T and XML write them: (name, value text)."""
+    out = []
+    if spec.rate is not None:
+        out.append(("rate", f"{decimal(spec.rate)} Hz"))
+    if spec.delay is not None:
+        ms = spec.delay * 1000
+        out.append(("delay", f"{decimal(ms)}ms" if ms < 1000 else f"{decimal(spec.delay)}s"))
+    return out
 
 
 def parse_text(text: str, file: str = "<sslt>") -> SpecFile:
@@ -228,6 +296,9 @@ _TERMINALS = {
     "AS": "'as'",
     "SORT": "'sort'",
     "OBSERVATIONS": "'observations of'",
+    "LSQB": "'['",
+    "RSQB": "']'",
+    "QUALITY_VALUE": "a value, like 20 Hz or 50ms",
     "$END": "end of input",
 }
 
@@ -255,7 +326,9 @@ def topic_name_text(name: str) -> str:
 
 def format_spec(spec: TopicSpec) -> str:
     """One line of SSL_T text for `spec` (the inverse of `parse_text`)."""
-    head = f"topic {topic_name_text(spec.name)}:{spec.msgtype} contains "
+    quality = ", ".join(f"{name} {value}" for name, value in format_quality(spec))
+    bracket = f" [{quality}]" if quality else ""
+    head = f"topic {topic_name_text(spec.name)}:{spec.msgtype}{bracket} contains "
     if spec.entity is not None:
         e = spec.entity
         return head + (
@@ -333,7 +406,14 @@ def parse_xml(data: bytes, file: str = "<xml>") -> SpecFile:
         if not features and len(children) != 1:
             raise ParseError(f"topic {name} must hold features, or one sort, or one object", tspan)
         entity = None if features else _xml_arg(children[0], span(children[0]), in_feature=False)
-        specs.append(TopicSpec(name, msgtype, tuple(features), entity, tspan))
+        quality = quality_of(
+            [
+                (q, quality_value(q, value, tspan), tspan)
+                for q in QUALITIES
+                if (value := topic.get(q)) is not None
+            ]
+        )
+        specs.append(TopicSpec(name, msgtype, tuple(features), entity, tspan, *quality))
         extents.append((where[topic].start, where[topic].end))
     out = tuple(specs)
     _no_duplicates(out)
@@ -377,7 +457,10 @@ def format_xml_topic(spec: TopicSpec, indent: str = "  ") -> str:
             f"value={quoteattr(a.id_field or '')}/>"
         )
 
-    lines = [f"{indent}<Topic msgtype={quoteattr(spec.msgtype)} name={quoteattr(spec.name)}>"]
+    quality = "".join(f" {name}={quoteattr(value)}" for name, value in format_quality(spec))
+    lines = [
+        f"{indent}<Topic msgtype={quoteattr(spec.msgtype)} name={quoteattr(spec.name)}{quality}>"
+    ]
     if spec.entity is not None:
         lines.append(arg(spec.entity, indent * 2))
     for f in spec.features:

@@ -28,6 +28,7 @@ from .binding import (
 )
 from .damaged import DamagedRecording
 from .fields import FieldPath, paths
+from .quality import Timing, observe
 from .units import NS, seconds_text
 
 
@@ -37,10 +38,12 @@ class TopicInfo:
     msgtype: str
     count: int | None
     fields: tuple[FieldPath, ...] = ()  # when asked for, and the definition is known
+    timing: Timing | None = None  # observed rate and delay, when asked for
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"topic": self.name, "type": self.msgtype, "count": self.count}
-        return out | ({"fields": [f.to_json() for f in self.fields]} if self.fields else {})
+        out |= {"fields": [f.to_json() for f in self.fields]} if self.fields else {}
+        return out | (self.timing.to_json() if self.timing else {})
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,6 +91,7 @@ def inspect(
     fields: bool = False,
     msg: Sequence[Path] = (),
     typestore: str | None = None,
+    timing: bool = False,
 ) -> tuple[list[RecordingInfo], list[Binding] | None]:
     """What `dkreason info` shows: each recording described (a folder of several, each of
     them), and with a knowledge base the spec topics' bindings."""
@@ -99,14 +103,15 @@ def inspect(
         typestore=typestore,
     )
     try:
-        infos = [describe(r, fields) for r in recordings.parts]
+        infos = [describe(r, fields, timing) for r in recordings.parts]
         return infos, bindings(kb, recordings) if kb is not None else None
     finally:
         recordings.close()
 
 
-def describe(recording: Recording, fields: bool = False) -> RecordingInfo:
-    """A recording's topics, counts, span, clock and damage (see the module docstring)."""
+def describe(recording: Recording, fields: bool = False, timing: bool = False) -> RecordingInfo:
+    """A recording's topics, counts, span, clock and damage (see the module docstring); with
+    `timing`, each topic's observed rate and delay (every message read)."""
     source = recording.source
     types = source.types()
     counts: dict[str, int] = {}
@@ -134,10 +139,17 @@ def describe(recording: Recording, fields: bool = False) -> RecordingInfo:
         types = types or found
     clock = Recordings([recording], clock="auto")
     fielddefs = getattr(getattr(source, "store", None), "fielddefs", {}) if fields else {}
+    timings = _timings(source, clock.clock == "header") if timing and not damage else {}
     return RecordingInfo(
         source.name,
         tuple(
-            TopicInfo(t, types[t], counts.get(t, 0), tuple(paths(fielddefs, types[t])))
+            TopicInfo(
+                t,
+                types[t],
+                counts.get(t, 0),
+                tuple(paths(fielddefs, types[t])),
+                timings.get(t),
+            )
             for t in sorted(types)
         ),
         start,
@@ -145,6 +157,20 @@ def describe(recording: Recording, fields: bool = False) -> RecordingInfo:
         clock.clock if clock.stamped else "none",
         damage,
     )
+
+
+def _timings(source: Any, stamped: bool) -> dict[str, Timing]:
+    """Each topic's observed rate, and its delay where its header stamps are on the record
+    clock (`stamped`) and a message's stamp differs from its record time."""
+    arrivals: dict[str, list[int]] = {}
+    lags: dict[str, list[int]] = {}
+    for topic, available, valid, _ in source.messages({t: [] for t in source.types()}):
+        arrivals.setdefault(topic, []).append(available)
+        lags.setdefault(topic, []).append(available - valid)
+    return {
+        t: observe(times, lags[t] if stamped and any(lags[t]) else None)
+        for t, times in arrivals.items()
+    }
 
 
 def _every(source: Any) -> Any:
@@ -171,6 +197,21 @@ def bindings(kb: Any, recordings: Recordings) -> list[Binding]:
     return out
 
 
+def _timing_text(t: Timing) -> str:
+    """Observed rate and delay, as `info --timing` prints them beside the count."""
+    rate = (
+        f"  rate {t.rate_median:.4g} Hz (p5 {t.rate_p5:.4g})"
+        if t.rate_median is not None and t.rate_p5 is not None
+        else "  rate ?"
+    )
+    delay = (
+        f", delay {t.delay_median:.4g} s (p95 {t.delay_p95:.4g})"
+        if t.delay_median is not None and t.delay_p95 is not None
+        else ""
+    )
+    return rate + delay
+
+
 def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> str:
     lines = []
     for info in infos:
@@ -191,6 +232,7 @@ def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> s
         for t in info.topics:
             lines.append(
                 f"  {t.name:<{width}}  {t.msgtype}  {t.count if t.count is not None else '?'}"
+                + (_timing_text(t.timing) if t.timing else "")
             )
             across = max((len(f.path) for f in t.fields), default=0)
             lines += [f"      {f.path:<{across}}  {f.ros_type}" for f in t.fields]

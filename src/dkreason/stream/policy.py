@@ -44,6 +44,9 @@ class StreamPolicy:
     # at the end of the data, a bounded window reaching past it stays undecided ("open"), or
     # closes as on a finite trace ("finite", the thesis' semantics)
     end_of_data: Literal["open", "finite"]
+    # each feature read from its best-ranked topic only (the policy's rank: by declared
+    # quality), not from the merge of every relevant topic (the thesis')
+    best_source: bool
 
     def __init__(
         self,
@@ -60,6 +63,7 @@ class StreamPolicy:
         unique_valid_time: bool = False,
         span_from_start: bool = False,
         end_of_data: Literal["open", "finite"] = "open",
+        best_source: bool = False,
     ) -> None:
         if approximation not in APPROXIMATIONS:
             raise DkError(
@@ -77,6 +81,7 @@ class StreamPolicy:
             "ordered_on_valid_time": ordered_on_valid_time,
             "unique_valid_time": unique_valid_time,
             "span_from_start": span_from_start,
+            "best_source": best_source,
         }
         for name, flag in flags.items():
             if not isinstance(flag, bool):

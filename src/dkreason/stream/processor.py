@@ -28,7 +28,7 @@ are read.
 Constraints (thesis listing 5.2): sample period and deviation, max delay, order and uniqueness
 of valid times.  Each broken one is reported as a `Violation`; the samples are still used where
 they can be.  A sample arriving after the states of its valid time were made is reported as
-late.
+late.  A topic whose spec declares its rate or delay is held to them (quality.py).
 """
 
 from __future__ import annotations
@@ -49,6 +49,7 @@ from ..errors import DkError
 from ..inputs.numbers import datum
 from ..model import FeatureKey, StreamRequest
 from .policy import StreamPolicy
+from .quality import Found, QualityWatch
 from .sources import Message, Source
 from .terms import term_key, term_value
 from .units import NS, seconds
@@ -199,6 +200,7 @@ class StreamProcessor:
         self.last_seen: int | None = None
         self.read = 0  # messages replayed on the relevant topics
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
+        self.quality = QualityWatch()  # the topics that declare their rate or delay
         for f in request.features:
             self._feature(f.feature.key)
         self.terms: dict[FeatureKey, tuple[str, int]] = {}
@@ -302,6 +304,7 @@ class StreamProcessor:
                 stream = f"{m.platform}/{m.topic}"
                 ids = tuple(k for k, _ in m.filter)
                 for name in present[:1] if types else present:
+                    self.quality.declare(name, f.feature.key, stream, m.rate, m.delay)
                     route = _Route(
                         q,
                         itemgetter(self._position(name, m.field)),
@@ -429,9 +432,12 @@ class StreamProcessor:
         periodic = self.period is not None
         max_valid, quiet = self.max_valid, self.quiet_until
         made = self.made
+        declared = self.quality.topics
         n, seen = 0, None
         try:
             for topic, available, valid, values in messages:
+                if declared and topic in declared:
+                    self._report(self.quality.sample(topic, available, valid))
                 for group in groups[topic]:
                     try:  # `_Group.routes`, its common case inline: a hashable id, found
                         routes = group.index.get(group.key(values))
@@ -554,17 +560,21 @@ class StreamProcessor:
         return self.max_valid if self.end is None else min(self.max_valid, self.end)
 
     def _violation(self, kind: str, available: int, route: _Route, detail: str) -> None:
+        self._report([(kind, self.keys[route.q], route.stream, available, detail)])
+
+    def _report(self, found: list[Found]) -> None:
         origin = self.origin
-        self.on_violation(
-            Violation(
-                kind,
-                seconds(available),
-                self.keys[route.q],
-                route.stream,
-                detail,
-                None if origin is None else seconds(available - origin),
+        for kind, feature, stream, available, detail in found:
+            self.on_violation(
+                Violation(
+                    kind,
+                    seconds(available),
+                    feature,
+                    stream,
+                    detail,
+                    None if origin is None else seconds(available - origin),
+                )
             )
-        )
 
     def _expires(self, q: int, valid: int) -> None:
         """Feature q's newest sample is valid at `valid`: it grows stale after max_age."""
@@ -632,6 +642,8 @@ class StreamProcessor:
 
     def _emit(self, now: int, final: bool) -> None:
         self.last_seen = now
+        if self.quality.topics:
+            self._report(self.quality.silent(now))
         try:
             self.quiet_until = self._make_due(now, final)
         except BaseException:

@@ -1,0 +1,155 @@
+"""Declared stream quality against what arrives (thesis 8.2): each recording topic whose spec
+declares a rate or a delay is watched while it is replayed, and what breaks the declaration is
+a stream-constraint violation like those of thesis listing 5.2.
+
+- `declared_rate`: fewer than RATE_SHARE of the samples the declared rate gives in the last
+  RATE_WINDOW declared periods (judged once the topic has run that long), or no sample at
+  all for that long (judged as time passes, from the other topics' messages);
+- `declared_delay`: a sample's record time lags its header stamp by more than the declared
+  delay (topics without stamps have none).
+
+Each kind is said at most once per REPORT_EVERY of record time and topic, so a degraded source
+is a line now and then, not one per message.  `observe` measures what a recording's topic runs
+at, for `dkreason info --timing`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+from ..inputs.numbers import decimal
+from ..model import FeatureKey
+from .units import NS, seconds_text
+
+RATE_WINDOW = 10  # declared periods a topic's rate is judged over
+RATE_SHARE = Fraction(9, 10)  # of the declared rate, the least a topic may run at
+REPORT_EVERY = NS  # a topic's violations of one kind: at most one a second (record time)
+
+Found = tuple[str, FeatureKey, str, int, str]  # kind, feature, stream, time (ns), detail
+
+
+@dataclass(slots=True)
+class _Watched:
+    feature: FeatureKey  # the first feature the topic feeds (a violation names one)
+    stream: str  # platform/topic, as violations name it
+    rate: Fraction | None
+    delay: int | None  # ns
+    window: int  # ns: RATE_WINDOW declared periods
+    arrivals: deque[int] = field(default_factory=deque)
+    first: int | None = None
+    quiet: dict[str, int] = field(default_factory=dict)  # kind → said again from then on
+
+
+class QualityWatch:
+    """The recording topics whose specs declare their quality, and what they broke."""
+
+    def __init__(self) -> None:
+        self.topics: dict[str, _Watched] = {}
+
+    def declare(
+        self,
+        topic: str,
+        feature: FeatureKey,
+        stream: str,
+        rate: Fraction | None,
+        delay: Fraction | None,
+    ) -> None:
+        """Watch recording topic `topic` (once, however many features it feeds)."""
+        if topic in self.topics or (rate is None and delay is None):
+            return
+        window = round(RATE_WINDOW * NS / rate) if rate else 0
+        ns = None if delay is None else round(delay * NS)
+        self.topics[topic] = _Watched(feature, stream, rate, ns, window)
+
+    def sample(self, topic: str, available: int, valid: int) -> list[Found]:
+        """A message of a watched topic: its delay, and the rate over the window it ends."""
+        w = self.topics[topic]
+        out = []
+        if w.delay is not None and available - valid > w.delay:
+            lag = seconds_text(available - valid)
+            declared = seconds_text(w.delay)
+            out += self._say(w, "declared_delay", available, f"delay {lag} s exceeds {declared} s")
+        if w.rate is None:
+            return out
+        arrivals = w.arrivals
+        arrivals.append(available)
+        if w.first is None:
+            w.first = available
+        while arrivals[0] <= available - w.window:
+            arrivals.popleft()
+        if w.first <= available - w.window and len(arrivals) < RATE_WINDOW * RATE_SHARE:
+            seen = Fraction(len(arrivals) * NS, w.window)
+            out += self._say(
+                w,
+                "declared_rate",
+                available,
+                f"{len(arrivals)} samples in the last {seconds_text(w.window)} s "
+                f"({decimal(round(seen, 3))} Hz), below the declared {decimal(w.rate)} Hz",
+            )
+        return out
+
+    def silent(self, now: int) -> list[Found]:
+        """Topics with a declared rate that have sent nothing for a window by `now`."""
+        out = []
+        for w in self.topics.values():
+            if w.rate is not None and w.arrivals and now - w.arrivals[-1] > w.window:
+                gap = seconds_text(now - w.arrivals[-1])
+                out += self._say(
+                    w,
+                    "declared_rate",
+                    now,
+                    f"no sample for {gap} s, below the declared {decimal(w.rate)} Hz",
+                )
+        return out
+
+    def _say(self, w: _Watched, kind: str, at: int, detail: str) -> list[Found]:
+        if at < w.quiet.get(kind, at):
+            return []
+        w.quiet[kind] = at + REPORT_EVERY
+        return [(kind, w.feature, w.stream, at, detail)]
+
+
+@dataclass(frozen=True, slots=True)
+class Timing:
+    """A topic as observed: its rate (Hz, one over each inter-arrival time: the median and
+    the 5th percentile, its slow moments) and its delay (s, header stamp to record time: the
+    median and the 95th percentile; None without stamps on the record clock)."""
+
+    rate_median: float | None
+    rate_p5: float | None
+    delay_median: float | None
+    delay_p95: float | None
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "rate": {"median": self.rate_median, "p5": self.rate_p5},
+            "delay": {"median": self.delay_median, "p95": self.delay_p95},
+        }
+
+
+def observe(arrivals: Sequence[int], lags: Sequence[int] | None) -> Timing:
+    """Timing from a topic's record times (ns, in order) and, if stamped, each message's lag
+    of its record time behind its header stamp (ns)."""
+    rates = sorted(NS / (b - a) for a, b in zip(arrivals, arrivals[1:], strict=False) if b > a)
+    delays = sorted(lag / NS for lag in lags) if lags else []
+    return Timing(
+        _quantile(rates, 0.5),
+        _quantile(rates, 0.05),
+        _quantile(delays, 0.5),
+        _quantile(delays, 0.95),
+    )
+
+
+def _quantile(xs: list[float], q: float) -> float | None:
+    """The q-quantile of sorted `xs`, interpolated between the nearest ranks."""
+    if not xs:
+        return None
+    at = q * (len(xs) - 1)
+    lo = math.floor(at)
+    hi = min(lo + 1, len(xs) - 1)
+    return round(xs[lo] + (xs[hi] - xs[lo]) * (at - lo), 9)

@@ -1,0 +1,250 @@
+"""Streams with declared quality (issue 31; thesis 8.2): specs state a topic's rate and delay,
+matching vetoes a topic whose delay exceeds the monitor's --max-delay and ranks a feature's
+topics by what they declare, explanations cite it."""
+
+from __future__ import annotations
+
+import json
+import random
+from collections import Counter
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+
+from dkreason import KnowledgeManager
+from dkreason.cli import main
+from dkreason.model import FeatureRequest
+from dkreason.stream.processor import Violation
+from dkreason.stream.recording import Row, write_recording
+
+from .conftest import REPO
+
+ALTITUDE = "always (Altitude[uav1] > 1)"
+# topic1: its freshest sample at most 1.02 s old; topic2: 220 ms, but it lags 200 ms
+SLOW = "topic1:UavMsg [rate 1 Hz, delay 20ms]"
+LAGGING = "topic2:UavMsg [rate 50 Hz, delay 200ms]"
+
+
+def declare(scenario: Path, *brackets: str) -> Path:
+    """The single-platform scenario with these topics' quality declared; its config."""
+    specs = scenario / "specs" / "platform1.sslt"
+    text = specs.read_text(encoding="utf-8")
+    for bracket in brackets:
+        head = bracket.split(" [")[0]
+        text = text.replace(f"topic {head} contains", f"topic {bracket} contains")
+    specs.write_text(text, encoding="utf-8")
+    return scenario / "single.toml"
+
+
+def topics(features: tuple[FeatureRequest, ...]) -> list[str]:
+    (feature,) = features
+    return [t.topic for t in feature.topics]
+
+
+def test_the_thesis_scenarios_declare_nothing_and_match_as_before(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(scenario / "federation.toml")
+    assert km.stored().get("topic_property", ("input", 0))[1] == 0
+    plain = km.check_formula("always (Altitude[uav1] > Altitude[uav2])")
+    assert (
+        km.check_formula("always (Altitude[uav1] > Altitude[uav2])", max_delay="1ms").to_json()
+        == plain.to_json()
+    )
+    assert not any(
+        line.startswith("rank")
+        for f in km.explain(ALTITUDE).features
+        for w in f.why
+        for line in w.summary
+    )
+
+
+def test_declared_properties_are_facts_in_nanoseconds(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(declare(scenario, SLOW))
+    rows = km.query("topic_property(P, 'topic1', Property, Value)").rows
+    assert sorted(rows) == [
+        ("platform1", "age", 1_020_000_000),
+        ("platform1", "delay", 20_000_000),
+        ("platform1", "period", 1_000_000_000),
+    ]
+
+
+def test_topics_are_ranked_by_declared_quality_and_best_source_takes_the_best(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic2", "topic1"]  # merged
+    assert topics(km.check_formula(ALTITUDE, best_source=True).features) == ["topic2"]
+    assert main(["match", "--config", str(config), "--best-source", "--json", ALTITUDE]) == 0
+    (feature,) = json.loads(capsys.readouterr().out)["features"]
+    assert [t["topic"] for t in feature["topics"]] == ["topic2"]
+
+
+def test_a_topic_declaring_nothing_comes_after_those_that_declare(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(declare(scenario, SLOW))
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic1", "topic2"]
+    km = KnowledgeManager.from_config(declare(scenario, LAGGING))
+    assert topics(km.check_formula(ALTITUDE, best_source=True).features) == ["topic2"]
+
+
+def test_a_delay_over_max_delay_excludes_the_topic_with_an_explanation(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    assert topics(km.check_formula(ALTITUDE, max_delay="100ms").features) == ["topic1"]
+    assert topics(km.check_formula(ALTITUDE, max_delay=0.2).features) == ["topic2", "topic1"]
+    (why_not,) = km.explain(ALTITUDE, topic="topic2", max_delay="100ms").features[0].why_not
+    assert "[rules/quality.dl:" in why_not.reason
+    assert "topic2 declares delay 200ms" in why_not.reason
+    assert "the monitor's --max-delay is 100ms" in why_not.reason
+    argv = ["explain", "--config", str(config), "--max-delay", "100ms", "--topic", "topic2"]
+    assert main([*argv, ALTITUDE]) == 0
+    assert "topic2 declares delay 200ms" in capsys.readouterr().out
+    assert main(["match", "--config", str(config), "--max-delay", "0.1", "--json", ALTITUDE]) == 0
+    (feature,) = json.loads(capsys.readouterr().out)["features"]
+    assert [t["topic"] for t in feature["topics"]] == ["topic1"]
+
+
+def test_explanations_cite_declared_properties_and_what_ranks_a_topic(scenario: Path) -> None:
+    km = KnowledgeManager.from_config(declare(scenario, SLOW, LAGGING))
+    why = {w.topic: w.summary for w in km.explain(ALTITUDE).features[0].why}
+    assert "declared: rate 1 Hz, delay 20ms [" in "\n".join(why["topic1"])
+    (ranked,) = [line for line in why["topic1"] if line.startswith("rank")]
+    assert ranked.startswith("rank 1020000000: ") and "topic1 declares age 1.02s" in ranked
+    (ranked,) = [line for line in why["topic2"] if line.startswith("rank")]
+    assert "topic2 declares age 220ms" in ranked
+
+
+def test_a_rule_file_changes_the_ranking_without_python(scenario: Path) -> None:
+    """Rank by the declared delay alone: the smallest rank a topic gets is its rank."""
+    declare(scenario, SLOW, LAGGING)
+    (scenario / "own.dl").write_text(
+        "rank(Q, R, T, D) <= declaring(R) & topic_property(R, T, 'delay', D) "
+        "& wanted(Q, _F, _O1, _O2, _O3)\n",
+        encoding="utf-8",
+    )
+    config = scenario / "own.toml"
+    config.write_text(
+        'rules = ["own.dl"]\n' + (scenario / "single.toml").read_text(encoding="utf-8")
+    )
+    km = KnowledgeManager.from_config(config)
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic1", "topic2"]
+    assert topics(km.check_formula(ALTITUDE, best_source=True).features) == ["topic1"]
+
+
+def test_specs_add_and_show_take_and_show_declared_properties(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = str(scenario / "single.toml")
+    spec = "topic fast:UavMsg [rate 100 Hz, delay 5ms] contains Altitude(uav2) = msg.alt"
+    assert main(["specs", "add", "--config", config, spec]) == 0
+    assert "[rate 100 Hz, delay 5ms]" in (scenario / "specs" / "platform1.sslt").read_text()
+    capsys.readouterr()
+    assert main(["specs", "show", "--config", config, "fast"]) == 0
+    assert capsys.readouterr().out.strip() == spec
+    assert main(["specs", "show", "--config", config, "--xml", "fast"]) == 0
+    assert 'rate="100 Hz" delay="5ms"' in capsys.readouterr().out
+    bad = "topic slow:UavMsg [rate -1 Hz] contains Altitude(uav2) = msg.alt"
+    assert main(["specs", "add", "--config", config, bad]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: <topic>:1:25:") and "must be positive" in err and "\n" not in err
+
+
+def test_a_window_finer_than_every_topics_period_is_one_warning_before_reading(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW)
+    km = KnowledgeManager.from_config(config)
+    fine = "always (Speed[uav1] > 1 -> eventually[0, 50ms] Speed[uav1] < 1)"
+    (warning,) = km.check_formula(fine).warnings
+    assert warning == (
+        f"{fine}: eventually[0, 0.05] is finer than the period of every topic of "
+        "Speed[uav1] (topic1 at 1 Hz): a sample need not fall inside it"
+    )
+    assert not km.check_formula(fine.replace("50ms", "2")).warnings
+    # Altitude[uav1] is also read from topic2, which declares no rate: no warning
+    assert not km.check_formula("always eventually[0, 50ms] Altitude[uav1] > 1").warnings
+    assert main(["match", "--config", str(config), fine]) == 0
+    assert "Warning: " + warning in capsys.readouterr().out
+
+
+# ---- measured against declared ------------------------------------------------------------
+
+MSGS = REPO / "examples" / "traffic" / "msg" / "dkreason_msgs" / "msg"
+TYPES = {f"dkreason_msgs/msg/{p.stem}": p.read_text() for p in MSGS.glob("*.msg")}
+AUTO, CAR = "dkreason_msgs/msg/AutomobileMsg", "dkreason_msgs/msg/CarMsg"
+MS = 10**6
+
+
+def car11(t_ns: int, lag_ns: int) -> Row:
+    """car11 on platform 2's carstopic2, recorded at t_ns, stamped lag_ns earlier."""
+    stamp = Fraction(t_ns - lag_ns, 10**9)
+    return (
+        "/platform2/carstopic2",
+        AUTO,
+        t_ns,
+        {"header": {"stamp": stamp}, "id": 11, "speed": 50.0},
+    )
+
+
+def test_info_reports_each_topics_observed_rate_and_delay(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    jitter = random.Random(31)
+    rows = [car11(n * 50 * MS + jitter.randrange(-MS, MS), 30 * MS) for n in range(1, 201)]
+    rows += [("topic3", CAR, n * 250 * MS, {"id": 1, "spd": 40.0}) for n in range(1, 41)]
+    path = tmp_path / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    (info,) = KnowledgeManager.describe([path], timing=True)
+    timing = {t.name: t.timing for t in info.topics}
+    cars, topic3 = timing["/platform2/carstopic2"], timing["topic3"]
+    assert cars is not None and topic3 is not None
+    assert cars.rate_median == pytest.approx(20, rel=0.02)
+    assert cars.rate_p5 is not None and cars.rate_p5 < 20 * 0.98  # the jitter's slow moments
+    assert cars.delay_median == pytest.approx(0.03, rel=0.02)
+    assert cars.delay_p95 == pytest.approx(0.03, rel=0.02)
+    assert topic3.rate_median == pytest.approx(4, rel=0.02)
+    assert topic3.delay_median is None  # no header stamps
+    assert main(["info", "--timing", "--json", str(path)]) == 0
+    (shown,) = json.loads(capsys.readouterr().out)["recordings"]
+    by_name = {t["topic"]: t for t in shown["topics"]}
+    assert by_name["topic3"]["rate"]["median"] == pytest.approx(4, rel=0.02)
+    assert main(["info", "--timing", str(path)]) == 0
+    shown_text = capsys.readouterr().out
+    assert "delay 0.03 s (p95 0.03)" in shown_text and "40  rate 4 Hz (p5 4)" in shown_text
+
+
+def test_monitor_reports_a_topic_below_its_declared_rate_or_over_its_delay(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """carstopic2 declares 20 Hz and 50 ms; it runs at 20 Hz for 5 s, at 2 Hz for 5 s, and
+    lags 80 ms over its last second.  Each kind is said at most once a second."""
+    specs = scenario / "specs" / "platform2.sslt"
+    specs.write_text(
+        specs.read_text().replace(
+            "carstopic2:AutomobileMsg contains",
+            "carstopic2:AutomobileMsg [rate 20 Hz, delay 50ms] contains",
+        )
+    )
+    rows = [car11(n * 50 * MS, 10 * MS) for n in range(1, 101)]
+    rows += [car11(5_000 * MS + n * 500 * MS, (80 if n > 8 else 10) * MS) for n in range(1, 11)]
+    path = tmp_path / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    km = KnowledgeManager.from_config(scenario / "federation.toml")
+    formula = "always (Speed[car1] < 100)"
+    with km.monitor(formula, [path]) as run:
+        found = [e for e in run if isinstance(e, Violation)]
+    kinds = Counter(v.constraint for v in found)
+    assert set(kinds) == {"declared_rate", "declared_delay"}
+    assert 1 <= kinds["declared_rate"] <= 5 and kinds["declared_delay"] == 1
+    first = next(v for v in found if v.constraint == "declared_rate")
+    assert first.topic == "platform2/carstopic2" and str(first.feature) == "Speed[car1]"
+    assert first.time > 5 and "below the declared 20 Hz" in first.detail
+    (late,) = [v for v in found if v.constraint == "declared_delay"]
+    assert late.detail == "delay 0.08 s exceeds 0.05 s"
+    code = main(
+        ["monitor", "--config", str(scenario / "federation.toml"), "--source", str(path), formula]
+    )
+    out = capsys.readouterr().out
+    assert code == 0 and "declared_rate" in out and "declared_delay" in out
