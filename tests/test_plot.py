@@ -9,11 +9,12 @@ import pytest
 from dkreason import FeatureKey, KnowledgeManager
 from dkreason.cli import main
 from dkreason.parse.formula import parse_formula
-from dkreason.plot import thresholds
+from dkreason.plot import concerned, thresholds
+from dkreason.progress import Verdict
 from dkreason.stream.recording import write_recording
 
 from .test_init import TYPES, rows
-from .test_monitor import SLOW, SPEEDING, car_rows
+from .test_monitor import CAR1, CAR2, SLOW, SPEEDING, car_rows
 from .test_monitor import TYPES as CAR_TYPES
 
 REPO = Path(__file__).resolve().parents[1]
@@ -59,3 +60,19 @@ def test_a_plot_that_fails_is_one_line_and_keeps_the_exit_status(
     monkeypatch.setattr(dkreason.plot, "plot", broken)
     assert main([*args, "--plot", str(out), SPEEDING, SLOW]) == 1
     assert capsys.readouterr().err == f"error: --plot {out}: no fonts\\nat all\n"
+
+
+def test_a_violated_quantified_formula_is_drawn_on_the_violating_objects_panels_only(
+    tmp_path: Path,
+) -> None:
+    """`forall c in Car`: car1 speeds, car2 keeps to 50; the violation and its witness window
+    are drawn on Speed[car1]'s panel, not on every car's."""
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", CAR_TYPES, car_rows())
+    km = KnowledgeManager.from_config(REPO / "examples" / "single.toml")
+    formula = "forall c in Car: always (Speed[c] > 60 -> eventually[0, 3] Speed[c] <= 60)"
+    (plan,) = km.plan(formula).formulas
+    (verdict,) = [e for e in km.monitor(formula, source) if isinstance(e, Verdict)][:1]
+    assert verdict.verdict is False
+    drawn = concerned(plan, verdict)
+    assert CAR1 in drawn and CAR2 not in drawn

@@ -20,6 +20,7 @@ from typing import Any
 from .model import FeatureKey
 from .monitor import WORDS, Event, MonitorRun
 from .parse.formula import Compare, Num, Ref, children
+from .plan import FormulaPlan
 from .progress import Verdict
 from .progress.state import key
 from .stream.processor import Violation
@@ -44,7 +45,6 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
     fig, axes = _panels(run, keys)
     panel = dict(zip(keys, axes, strict=True))
     origin = run.start or Fraction(0)
-    reads = [{k for i in f.instances for k in i.keys} for f in formulas]
     index = {f.text: n for n, f in enumerate(formulas)}
     drawn: dict[tuple[FeatureKey, float], list[str]] = {}
     for n, f in enumerate(formulas):
@@ -69,8 +69,10 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
         n = index.get(e.formula, 0)
         word = WORDS[e.verdict]
         when = "at the end" if e.t is None else f"at {since(e.t)}"
-        lines.append(f"#{n + 1} {word} {when}: {e.formula}")
-        for k in reads[n]:
+        who = [i.name for i in e.instances or () if e.verdict is False and i.verdict is False]
+        by = f" ({', '.join(who)})" if who else ""
+        lines.append(f"#{n + 1} {word} {when}{by}: {e.formula}")
+        for k in concerned(formulas[n], e):
             ax = panel.get(k)
             if ax is None:
                 continue
@@ -106,6 +108,16 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
         _legend(ax)
     fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)
     _save(fig, path)
+
+
+def concerned(formula: FormulaPlan, verdict: Verdict) -> set[FeatureKey]:
+    """The features a verdict is drawn on: those its formula reads, or, when a quantified
+    formula is violated, those of the instances that violated it (not every car's)."""
+    instances = formula.instances
+    if verdict.verdict is False and verdict.instances:
+        violated = {i.bindings for i in verdict.instances if i.verdict is False}
+        instances = tuple(i for i in instances if i.bindings in violated)
+    return {k for i in instances for k in i.keys}
 
 
 def thresholds(trees: Iterable[Any]) -> list[tuple[FeatureKey, str, float]]:
