@@ -76,3 +76,19 @@ def test_a_violated_quantified_formula_is_drawn_on_the_violating_objects_panels_
     assert verdict.verdict is False
     drawn = concerned(plan, verdict)
     assert CAR1 in drawn and CAR2 not in drawn
+
+
+def test_robustness_gets_its_own_panel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With --robustness, --plot draws each formula's margin at every state below the
+    features; without it, no such panel."""
+    import matplotlib
+
+    monkeypatch.setitem(matplotlib.rcParams, "svg.fonttype", "none")  # text kept as text
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", CAR_TYPES, car_rows())
+    args = ["monitor", "--config", str(REPO / "examples" / "single.toml"), "--source", str(source)]
+    for robust, out in ((True, tmp_path / "with.svg"), (False, tmp_path / "without.svg")):
+        flags = ["--robustness"] if robust else []
+        assert main([*args, *flags, "--plot", str(out), SLOW]) == 0
+        drawn = out.read_text()
+        assert "Speed[car2]" in drawn and ("#1 robustness" in drawn) is robust

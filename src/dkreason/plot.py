@@ -19,7 +19,7 @@ from typing import Any
 
 from .model import FeatureKey
 from .monitor import WORDS, Event, MonitorRun
-from .parse.formula import Compare, Num, Ref, children
+from .parse.formula import Compare, Num, Ref, Temporal, children
 from .plan import FormulaPlan
 from .progress import Verdict
 from .progress.state import key
@@ -42,8 +42,9 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
     thresholds and stream constraint violations on the panels they concern."""
     formulas = run.monitor.plan.formulas
     keys = [f.feature.key for f in run.request.features]
-    fig, axes = _panels(run, keys)
-    panel = dict(zip(keys, axes, strict=True))
+    robust = sorted({e.formula for e in events if isinstance(e, Verdict) and e.robustness})
+    fig, axes = _panels(run, keys, extra=1 if robust else 0)
+    panel = dict(zip(keys, axes, strict=False))
     origin = run.start or Fraction(0)
     index = {f.text: n for n, f in enumerate(formulas)}
     drawn: dict[tuple[FeatureKey, float], list[str]] = {}
@@ -104,6 +105,8 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
                 ms=10,
                 label="stream constraint violated",
             )
+    if robust:
+        _robustness(run, axes[-1], [(n, f) for n, f in enumerate(formulas) if f.text in robust])
     for ax in axes:
         _legend(ax)
     fig.suptitle("\n".join(lines) or "dkreason monitor", fontsize=8, ha="left", x=0.01)
@@ -141,20 +144,62 @@ def thresholds(trees: Iterable[Any]) -> list[tuple[FeatureKey, str, float]]:
     return list(found)
 
 
-def _panels(run: MonitorRun, keys: Sequence[FeatureKey]) -> tuple[Any, list[Any]]:
+def _robustness(run: MonitorRun, ax: Any, formulas: list[tuple[int, FormulaPlan]]) -> None:
+    """`--robustness`: each formula's margin at every state, below 0 by how much it failed
+    there, gaps where unknown.  Of `always S`, S's margin (where it dips, not the least of
+    the future); of `forall`, the least of its objects' (`exists`: the greatest)."""
+    from .progress.compile import scaled
+    from .progress.robustness import margins
+
+    origin = run.start or Fraction(0)
+    times = [float(Fraction(t, NS) - origin) for t, _ in run.states]
+    for n, f in formulas:
+        lines = [
+            _signal(margins(scaled(_body(i.tree), Fraction(NS)), run.states)) for i in f.instances
+        ]
+        pick = max if f.prefix and f.prefix[0].op == "exists" else min
+        ys = [_nan_aware(pick, column) for column in zip(*lines, strict=True)]
+        ax.step(times, ys, where="post", lw=1.2, label=f"#{n + 1} robustness")
+    ax.axhline(0, color="black", lw=0.8)
+    ax.set_ylabel("robustness", rotation=0, ha="right", va="center", fontsize=9)
+    ax.grid(axis="y", alpha=0.3)
+
+
+def _body(tree: Any) -> Any:
+    """What an unbounded `always` holds of at each state; any other formula itself."""
+    if isinstance(tree, Temporal) and tree.op == "always" and tree.interval.hi is None:
+        return tree.arg
+    return tree
+
+
+def _signal(rho: list[Any]) -> list[float]:
+    return [float("nan") if r is None else float(r) for r in rho]
+
+
+def _nan_aware(pick: Any, values: Sequence[float]) -> float:
+    """The least (or greatest) known value; unknown if one is unknown and could decide."""
+    known = [v for v in values if v == v]
+    if not known:
+        return float("nan")
+    best = pick(known)
+    return best if len(known) == len(values) or (pick is min and best < 0) else float("nan")
+
+
+def _panels(run: MonitorRun, keys: Sequence[FeatureKey], extra: int = 0) -> tuple[Any, list[Any]]:
     """A figure with a panel per feature, its values drawn and its spans without a value
-    shaded; the time axis relative, without an offset."""
+    shaded, and `extra` panels below; the time axis relative, without an offset."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    rows = max(len(keys) + extra, 1)
     fig, grid = plt.subplots(
-        max(len(keys), 1),
+        rows,
         1,
         sharex=True,
         squeeze=False,
-        figsize=(10, 1.6 * max(len(keys), 1) + 1.2),
+        figsize=(10, 1.6 * rows + 1.2),
         layout="constrained",
     )
     axes = list(grid[:, 0])
