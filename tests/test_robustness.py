@@ -300,3 +300,14 @@ def test_the_progressor_keeps_no_state_for_a_decided_formula() -> None:
     assert len(p.kept.states) < 2 * CHUNK if p.kept is not None else False
     (v,) = p.finish()
     assert v.robustness is not None and v.robustness.value == 1
+
+
+def test_a_response_that_fails_by_as_much_as_its_trigger_held_names_what_was_owed() -> None:
+    """`P > 60 -> eventually[0, 2] P <= 60` with P at 70 throughout: trigger and target are
+    both 10 from deciding, and the margin names the target, what never came."""
+    p = Progressor(robustness=True)
+    p.add("always (P > 60 -> eventually[0, 2] P <= 60)")
+    verdicts = [v for t in range(5) for v in p.step(t, {"P": 70})] + p.finish()
+    (v,) = verdicts
+    assert v.verdict is False and v.robustness is not None
+    assert (v.robustness.value, v.robustness.atom) == (-10, "P <= 60")

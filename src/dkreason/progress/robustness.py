@@ -365,7 +365,8 @@ class Signals:
                 pairs = {
                     "and": ((f.left, 1), (f.right, 1)),
                     "or": ((f.left, 1), (f.right, 1)),
-                    "->": ((f.left, -1), (f.right, 1)),
+                    # on a tie the consequent: what was owed, not the trigger that held
+                    "->": ((f.right, 1), (f.left, -1)),
                 }.get(f.op, ((f.left, -1), (f.right, 1), (f.left, 1), (f.right, -1)))
                 g, s = next((g, s) for g, s in pairs if s * self.rho(g)[i] == w)
                 f, sign = g, sign * s
