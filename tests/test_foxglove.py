@@ -90,6 +90,21 @@ def test_record_offline_keeps_the_topics_and_logs_the_verdicts_for_foxglove(
     assert verdicts(capsys, out) == said
 
 
+def test_a_recorded_verdict_says_its_robustness_in_the_log(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """With --robustness, Foxglove's Log panel shows by how much, and from where, below the
+    witness."""
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", TYPES, car_rows())
+    out = tmp_path / "out.mcap"
+    said = verdicts(capsys, source, "--robustness", "--record", str(out))
+    violated = next(e for e in said if e.get("verdict") is False)
+    logs = [json.loads(d) for t, _, _, d in read_mcap(out) if t == "/dkreason/log"]
+    (line,) = [g for g in logs if g["name"] == SPEEDING]
+    assert line["message"].startswith(violated["witness"] + "\nrobustness: violated by 10 ")
+
+
 def test_clips_hold_the_messages_around_each_witness_window(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:

@@ -73,6 +73,8 @@ class EventLog:
             if not event.update:
                 when = ns(event.time, at)
                 text = event.witness or f"{WORDS[event.verdict]} at {_t(event.t)}"
+                if event.robustness is not None:  # --robustness: by how much, and from where
+                    text += f"\nrobustness: {event.robustness.text()}"
                 out.append((when, log(when, LEVEL[event.verdict], event.formula, text)))
             for i in event.instances or ():
                 if i.status != "open" and (event.formula, i.bindings) not in self.said:
