@@ -15,7 +15,7 @@ from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.explain import to_text
 from dkreason.stream.recording import write_recording
-from dkreason.workloads import property_style
+from dkreason.workloads import property_style, sosa_style
 
 from .conftest import REPO, SCENARIOS, formulas
 
@@ -144,10 +144,15 @@ def test_an_adapter_is_part_of_the_cache_key(tmp_path: Path) -> None:
     assert first.keys() != second.keys()
 
 
-def property_config(tmp_path: Path, scenario: str, only: tuple[str, ...] = ()) -> Path:
+STYLES = {"properties": property_style, "sosa": sosa_style}
+
+
+def converted_config(
+    tmp_path: Path, scenario: str, only: tuple[str, ...] = (), adapter: str = "properties"
+) -> Path:
     """The thesis scenario with each platform's ontology (or `only` those) converted into the
-    property style (ternary features stay classes), read back through the `properties`
-    adapter; the others stay in the class style."""
+    style `adapter` reads (property or SOSA style: ternary features, and in the SOSA style
+    binary ones too, stay classes), read back through it; the others stay in the class style."""
     config = tomllib.loads((SCENARIOS / scenario).read_text(encoding="utf-8"))
     for name, table in config["platforms"].items():
         table["specs"] = str(SCENARIOS / table["specs"])
@@ -155,8 +160,8 @@ def property_config(tmp_path: Path, scenario: str, only: tuple[str, ...] = ()) -
         if only and name not in only:
             continue
         converted = tmp_path / f"{name}.ttl"
-        converted.write_text(property_style(Path(table["ontology"])), encoding="utf-8")
-        table |= {"ontology": str(converted), "adapters": ["properties"]}
+        converted.write_text(STYLES[adapter](Path(table["ontology"])), encoding="utf-8")
+        table |= {"ontology": str(converted), "adapters": [adapter]}
     for mapping in config.get("mappings", []):
         mapping["file"] = str(SCENARIOS / mapping["file"])
     out = tmp_path / scenario
@@ -186,16 +191,18 @@ def requests(km: KnowledgeManager) -> dict[str, object]:
     return out
 
 
+@pytest.mark.parametrize("adapter", STYLES)
 @pytest.mark.parametrize(
     "scenario", ["single.toml", "federation.toml", "chapter4.toml", "federation-xml.toml"]
 )
-def test_the_thesis_ontologies_in_the_property_style_give_the_same_requests(
-    tmp_path: Path, scenario: str
+def test_the_thesis_ontologies_in_the_property_and_sosa_styles_give_the_same_requests(
+    tmp_path: Path, scenario: str, adapter: str
 ) -> None:
     """Acceptance: every formula of the thesis scenarios, local and federated."""
     classes = requests(KnowledgeManager.from_config(SCENARIOS / scenario))
-    properties = requests(KnowledgeManager.from_config(property_config(tmp_path, scenario)))
-    assert properties == classes
+    km = KnowledgeManager.from_config(converted_config(tmp_path, scenario, adapter=adapter))
+    assert requests(km) == classes
+    assert all(platform.ontology.adapted for platform in km.kb.platforms.values())
     assert sum(isinstance(r, dict) for r in classes.values()) >= 6
 
 
@@ -206,7 +213,7 @@ def test_a_property_style_platform_federates_with_class_style_ones_through_cowl(
     """The COWL files join a property (platform3's Alt, an owl:DatatypeProperty) to a class
     (platform1's Altitude) by `equiv`, and objects by `same`, as between two classes."""
     classes = requests(KnowledgeManager.from_config(SCENARIOS / "federation.toml"))
-    km = KnowledgeManager.from_config(property_config(tmp_path, "federation.toml", converted))
+    km = KnowledgeManager.from_config(converted_config(tmp_path, "federation.toml", converted))
     assert requests(km) == classes
     remote = {
         t["platform"]
@@ -355,7 +362,7 @@ def test_a_formula_naming_a_property_that_became_no_feature_is_told_why(
 def test_info_lists_each_platforms_features_with_signature_and_origin(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    config = property_config(tmp_path, "federation.toml", ("platform3",))
+    config = converted_config(tmp_path, "federation.toml", ("platform3",))
     assert main(["info", "--json", "--config", str(config)]) == 0
     found = {
         (f["platform"], f["feature"]): f for f in json.loads(capsys.readouterr().out)["features"]
