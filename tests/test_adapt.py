@@ -144,6 +144,36 @@ def test_an_adapter_is_part_of_the_cache_key(tmp_path: Path) -> None:
     assert first.keys() != second.keys()
 
 
+def test_an_adapter_reading_triples_by_a_predicate_it_finds_is_given_every_triple(
+    tmp_path: Path,
+) -> None:
+    """Only the triples whose predicates an adapter names are asserted for it; a rule whose
+    predicate is a variable bound by the ontology itself (a property used on an object, its
+    sort the feature's) reads them all."""
+    (tmp_path / "used.ttl").write_text(
+        "@prefix : <http://www.example.com/used#> .\n"
+        "@prefix owl: <http://www.w3.org/2002/07/owl#> .\n"
+        ":UAV a owl:Class .\n:battery a owl:DatatypeProperty .\n"
+        ":uav1 a owl:NamedIndividual, :UAV ; :battery 90 .\n",
+        encoding="utf-8",
+    )
+    (tmp_path / "used.dl").write_text(
+        ".decl used_on(Platform, Property, Sort)\n"
+        "used_on(P, Q, S) <= triple(P, Q, 'rdf:type', 'owl:DatatypeProperty') & "
+        "triple(P, O, Q, _V) & triple(P, O, 'rdf:type', S) & (S != 'owl:NamedIndividual')\n"
+        "adapted_feature(P, Q, 1) <= used_on(P, Q, _S)\n"
+        "adapted_arg(P, Q, 1, S) <= used_on(P, Q, S)\n",
+        encoding="utf-8",
+    )
+    config = tmp_path / "c.toml"
+    config.write_text(
+        '[platforms.uav]\nontology = "used.ttl"\nadapters = ["used.dl"]\n', encoding="utf-8"
+    )
+    features = KnowledgeManager.from_config(config).kb.platforms["uav"].ontology.features
+    battery = features["http://www.example.com/used#battery"]
+    assert battery.arg_sorts == (("http://www.example.com/used#UAV",),)
+
+
 STYLES = {"properties": property_style, "sosa": sosa_style}
 
 

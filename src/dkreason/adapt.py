@@ -12,17 +12,29 @@ from __future__ import annotations
 from collections import defaultdict
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 
 from .datalog import Datalog
 from .errors import Span
+from .inputs.files import read_text
 from .model import Adapted, Ontology, Signature
 from .names import NameIndex, local_name
 from .parse.config import ADAPTER_SCHEMA, SHIPPED_RULES
 from .parse.owl import ARG, ARITY
 from .policy.load import shown
 from .policy.resolve import Names, resolve
-from .policy.syntax import Comparison, Condition, Row, Rule, Term, Value, Var
+from .policy.syntax import (
+    Comparison,
+    Condition,
+    Literal,
+    Row,
+    Rule,
+    RuleFile,
+    Term,
+    Value,
+    Var,
+)
 from .policy.tables import read_rule_file
 
 THING = "http://www.w3.org/2002/07/owl#Thing"
@@ -58,12 +70,12 @@ def adapt(
     p = ont.platform
     names = Names([NameIndex(p, {**ont.prefixes, **PREFIXES}, {})])
     files = [
-        resolve(read_rule_file(path, shown(path, None), _shipped(path)), names)
-        for path in (ADAPTER_SCHEMA, *adapters)
+        resolve(_rule_file(path, read_text(path)), names) for path in (ADAPTER_SCHEMA, *adapters)
     ]
     engine = Datalog()
     notes = [str(d) for d in engine.load(files)]
-    engine.assert_rows("triple", [(p, *t) for t in told])
+    read = _predicates_read(files)
+    engine.assert_rows("triple", [(p, *t) for t in told if read is None or t[1] in read])
     engine.assert_rows("reasoning", [(p, reasoning)])
     engine.assert_rows(
         "class_pattern",
@@ -154,8 +166,42 @@ def origin(ont: Ontology, feature: str) -> str:
     return f"adapter rule {made.rule}" + (f", from {told} ({ont.file})" if told else "")
 
 
-def _shipped(path: Path) -> bool:
-    return path.resolve().is_relative_to(SHIPPED_RULES.resolve())
+@lru_cache(maxsize=32)
+def _rule_file(path: Path, text: str) -> RuleFile:
+    """An adapter file parsed once for every platform that names it (`text`: what it holds
+    now, so an edited file is parsed again)."""
+    shipped = path.resolve().is_relative_to(SHIPPED_RULES.resolve())
+    return read_rule_file(path, shown(path, None), shipped)
+
+
+def _predicates_read(files: Sequence[RuleFile]) -> set[Value] | None:
+    """The predicates of the triples the files' rules can read: each a triple literal names,
+    or that its predicate variable takes from a relation only facts tell (sosa.dl's
+    `has_property(Q) & triple(P, O, Q, I)`).  Only those triples are asserted: an adapter
+    reads a few predicates of an ontology's many.  None: some rule reads triples of any."""
+    facts: dict[str, list[Row]] = defaultdict(list)
+    for fact in (x for f in files for x in f.facts):
+        facts[fact.predicate].append(fact.row)
+    rules = [r for f in files for r in f.rules]
+    told_only = facts.keys() - {r.head.predicate for r in rules}
+    read: set[Value] = set()
+    for rule in rules:
+        for literal in (b for b in rule.body if isinstance(b, Literal) and b.predicate == "triple"):
+            predicate = literal.args[2]
+            if not isinstance(predicate, Var):
+                read.add(predicate)
+                continue
+            taken = [
+                {row[i] for row in facts[b.predicate]}
+                for b in rule.body
+                if isinstance(b, Literal) and not b.negated and b.predicate in told_only
+                for i, arg in enumerate(b.args)
+                if arg == predicate
+            ]
+            if not taken:
+                return None
+            read |= taken[0]
+    return read
 
 
 def _made(engine: Datalog, rule: Rule, row: Row) -> bool:
