@@ -10,7 +10,7 @@ quantifiers, federation, explanations, the cache).  No Python per vocabulary.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
@@ -74,8 +74,8 @@ def adapt(
     ]
     engine = Datalog()
     notes = [str(d) for d in engine.load(files)]
-    read = _predicates_read(files)
-    engine.assert_rows("triple", [(p, *t) for t in told if read is None or t[1] in read])
+    wanted = _triples_read(files)
+    engine.assert_rows("triple", [(p, *t) for t in told if wanted is None or wanted(t)])
     engine.assert_rows("reasoning", [(p, reasoning)])
     engine.assert_rows(
         "class_pattern",
@@ -174,34 +174,49 @@ def _rule_file(path: Path, text: str) -> RuleFile:
     return read_rule_file(path, shown(path, None), shipped)
 
 
-def _predicates_read(files: Sequence[RuleFile]) -> set[Value] | None:
-    """The predicates of the triples the files' rules can read: each a triple literal names,
-    or that its predicate variable takes from a relation only facts tell (sosa.dl's
-    `has_property(Q) & triple(P, O, Q, I)`).  Only those triples are asserted: an adapter
-    reads a few predicates of an ontology's many.  None: some rule reads triples of any."""
+def _triples_read(files: Sequence[RuleFile]) -> Callable[[Row], bool] | None:
+    """Which triples the files' rules can read, by predicate and object: each a triple literal
+    names, or that its variable takes from a relation only facts tell (sosa.dl's
+    `has_property(Q) & triple(P, O, Q, I)`), an object a variable holds being any.  Only those
+    triples are asserted: an adapter reads a few of an ontology's many (properties.dl reads
+    `rdf:type` only as `owl:DatatypeProperty` and the like, not every object's type).  None:
+    some rule reads triples of any predicate."""
     facts: dict[str, list[Row]] = defaultdict(list)
     for fact in (x for f in files for x in f.facts):
         facts[fact.predicate].append(fact.row)
     rules = [r for f in files for r in f.rules]
     told_only = facts.keys() - {r.head.predicate for r in rules}
-    read: set[Value] = set()
+
+    def values(term: Term, body: Sequence[Condition]) -> set[Value] | None:
+        if not isinstance(term, Var):
+            return {term}
+        taken = [
+            {row[i] for row in facts[b.predicate]}
+            for b in body
+            if isinstance(b, Literal) and not b.negated and b.predicate in told_only
+            for i, arg in enumerate(b.args)
+            if arg == term
+        ]
+        return taken[0] if taken else None
+
+    read: dict[Value, set[Value] | None] = {}
     for rule in rules:
         for literal in (b for b in rule.body if isinstance(b, Literal) and b.predicate == "triple"):
-            predicate = literal.args[2]
-            if not isinstance(predicate, Var):
-                read.add(predicate)
-                continue
-            taken = [
-                {row[i] for row in facts[b.predicate]}
-                for b in rule.body
-                if isinstance(b, Literal) and not b.negated and b.predicate in told_only
-                for i, arg in enumerate(b.args)
-                if arg == predicate
-            ]
-            if not taken:
+            predicates, objects = (
+                values(literal.args[2], rule.body),
+                values(literal.args[3], rule.body),
+            )
+            if predicates is None:
                 return None
-            read |= taken[0]
-    return read
+            for predicate in predicates:
+                known = read.setdefault(predicate, set())
+                read[predicate] = None if known is None or objects is None else known | objects
+
+    def wanted(triple: Row) -> bool:
+        objects = read.get(triple[1], set())
+        return objects is None or triple[2] in objects
+
+    return wanted
 
 
 def _made(engine: Datalog, rule: Rule, row: Row) -> bool:
