@@ -65,6 +65,21 @@ def test_unions_inheritance_and_nested_domains_give_the_signature(
     assert signature(props, "groundSpeed") == (("Car",),)  # Car and Vehicle: the most specific
 
 
+def test_unrelated_domains_are_the_class_named_as_their_intersection(
+    props: KnowledgeManager,
+) -> None:
+    """draft's domains Car and Boat: AmphibiousCar ≡ Car ⊓ Boat is its sort; hull's UAV and
+    Boat have no such class (a signature allows any of its sorts, never all): a warning."""
+    assert signature(props, "draft") == (("AmphibiousCar",),)
+    made = props.kb.platforms[props.local].ontology.adapted[EX + "draft"]
+    assert sorted(made.axioms) == [
+        (EX + "draft", "http://www.w3.org/2000/01/rdf-schema#domain", EX + c)
+        for c in ("Boat", "Car")
+    ]
+    warnings = props.check_formula("always (altitude[uav1] > 10)").warnings
+    assert not any("draft" in w for w in warnings)
+
+
 def test_equivalent_properties_are_equivalent_features(props: KnowledgeManager) -> None:
     # height has no topic of its own: altitude's serve it, as equivalentClass makes them
     assert topics(props, "always (height[uav2] > 10)") == {"height[uav2]": {("uav", "msg.alt")}}
