@@ -68,9 +68,11 @@ def test_unions_inheritance_and_nested_domains_give_the_signature(
 def test_unrelated_domains_are_the_class_named_as_their_intersection(
     props: KnowledgeManager,
 ) -> None:
-    """draft's domains Car and Boat: AmphibiousCar ≡ Car ⊓ Boat is its sort; hull's UAV and
-    Boat have no such class (a signature allows any of its sorts, never all): a warning."""
+    """draft's domains Car and Boat: AmphibiousCar ≡ Car ⊓ Boat is its sort (carries' ranges
+    alike); hull's UAV and Boat have no such class (a signature allows any of its sorts, never
+    all of them): a warning."""
     assert signature(props, "draft") == (("AmphibiousCar",),)
+    assert signature(props, "carries") == (("UAV",), ("AmphibiousCar",))
     made = props.kb.platforms[props.local].ontology.adapted[EX + "draft"]
     assert sorted(made.axioms) == [
         (EX + "draft", "http://www.w3.org/2000/01/rdf-schema#domain", EX + c)
