@@ -70,7 +70,8 @@ def adapt(
     p = ont.platform
     names = Names([NameIndex(p, {**ont.prefixes, **PREFIXES}, {})])
     files = [
-        resolve(_rule_file(path, read_text(path)), names) for path in (ADAPTER_SCHEMA, *adapters)
+        resolve(_rule_file(path, shown(path, None), read_text(path)), names)
+        for path in (ADAPTER_SCHEMA, *adapters)
     ]
     engine = Datalog()
     notes = [str(d) for d in engine.load(files)]
@@ -167,11 +168,10 @@ def origin(ont: Ontology, feature: str) -> str:
 
 
 @lru_cache(maxsize=32)
-def _rule_file(path: Path, text: str) -> RuleFile:
-    """An adapter file parsed once for every platform that names it (`text`: what it holds
-    now, so an edited file is parsed again)."""
-    shipped = path.resolve().is_relative_to(SHIPPED_RULES.resolve())
-    return read_rule_file(path, shown(path, None), shipped)
+def _rule_file(path: Path, name: str, text: str) -> RuleFile:
+    """An adapter file parsed once for every platform that names it (`name`: as messages show
+    it; `text`: what it holds now, so an edited file is parsed again)."""
+    return read_rule_file(path, name, path.resolve().is_relative_to(SHIPPED_RULES.resolve()))
 
 
 def _triples_read(files: Sequence[RuleFile]) -> Callable[[Row], bool] | None:
