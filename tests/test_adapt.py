@@ -15,7 +15,7 @@ from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.explain import to_text
 from dkreason.stream.recording import write_recording
-from dkreason.workloads import property_style
+from dkreason.workloads import property_style, sosa_style
 
 from .conftest import REPO, SCENARIOS, formulas
 
@@ -63,6 +63,23 @@ def test_unions_inheritance_and_nested_domains_give_the_signature(
     assert signature(props, "speed") == (("Car", "UAV"),)  # owl:unionOf
     assert signature(props, "airspeed") == (("Vehicle",),)  # its super-property's domain
     assert signature(props, "groundSpeed") == (("Car",),)  # Car and Vehicle: the most specific
+
+
+def test_unrelated_domains_are_the_class_named_as_their_intersection(
+    props: KnowledgeManager,
+) -> None:
+    """draft's domains Car and Boat: AmphibiousCar ≡ Car ⊓ Boat is its sort (carries' ranges
+    alike); hull's UAV and Boat have no such class (a signature allows any of its sorts, never
+    all of them): a warning."""
+    assert signature(props, "draft") == (("AmphibiousCar",),)
+    assert signature(props, "carries") == (("UAV",), ("AmphibiousCar",))
+    made = props.kb.platforms[props.local].ontology.adapted[EX + "draft"]
+    assert sorted(made.axioms) == [
+        (EX + "draft", "http://www.w3.org/2000/01/rdf-schema#domain", EX + c)
+        for c in ("Boat", "Car")
+    ]
+    warnings = props.check_formula("always (altitude[uav1] > 10)").warnings
+    assert not any("draft" in w for w in warnings)
 
 
 def test_equivalent_properties_are_equivalent_features(props: KnowledgeManager) -> None:
@@ -144,10 +161,45 @@ def test_an_adapter_is_part_of_the_cache_key(tmp_path: Path) -> None:
     assert first.keys() != second.keys()
 
 
-def property_config(tmp_path: Path, scenario: str, only: tuple[str, ...] = ()) -> Path:
+def test_an_adapter_reading_triples_by_a_predicate_it_finds_is_given_every_triple(
+    tmp_path: Path,
+) -> None:
+    """Only the triples whose predicates an adapter names are asserted for it; a rule whose
+    predicate is a variable bound by the ontology itself (a property used on an object, its
+    sort the feature's) reads them all."""
+    (tmp_path / "used.ttl").write_text(
+        "@prefix : <http://www.example.com/used#> .\n"
+        "@prefix owl: <http://www.w3.org/2002/07/owl#> .\n"
+        ":UAV a owl:Class .\n:battery a owl:DatatypeProperty .\n"
+        ":uav1 a owl:NamedIndividual, :UAV ; :battery 90 .\n",
+        encoding="utf-8",
+    )
+    (tmp_path / "used.dl").write_text(
+        ".decl used_on(Platform, Property, Sort)\n"
+        "used_on(P, Q, S) <= triple(P, Q, 'rdf:type', 'owl:DatatypeProperty') & "
+        "triple(P, O, Q, _V) & triple(P, O, 'rdf:type', S) & (S != 'owl:NamedIndividual')\n"
+        "adapted_feature(P, Q, 1) <= used_on(P, Q, _S)\n"
+        "adapted_arg(P, Q, 1, S) <= used_on(P, Q, S)\n",
+        encoding="utf-8",
+    )
+    config = tmp_path / "c.toml"
+    config.write_text(
+        '[platforms.uav]\nontology = "used.ttl"\nadapters = ["used.dl"]\n', encoding="utf-8"
+    )
+    features = KnowledgeManager.from_config(config).kb.platforms["uav"].ontology.features
+    battery = features["http://www.example.com/used#battery"]
+    assert battery.arg_sorts == (("http://www.example.com/used#UAV",),)
+
+
+STYLES = {"properties": property_style, "sosa": sosa_style}
+
+
+def converted_config(
+    tmp_path: Path, scenario: str, only: tuple[str, ...] = (), adapter: str = "properties"
+) -> Path:
     """The thesis scenario with each platform's ontology (or `only` those) converted into the
-    property style (ternary features stay classes), read back through the `properties`
-    adapter; the others stay in the class style."""
+    style `adapter` reads (property or SOSA style: ternary features, and in the SOSA style
+    binary ones too, stay classes), read back through it; the others stay in the class style."""
     config = tomllib.loads((SCENARIOS / scenario).read_text(encoding="utf-8"))
     for name, table in config["platforms"].items():
         table["specs"] = str(SCENARIOS / table["specs"])
@@ -155,8 +207,8 @@ def property_config(tmp_path: Path, scenario: str, only: tuple[str, ...] = ()) -
         if only and name not in only:
             continue
         converted = tmp_path / f"{name}.ttl"
-        converted.write_text(property_style(Path(table["ontology"])), encoding="utf-8")
-        table |= {"ontology": str(converted), "adapters": ["properties"]}
+        converted.write_text(STYLES[adapter](Path(table["ontology"])), encoding="utf-8")
+        table |= {"ontology": str(converted), "adapters": [adapter]}
     for mapping in config.get("mappings", []):
         mapping["file"] = str(SCENARIOS / mapping["file"])
     out = tmp_path / scenario
@@ -186,16 +238,18 @@ def requests(km: KnowledgeManager) -> dict[str, object]:
     return out
 
 
+@pytest.mark.parametrize("adapter", STYLES)
 @pytest.mark.parametrize(
     "scenario", ["single.toml", "federation.toml", "chapter4.toml", "federation-xml.toml"]
 )
-def test_the_thesis_ontologies_in_the_property_style_give_the_same_requests(
-    tmp_path: Path, scenario: str
+def test_the_thesis_ontologies_in_the_property_and_sosa_styles_give_the_same_requests(
+    tmp_path: Path, scenario: str, adapter: str
 ) -> None:
     """Acceptance: every formula of the thesis scenarios, local and federated."""
     classes = requests(KnowledgeManager.from_config(SCENARIOS / scenario))
-    properties = requests(KnowledgeManager.from_config(property_config(tmp_path, scenario)))
-    assert properties == classes
+    km = KnowledgeManager.from_config(converted_config(tmp_path, scenario, adapter=adapter))
+    assert requests(km) == classes
+    assert all(platform.ontology.adapted for platform in km.kb.platforms.values())
     assert sum(isinstance(r, dict) for r in classes.values()) >= 6
 
 
@@ -206,7 +260,7 @@ def test_a_property_style_platform_federates_with_class_style_ones_through_cowl(
     """The COWL files join a property (platform3's Alt, an owl:DatatypeProperty) to a class
     (platform1's Altitude) by `equiv`, and objects by `same`, as between two classes."""
     classes = requests(KnowledgeManager.from_config(SCENARIOS / "federation.toml"))
-    km = KnowledgeManager.from_config(property_config(tmp_path, "federation.toml", converted))
+    km = KnowledgeManager.from_config(converted_config(tmp_path, "federation.toml", converted))
     assert requests(km) == classes
     remote = {
         t["platform"]
@@ -355,7 +409,7 @@ def test_a_formula_naming_a_property_that_became_no_feature_is_told_why(
 def test_info_lists_each_platforms_features_with_signature_and_origin(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
-    config = property_config(tmp_path, "federation.toml", ("platform3",))
+    config = converted_config(tmp_path, "federation.toml", ("platform3",))
     assert main(["info", "--json", "--config", str(config)]) == 0
     found = {
         (f["platform"], f["feature"]): f for f in json.loads(capsys.readouterr().out)["features"]

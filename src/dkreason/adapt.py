@@ -10,19 +10,31 @@ quantifiers, federation, explanations, the cache).  No Python per vocabulary.
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 
 from .datalog import Datalog
 from .errors import Span
+from .inputs.files import read_text
 from .model import Adapted, Ontology, Signature
 from .names import NameIndex, local_name
 from .parse.config import ADAPTER_SCHEMA, SHIPPED_RULES
 from .parse.owl import ARG, ARITY
 from .policy.load import shown
 from .policy.resolve import Names, resolve
-from .policy.syntax import Comparison, Condition, Row, Rule, Term, Value, Var
+from .policy.syntax import (
+    Comparison,
+    Condition,
+    Literal,
+    Row,
+    Rule,
+    RuleFile,
+    Term,
+    Value,
+    Var,
+)
 from .policy.tables import read_rule_file
 
 THING = "http://www.w3.org/2002/07/owl#Thing"
@@ -58,12 +70,13 @@ def adapt(
     p = ont.platform
     names = Names([NameIndex(p, {**ont.prefixes, **PREFIXES}, {})])
     files = [
-        resolve(read_rule_file(path, shown(path, None), _shipped(path)), names)
+        resolve(_rule_file(path, shown(path, None), read_text(path)), names)
         for path in (ADAPTER_SCHEMA, *adapters)
     ]
     engine = Datalog()
     notes = [str(d) for d in engine.load(files)]
-    engine.assert_rows("triple", [(p, *t) for t in told])
+    wanted = _triples_read(files)
+    engine.assert_rows("triple", [(p, *t) for t in told if wanted is None or wanted(t)])
     engine.assert_rows("reasoning", [(p, reasoning)])
     engine.assert_rows(
         "class_pattern",
@@ -154,8 +167,56 @@ def origin(ont: Ontology, feature: str) -> str:
     return f"adapter rule {made.rule}" + (f", from {told} ({ont.file})" if told else "")
 
 
-def _shipped(path: Path) -> bool:
-    return path.resolve().is_relative_to(SHIPPED_RULES.resolve())
+@lru_cache(maxsize=32)
+def _rule_file(path: Path, name: str, text: str) -> RuleFile:
+    """An adapter file parsed once for every platform that names it (`name`: as messages show
+    it; `text`: what it holds now, so an edited file is parsed again)."""
+    return read_rule_file(path, name, path.resolve().is_relative_to(SHIPPED_RULES.resolve()))
+
+
+def _triples_read(files: Sequence[RuleFile]) -> Callable[[Row], bool] | None:
+    """Which triples the files' rules can read, by predicate and object: each a triple literal
+    names, or that its variable takes from a relation only facts tell (sosa.dl's
+    `has_property(Q) & triple(P, O, Q, I)`), an object a variable holds being any.  Only those
+    triples are asserted: an adapter reads a few of an ontology's many (properties.dl reads
+    `rdf:type` only as `owl:DatatypeProperty` and the like, not every object's type).  None:
+    some rule reads triples of any predicate."""
+    facts: dict[str, list[Row]] = defaultdict(list)
+    for fact in (x for f in files for x in f.facts):
+        facts[fact.predicate].append(fact.row)
+    rules = [r for f in files for r in f.rules]
+    told_only = facts.keys() - {r.head.predicate for r in rules}
+
+    def values(term: Term, body: Sequence[Condition]) -> set[Value] | None:
+        if not isinstance(term, Var):
+            return {term}
+        taken = [
+            {row[i] for row in facts[b.predicate]}
+            for b in body
+            if isinstance(b, Literal) and not b.negated and b.predicate in told_only
+            for i, arg in enumerate(b.args)
+            if arg == term
+        ]
+        return taken[0] if taken else None
+
+    read: dict[Value, set[Value] | None] = {}
+    for rule in rules:
+        for literal in (b for b in rule.body if isinstance(b, Literal) and b.predicate == "triple"):
+            predicates, objects = (
+                values(literal.args[2], rule.body),
+                values(literal.args[3], rule.body),
+            )
+            if predicates is None:
+                return None
+            for predicate in predicates:
+                known = read.setdefault(predicate, set())
+                read[predicate] = None if known is None or objects is None else known | objects
+
+    def wanted(triple: Row) -> bool:
+        objects = read.get(triple[1], set())
+        return objects is None or triple[2] in objects
+
+    return wanted
 
 
 def _made(engine: Datalog, rule: Rule, row: Row) -> bool:

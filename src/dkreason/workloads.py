@@ -18,6 +18,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import product
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rdflib import Graph, URIRef
+    from rdflib.term import Node
 
 NS = "http://example.org/ch7#"
 NINE = [
@@ -379,23 +384,20 @@ def owl_rl_world(kind: str, n: int) -> str:
     return _RL_HEAD + body
 
 
-def property_style(path: Path) -> str:
-    """The ontology at `path` (class pattern) rewritten as its properties would say it, as
-    Turtle: a unary feature becomes an owl:DatatypeProperty with the rdfs:domain of its arg1,
-    a binary one an owl:ObjectProperty with a domain and a range, owl:equivalentClass between
-    features owl:equivalentProperty; ternary features stay feature classes (properties relate
-    two things), so the result mixes both styles.  `adapters = ["properties"]` reads it back
-    into the same features (rules/adapters/properties.dl)."""
+def _class_pattern(path: Path) -> tuple[Graph, list[tuple[URIRef, Node, int, dict[int, Node]]]]:
+    """The ontology at `path` parsed, and its unary and binary feature classes: each with the
+    told superclass that makes it one (UnaryRelation/BinaryRelation ⊓ ∀argN.S), its arity and
+    its fillers by argument (ternary features are left out: both styles keep them)."""
     import re
 
     from rdflib import BNode, Graph, URIRef
     from rdflib.collection import Collection
-    from rdflib.namespace import OWL, RDF, RDFS
+    from rdflib.namespace import OWL, RDFS
 
     graph = Graph()
     graph.parse(path)
     arities = {"UnaryRelation": 1, "BinaryRelation": 2}
-    features = set()
+    found = []
     for cls, sup in list(graph.subject_objects(RDFS.subClassOf)):
         parts_at = graph.value(sup, OWL.intersectionOf) if isinstance(sup, BNode) else None
         if not isinstance(cls, URIRef) or parts_at is None:
@@ -404,22 +406,60 @@ def property_style(path: Path) -> str:
         arity = next(
             (arities[str(p).split("#")[-1]] for p in parts if str(p).split("#")[-1] in arities), 0
         )
-        if not arity:
-            continue
-        fillers = {
-            int(m.group(1)): graph.value(part, OWL.allValuesFrom)
-            for part in parts
-            if (m := re.search(r"arg([12])$", str(graph.value(part, OWL.onProperty))))
-        }
+        if arity:
+            fillers = {
+                int(m.group(1)): graph.value(part, OWL.allValuesFrom)
+                for part in parts
+                if (m := re.search(r"arg([12])$", str(graph.value(part, OWL.onProperty))))
+            }
+            found.append((cls, sup, arity, {i: f for i, f in fillers.items() if f is not None}))
+    return graph, found
+
+
+def property_style(path: Path) -> str:
+    """The ontology at `path` (class pattern) rewritten as its properties would say it, as
+    Turtle: a unary feature becomes an owl:DatatypeProperty with the rdfs:domain of its arg1,
+    a binary one an owl:ObjectProperty with a domain and a range, owl:equivalentClass between
+    features owl:equivalentProperty; ternary features stay feature classes (properties relate
+    two things), so the result mixes both styles.  `adapters = ["properties"]` reads it back
+    into the same features (rules/adapters/properties.dl)."""
+    from rdflib.namespace import OWL, RDF, RDFS
+
+    graph, found = _class_pattern(path)
+    for cls, sup, arity, fillers in found:
         graph.remove((cls, RDFS.subClassOf, sup))
         graph.remove((cls, RDF.type, OWL.Class))
         graph.add((cls, RDF.type, OWL.DatatypeProperty if arity == 1 else OWL.ObjectProperty))
-        graph.add((cls, RDFS.domain, fillers.get(1) or OWL.Thing))
+        graph.add((cls, RDFS.domain, fillers.get(1, OWL.Thing)))
         if arity == 2:
-            graph.add((cls, RDFS.range, fillers.get(2) or OWL.Thing))
-        features.add(cls)
+            graph.add((cls, RDFS.range, fillers.get(2, OWL.Thing)))
+    features = {cls for cls, *_ in found}
     for a, b in list(graph.subject_objects(OWL.equivalentClass)):
         if a in features and b in features:
             graph.remove((a, OWL.equivalentClass, b))
             graph.add((a, OWL.equivalentProperty, b))
+    return str(graph.serialize(format="turtle"))
+
+
+def sosa_style(path: Path) -> str:
+    """The ontology at `path` (class pattern) rewritten in W3C SOSA/SSN's terms, as Turtle: a
+    unary feature becomes a class of observable properties tied to its sort, C ⊑
+    sosa:ObservableProperty ⊓ ∀ssn:isPropertyOf.S; binary and ternary features stay feature
+    classes (an observable property is of one thing), so the result mixes both styles.
+    `adapters = ["sosa"]` reads it back into the same features (rules/adapters/sosa.dl)."""
+    from rdflib import BNode, Namespace
+    from rdflib.namespace import OWL, RDF, RDFS
+
+    sosa, ssn = Namespace("http://www.w3.org/ns/sosa/"), Namespace("http://www.w3.org/ns/ssn/")
+    graph, found = _class_pattern(path)
+    graph.bind("sosa", sosa)
+    graph.bind("ssn", ssn)
+    for cls, sup, _, fillers in (f for f in found if f[2] == 1):
+        tie = BNode()
+        graph.remove((cls, RDFS.subClassOf, sup))
+        graph.add((cls, RDFS.subClassOf, sosa.ObservableProperty))
+        graph.add((cls, RDFS.subClassOf, tie))
+        graph.add((tie, RDF.type, OWL.Restriction))
+        graph.add((tie, OWL.onProperty, ssn.isPropertyOf))
+        graph.add((tie, OWL.allValuesFrom, fillers.get(1, OWL.Thing)))
     return str(graph.serialize(format="turtle"))
