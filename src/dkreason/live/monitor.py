@@ -234,6 +234,7 @@ class LiveMonitor:
             self.km.plan(self.formulas), self.km.request, self.policy, watch=self.watch
         )
         processor = self.processor = monitor.start(self.source)
+        monitor.follow = self._follow
         self.read = dict_reader(self.source.name, processor.wanted)
         yield from self._subscribe(monitor.request, None, "")
         yield from monitor.events()
@@ -437,9 +438,17 @@ class LiveMonitor:
             *(change("instance", now, p, formula, feature=name) for formula, name in started),
         ]
 
+    def _follow(self, request: StreamRequest) -> list[Event]:
+        """The monitor set a source aside or took one back: the subscriptions follow (one set
+        aside stays subscribed, so its return is seen)."""
+        assert self.processor is not None
+        self.read = dict_reader(self.source.name, self.processor.wanted)
+        return self._subscribe(request, None, "a source set aside or taken back")
+
     def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
         processor = self.processor
         assert processor is not None  # called once started
+        aside = self.monitor.aside if self.monitor is not None else set()
         now = self.watermark()
         before = self.topics
         self.topics = {
@@ -464,7 +473,7 @@ class LiveMonitor:
                     ),
                 )
                 changes.append(change("subscribed", now, q, feature=str(key), topic=t))
-        for q, t in sorted(set(self.subs) - set(wanted)):
+        for q, t in sorted(set(self.subs) - set(wanted) - aside):
             self.subs.pop((q, t)).undeclare()
             self.clocks.pop((q, t), None)
             changes.append(change("unsubscribed", now, q, why, topic=t))
