@@ -23,6 +23,7 @@ from dkreason.stream.processor import Violation
 from dkreason.stream.recording import Row, write_recording
 
 from .conftest import REPO
+from .test_foxglove import read_mcap
 
 ALTITUDE = "always (Altitude[uav1] > 1)"
 # topic1: its freshest sample at most 1.02 s old; topic2: 220 ms, but it lags 200 ms
@@ -327,6 +328,13 @@ def test_monitor_says_each_reroute_in_a_line_and_in_json(
         ("Altitude[uav1]", "set_aside", ["platform1/topic2"]),
         ("Altitude[uav1]", "taken_back", ["platform1/topic1", "platform1/topic2"]),
     ]
+    kept = tmp_path / "kept.mcap"
+    assert main([*argv, "--record", str(kept), ALTITUDE]) == 0
+    capsys.readouterr()
+    logs = [
+        json.loads(data)["message"] for t, _, _, data in read_mcap(kept) if t == "/dkreason/log"
+    ]
+    assert sum("platform1/topic1 set aside" in line for line in logs) == 1
     assert main([*argv, "--set-aside-after", "0", ALTITUDE]) == 0
     assert "rerouted" not in capsys.readouterr().out
     with pytest.raises(SystemExit) as bad:
