@@ -134,7 +134,12 @@ class Monitor:
     at it, its atoms over features without a value unknown there), at the instants its own
     features are sampled or change, and when the stream of its formula's features passes the
     end of a window it waits on.  Formulas over the same features share one progressor (the
-    instances of a quantified formula with bounded windows, only among themselves)."""
+    instances of a quantified formula with bounded windows, only among themselves).
+
+    A topic declaring a rate whose samples stop for `policy.set_aside_after` periods is set
+    aside (the rules are told `degraded(Platform, Topic)`) and taken back at its next sample:
+    the plan is matched again between messages, the instances judged on as they were, and
+    each feature whose topics changed is a `Rerouted` event."""
 
     def __init__(
         self,
