@@ -446,17 +446,21 @@ class LiveMonitor:
         return self._subscribe(request, None, "a source set aside or taken back")
 
     def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
-        processor = self.processor
-        assert processor is not None  # called once started
-        aside = self.monitor.aside if self.monitor is not None else set()
+        processor, monitor = self.processor, self.monitor
+        assert processor is not None and monitor is not None  # called once started
+        # a topic set aside is subscribed while its platform is there, so its return is seen
+        # (a clock gone with its platform would hold the stream back)
+        aside = [pt for pt in sorted(monitor.aside) if pt[0] in self.present]
         now = self.watermark()
         before = self.topics
         self.topics = {
             f.feature.key: {(t.platform, t.topic) for t in f.topics} for f in request.features
         }
         changes: list[Event] = []
-        wanted = {pt: key for key, pts in self.topics.items() for pt in pts}
-        for (q, t), key in sorted(wanted.items()):
+        wanted = dict.fromkeys(aside, "") | {
+            pt: str(key) for key, pts in self.topics.items() for pt in pts
+        }
+        for (q, t), feature in sorted(wanted.items()):
             if (q, t) not in self.subs:
                 self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
@@ -472,8 +476,8 @@ class LiveMonitor:
                         )
                     ),
                 )
-                changes.append(change("subscribed", now, q, feature=str(key), topic=t))
-        for q, t in sorted(set(self.subs) - set(wanted) - aside):
+                changes.append(change("subscribed", now, q, feature=feature, topic=t))
+        for q, t in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()
             self.clocks.pop((q, t), None)
             changes.append(change("unsubscribed", now, q, why, topic=t))
