@@ -340,3 +340,30 @@ def test_monitor_says_each_reroute_in_a_line_and_in_json(
     with pytest.raises(SystemExit) as bad:
         main([*argv, "--set-aside-after", "x", ALTITUDE])
     assert bad.value.code == 2 and "--set-aside-after" in capsys.readouterr().err
+
+
+def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only_once() -> None:
+    from dkreason.model import FeatureKey
+    from dkreason.stream.quality import Move, QualityWatch
+
+    moves: list[Move] = []
+    watch = QualityWatch(3, moves.append)
+    watch.declare(
+        "topic1", FeatureKey("Altitude", ("uav1",)), "platform1", "topic1", Fraction(10), None
+    )
+    watch.sample("topic1", 1_000 * MS, 1_000 * MS)
+    watch.silent(1_300 * MS)  # three periods: not yet
+    assert moves == []
+    watch.silent(1_301 * MS)
+    watch.silent(1_500 * MS)
+    assert [(m.topic, m.aside, m.time) for m in moves] == [("topic1", True, 1_301 * MS)]
+    assert watch.aside() == ["topic1"]
+    watch.sample("topic1", 1_600 * MS, 1_600 * MS)
+    assert [(m.aside, m.time, m.reason) for m in moves[1:]] == [
+        (False, 1_600 * MS, "a sample came after 0.6 s without one")
+    ]
+    never = QualityWatch(0, moves.append)
+    never.declare("t", FeatureKey("X", ()), "p", "t", Fraction(10), None)
+    never.sample("t", 0, 0)
+    never.silent(10**12)
+    assert len(moves) == 2 and never.aside() == []

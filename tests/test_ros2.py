@@ -646,8 +646,9 @@ def test_verdicts_go_back_onto_the_network_as_json_and_as_a_ros2_topic(
 
 def test_a_violation_goes_to_every_formula_that_reads_its_feature() -> None:
     """Each formula's key carries what concerns it: its verdict, and the stream constraint
-    violations of the features it reads."""
+    violations and re-routes of the features it reads."""
     from dkreason.model import FeatureKey
+    from dkreason.monitor import Rerouted
     from dkreason.stream.processor import Violation
 
     class Session:
@@ -671,6 +672,13 @@ def test_a_violation_goes_to_every_formula_that_reads_its_feature() -> None:
         ("dkreason/verdicts/f1", "f1", "late"),
         ("dkreason/verdicts/f3", "f3", "late"),
         ("dkreason/verdicts/violations", "violations", "late"),
+    ]
+    session.puts.clear()
+    aside = Rerouted(7, speed, "platform1/topic4", True, ("platform1/topic4",), (), "silent")
+    announce(aside)  # a source set aside: to the formulas reading the feature it fed
+    assert [(k, p["rerouted"], p["change"], p["after"]) for k, p in session.puts] == [
+        ("dkreason/verdicts/f1", "Speed[car2]", "set_aside", []),
+        ("dkreason/verdicts/f3", "Speed[car2]", "set_aside", []),
     ]
 
 
