@@ -1393,3 +1393,79 @@ def test_a_live_monitor_has_every_attribute_from_construction(scenario: Path) ->
     assert before["monitor"] is None and before["processor"] is None
     assert set(vars(fed.monitor)) == set(before)
     assert fed.monitor.processor is not None
+
+
+def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_returns(
+    scenario: Path,
+) -> None:
+    """Platform 1 sends uav1's altitude on topic1 and topic2 (both declared 10 Hz); topic1's
+    samples stop while its clock goes on: the monitor reads topic2 alone, keeping topic1
+    subscribed, and reads both again once topic1 sends.  Each step waits on the event
+    before it; the verdict is never restarted."""
+    from dkreason.live import wire
+    from dkreason.live.change import Change
+    from dkreason.live.monitor import LiveMonitor
+    from dkreason.live.serve import PlatformNode
+    from dkreason.live.session import open_session
+    from dkreason.monitor import Rerouted
+    from dkreason.progress import Verdict
+    from dkreason.stream.policy import StreamPolicy
+
+    from .test_quality import TEN_HZ, declare
+
+    declare(scenario, *TEN_HZ)
+    (scenario / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    (scenario / "p1.toml").write_text(
+        '[platforms.platform1]\nontology = "ontologies/platform1.owl"\n'
+        'specs = "specs/platform1.sslt"\n'
+    )
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    sessions = [open_session([], [endpoint]), open_session([endpoint], [])]
+    node = PlatformNode(KnowledgeManager.from_config(scenario / "p1.toml"), sessions[1])
+    monitor = LiveMonitor(
+        KnowledgeManager.from_config(scenario / "monitor.toml", live=True),
+        ["always (Altitude[uav1] > 1)"],
+        StreamPolicy(),
+        sessions[0],
+        wait=10,
+    )
+
+    def send(topics: tuple[str, ...], tick: tuple[str, ...], tenths: range) -> None:
+        for n in tenths:
+            t = n * 10**8
+            for topic in topics:
+                node.publish(topic, {"id": 1, "alt": 50.0}, t, t)
+            for topic in tick:  # its clock goes on: nothing of it before t is missing
+                sessions[1].put(wire.key("platform1", "topic", topic), wire.encode({"clock": t}))
+
+    subscribed: set[str] = set()
+    events: list[Any] = []
+    try:
+        for event in monitor.run(duration=30):
+            events.append(event)
+            if isinstance(event, Change) and event.event == "subscribed":
+                subscribed.add(event.topic)
+                if subscribed == {"topic1", "topic2"}:
+                    for topic in sorted(subscribed):
+                        key = wire.key("platform1", "topic", topic)
+                        heard(sessions[1].declare_publisher(key)).undeclare()
+                    send(("topic1", "topic2"), (), range(1, 11))
+                    send(("topic2",), ("topic1",), range(11, 21))
+            elif isinstance(event, Rerouted) and event.aside:
+                send(("topic1", "topic2"), (), range(21, 26))
+            elif isinstance(event, Rerouted):
+                monitor.stop.set()
+    finally:
+        node.close()
+        for session in sessions:
+            session.close()
+    moves = [e for e in events if isinstance(e, Rerouted)]
+    both, two = ("platform1/topic1", "platform1/topic2"), ("platform1/topic2",)
+    assert [(m.source, m.aside, m.before, m.after) for m in moves] == [
+        ("platform1/topic1", True, both, two),
+        ("platform1/topic1", False, two, both),
+    ]
+    assert moves[1].time == 2.1
+    assert not any(isinstance(e, Change) and e.event == "unsubscribed" for e in events)
+    (verdict,) = [e for e in events if isinstance(e, Verdict)]
+    assert (verdict.verdict, verdict.at_end) == (True, True)

@@ -9,16 +9,21 @@ import random
 from collections import Counter
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
 from dkreason.model import FeatureRequest
+from dkreason.monitor import Rerouted
+from dkreason.progress import Verdict
+from dkreason.stream.policy import StreamPolicy
 from dkreason.stream.processor import Violation
 from dkreason.stream.recording import Row, write_recording
 
 from .conftest import REPO
+from .test_foxglove import read_mcap
 
 ALTITUDE = "always (Altitude[uav1] > 1)"
 # topic1: its freshest sample at most 1.02 s old; topic2: 220 ms, but it lags 200 ms
@@ -248,3 +253,117 @@ def test_monitor_reports_a_topic_below_its_declared_rate_or_over_its_delay(
     )
     out = capsys.readouterr().out
     assert code == 0 and "declared_rate" in out and "declared_delay" in out
+
+
+UAV = "dkreason_msgs/msg/UavMsg"
+TEN_HZ = ("topic1:UavMsg [rate 10 Hz]", "topic2:UavMsg [rate 10 Hz]")
+
+
+def stalled(tmp_path: Path) -> Path:
+    """uav1's altitude on topic1 and topic2, both at 10 Hz for 6 s; topic1 sends nothing
+    from 1.95 s to 4.05 s."""
+    rows: list[Row] = [("topic2", UAV, n * 100 * MS, {"id": 1, "alt": 50.0}) for n in range(1, 61)]
+    rows += [
+        ("topic1", UAV, n * 100 * MS + 50 * MS, {"id": 1, "alt": 50.0})
+        for n in range(1, 60)
+        if not 20 <= n < 40
+    ]
+    path = tmp_path / "stalled.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    return path
+
+
+def replayed(km: KnowledgeManager, path: Path, **policy: Any) -> list[Any]:
+    with km.monitor(ALTITUDE, [path], StreamPolicy(**policy)) as run:
+        return list(run)
+
+
+def test_a_source_that_stops_is_set_aside_and_taken_back_when_it_sends_again(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """After three declared periods without a sample, topic1 is vetoed (rules/quality.dl's
+    degraded/2) and uav1's altitude is read from topic2 alone; topic1's next sample takes it
+    back.  The verdict goes on as it would have: nothing is restarted."""
+    km = KnowledgeManager.from_config(declare(scenario, *TEN_HZ))
+    path = stalled(tmp_path)
+    events = replayed(km, path)
+    moves = [e for e in events if isinstance(e, Rerouted)]
+    both, two = ("platform1/topic1", "platform1/topic2"), ("platform1/topic2",)
+    assert [(m.source, m.aside, m.before, m.after) for m in moves] == [
+        ("platform1/topic1", True, both, two),
+        ("platform1/topic1", False, two, both),
+    ]
+    aside, back = moves
+    assert str(aside.feature) == "Altitude[uav1]" and 2.25 < aside.time <= 2.35
+    assert aside.reason.startswith("no sample for 0.")
+    assert aside.reason.endswith("over 3 periods of the declared 10 Hz")
+    assert back.time == 4.05 and back.reason == "a sample came after 2.1 s without one"
+    assert str(aside) == (
+        "Altitude[uav1]: platform1/topic1 set aside (" + aside.reason + "); read from "
+        "platform1/topic1 + platform1/topic2, now from platform1/topic2"
+    )
+    verdicts = [e for e in events if isinstance(e, Verdict)]
+    assert verdicts == [e for e in replayed(km, path, set_aside_after=0) if isinstance(e, Verdict)]
+    assert [e for e in replayed(km, path) if isinstance(e, Rerouted)] == moves  # the same data
+
+
+def test_the_thesis_scenarios_set_nothing_aside(scenario: Path, tmp_path: Path) -> None:
+    km = KnowledgeManager.from_config(scenario / "single.toml")
+    assert not [e for e in replayed(km, stalled(tmp_path)) if isinstance(e, Rerouted)]
+
+
+def test_monitor_says_each_reroute_in_a_line_and_in_json(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config, path = declare(scenario, *TEN_HZ), stalled(tmp_path)
+    argv = ["monitor", "--config", str(config), "--source", str(path)]
+    assert main([*argv, ALTITUDE]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "rerouted" in line]
+    assert len(lines) == 2
+    assert lines[1].startswith("rerouted at t+3.95 s (4.05 s): Altitude[uav1]: platform1/topic1")
+    assert main([*argv, "--json", ALTITUDE]) == 0
+    shown = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    moves = [e for e in shown if "rerouted" in e]
+    assert [(m["rerouted"], m["change"], m["after"]) for m in moves] == [
+        ("Altitude[uav1]", "set_aside", ["platform1/topic2"]),
+        ("Altitude[uav1]", "taken_back", ["platform1/topic1", "platform1/topic2"]),
+    ]
+    kept = tmp_path / "kept.mcap"
+    assert main([*argv, "--record", str(kept), ALTITUDE]) == 0
+    capsys.readouterr()
+    logs = [
+        json.loads(data)["message"] for t, _, _, data in read_mcap(kept) if t == "/dkreason/log"
+    ]
+    assert sum("platform1/topic1 set aside" in line for line in logs) == 1
+    assert main([*argv, "--set-aside-after", "0", ALTITUDE]) == 0
+    assert "rerouted" not in capsys.readouterr().out
+    with pytest.raises(SystemExit) as bad:
+        main([*argv, "--set-aside-after", "x", ALTITUDE])
+    assert bad.value.code == 2 and "--set-aside-after" in capsys.readouterr().err
+
+
+def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only_once() -> None:
+    from dkreason.model import FeatureKey
+    from dkreason.stream.quality import Move, QualityWatch
+
+    moves: list[Move] = []
+    watch = QualityWatch(3, moves.append)
+    watch.declare(
+        "topic1", FeatureKey("Altitude", ("uav1",)), "platform1", "topic1", Fraction(10), None
+    )
+    watch.sample("topic1", 1_000 * MS, 1_000 * MS)
+    watch.silent(1_300 * MS)  # three periods: not yet
+    assert moves == []
+    watch.silent(1_301 * MS)
+    watch.silent(1_500 * MS)
+    assert [(m.topic, m.aside, m.time) for m in moves] == [("topic1", True, 1_301 * MS)]
+    assert watch.aside() == ["topic1"]
+    watch.sample("topic1", 1_600 * MS, 1_600 * MS)
+    assert [(m.aside, m.time, m.reason) for m in moves[1:]] == [
+        (False, 1_600 * MS, "a sample came after 0.6 s without one")
+    ]
+    never = QualityWatch(0, moves.append)
+    never.declare("t", FeatureKey("X", ()), "p", "t", Fraction(10), None)
+    never.sample("t", 0, 0)
+    never.silent(10**12)
+    assert len(moves) == 2 and never.aside() == []

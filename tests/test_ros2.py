@@ -646,8 +646,9 @@ def test_verdicts_go_back_onto_the_network_as_json_and_as_a_ros2_topic(
 
 def test_a_violation_goes_to_every_formula_that_reads_its_feature() -> None:
     """Each formula's key carries what concerns it: its verdict, and the stream constraint
-    violations of the features it reads."""
+    violations and re-routes of the features it reads."""
     from dkreason.model import FeatureKey
+    from dkreason.monitor import Rerouted
     from dkreason.stream.processor import Violation
 
     class Session:
@@ -671,6 +672,13 @@ def test_a_violation_goes_to_every_formula_that_reads_its_feature() -> None:
         ("dkreason/verdicts/f1", "f1", "late"),
         ("dkreason/verdicts/f3", "f3", "late"),
         ("dkreason/verdicts/violations", "violations", "late"),
+    ]
+    session.puts.clear()
+    aside = Rerouted(7, speed, "platform1/topic4", True, ("platform1/topic4",), (), "silent")
+    announce(aside)  # a source set aside: to the formulas reading the feature it fed
+    assert [(k, p["rerouted"], p["change"], p["after"]) for k, p in session.puts] == [
+        ("dkreason/verdicts/f1", "Speed[car2]", "set_aside", []),
+        ("dkreason/verdicts/f3", "Speed[car2]", "set_aside", []),
     ]
 
 
@@ -1202,3 +1210,43 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
     finally:
         watching.close()
         publishing.close()
+
+
+def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
+    tmp_path: Path, live: Callable[..., Live]
+) -> None:
+    """X[r1] from both robots' poses, each declared 1 Hz: robot 1's poses stop after 3 s
+    while /clock goes on, so X[r1] is read from robot 2's alone until robot 1 sends again
+    at 9 s (its topic stays subscribed)."""
+    from dkreason.monitor import Rerouted
+
+    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
+    (tmp_path / "pair.sslt").write_text(
+        "".join(
+            f"topic /robot{n}/pose:{POSE} [rate 1 Hz] contains X(r1) = msg.pose.position.x\n"
+            for n in (1, 2)
+        )
+    )
+    (tmp_path / "pair.toml").write_text(
+        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
+    )
+    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    run = live(km, ["always (X[r1] < 15)"], sim_time=True, policy=StreamPolicy(max_age=5))
+    sim = SimRobots(run)
+
+    def moves() -> list[Rerouted]:
+        return [e for e in run.events if isinstance(e, Rerouted)]
+
+    for n in range(1, 9):
+        sim.second(n, r1=1.0, r2=2.0) if n <= 3 else sim.second(n, r2=2.0)
+    run.until(lambda: len(moves()) == 1, "robot 1's pose set aside")
+    sim.second(9, r1=1.0, r2=2.0)
+    run.until(lambda: len(moves()) == 2, "robot 1's pose taken back")
+    run.finish()
+    both, two = ("fleet//robot1/pose", "fleet//robot2/pose"), ("fleet//robot2/pose",)
+    assert [(m.aside, m.before, m.after) for m in moves()] == [
+        (True, both, two),
+        (False, two, both),
+    ]
+    assert 7 <= moves()[0].time <= 8 and moves()[1].time == 9  # (when the clock passed)
+    assert [v.verdict for v in run.verdicts()] == [True]

@@ -5,7 +5,7 @@
     request = km.check_formula("forall x in UAV: always (Altitude[x] > 10)")
     for event in km.monitor("forall c in Car: always (Speed[c] < 90)", "traffic.mcap",
                             StreamPolicy(max_age="2s")):  # the CLI's defaults otherwise
-        print(event)            # a Verdict or a Violation, as it happens; times in seconds
+        print(event)            # a Verdict, Violation or Rerouted, as it happens; times in s
 
 Every name but the errors loads on first use, so importing dkreason (and so starting the
 CLI, whose module lives in this package) stays cheap.
@@ -28,7 +28,7 @@ if TYPE_CHECKING:
         TopicMatch,
         TopicSpec,
     )
-    from .monitor import Monitor, MonitorRun
+    from .monitor import Monitor, MonitorRun, Rerouted
     from .plan import FormulaPlan, Plan
     from .progress import Verdict
     from .stream.policy import StreamPolicy
@@ -58,6 +58,7 @@ _LAZY = {
     "StreamPolicy": "stream.policy",
     "PushSource": "stream.sources",
     "MonitorRun": "monitor",
+    "Rerouted": "monitor",
     "Violation": "stream.processor",
 }
 
@@ -83,6 +84,7 @@ __all__ = [
     "ParseError",
     "Plan",
     "PushSource",
+    "Rerouted",
     "SourceError",
     "Span",
     "StreamPolicy",

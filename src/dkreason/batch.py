@@ -33,6 +33,7 @@ from .progress import Verdict
 from .results import Results, Row
 from .stream.binding import is_bag_folder, open_recordings, recordings_in
 from .stream.policy import StreamPolicy
+from .stream.processor import Violation
 
 _WORDS = {True: "held", False: "violated", None: "undecided"}
 
@@ -152,12 +153,13 @@ def monitor_run(job: Job, run: Run) -> Outcome:
             msg=[Path(m) for m in job.msg],
             typestore=job.typestore,
         )
-        monitored = MonitorRun(Monitor(job.plan, lambda _: job.request, job.policy), source)
+        fixed = Monitor(job.plan, lambda _plan, **_: job.request, job.policy)
+        monitored = MonitorRun(fixed, source)
         try:
             for event in monitored.events(tick):
                 if isinstance(event, Verdict):  # an update names more instances settled
                     decided[event.formula] = event
-                else:
+                elif isinstance(event, Violation):  # (a source set aside: the request stays)
                     violations[event.constraint] += 1
         except DkError as exc:
             error = one_line(str(exc))

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 from .errors import DkError, NameError_, Span
 from .kb import KnowledgeBase, Platform, check_config, read_mapping, read_platform
+from .match import Aside
 from .model import FeatureInfo, StreamRequest, TopicSpec
 from .parse.config import MappingFiles, PlatformFiles, adapter_paths, read_config
 from .plan import Parsed, Plan, plan
@@ -96,21 +97,34 @@ class KnowledgeManager:
         *,
         max_delay: float | Fraction | str | None = None,
         best_source: bool = False,
+        degraded: Aside = frozenset(),
     ) -> StreamRequest:
         """The stream request of a plan: every ground feature and the topics to merge (matched
         again whenever it is asked, so it follows the knowledge base as it changes).
         `max_delay` (seconds, or text like "100ms"): the monitor's, past which a topic's
         declared delay makes it irrelevant; `best_source`: each feature's best-ranked topic
-        only, not the merge of them all."""
+        only, not the merge of them all; `degraded`: the (platform, topic)s a monitor set
+        aside, their samples having stopped (the policy vetoes them)."""
         return request(
-            self.kb, plan, max_delay=_seconds(max_delay, "max_delay"), best_source=best_source
+            self.kb,
+            plan,
+            max_delay=_seconds(max_delay, "max_delay"),
+            best_source=best_source,
+            degraded=degraded,
         )
 
-    def _matcher(self, policy: StreamPolicy) -> Callable[[Plan], StreamRequest]:
+    def _matcher(self, policy: StreamPolicy) -> Callable[..., StreamRequest]:
         """How a monitor under `policy` matches: with its --max-delay and --best-source."""
-        return lambda plan: self.request(
-            plan, max_delay=policy.max_delay, best_source=policy.best_source
-        )
+
+        def matcher(plan: Plan, *, degraded: Aside = frozenset()) -> StreamRequest:
+            return self.request(
+                plan,
+                max_delay=policy.max_delay,
+                best_source=policy.best_source,
+                degraded=degraded,
+            )
+
+        return matcher
 
     def check_formula(
         self,

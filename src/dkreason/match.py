@@ -46,22 +46,33 @@ def wanted_rows(ground: list[GroundFeature]) -> list[tuple[int | str, ...]]:
     return [(q, g.iri, *padded(g.arg_iris)) for q, g in enumerate(ground)]
 
 
+Aside = frozenset[tuple[str, str]]
+"""The (platform, topic)s a monitor has set aside, their samples having stopped."""
+
+
 def given_rows(
-    ground: list[GroundFeature], max_delay: Fraction | None = None
+    ground: list[GroundFeature], max_delay: Fraction | None = None, degraded: Aside = frozenset()
 ) -> dict[str, list[tuple[int | str, ...]]]:
-    """What a formula tells the rules while they are asked: its ground features (`wanted`)
-    and the monitor's --max-delay in whole nanoseconds (`max_delay`), if any."""
-    given = {"wanted": wanted_rows(ground)}
+    """What a formula tells the rules while they are asked: its ground features (`wanted`),
+    the monitor's --max-delay in whole nanoseconds (`max_delay`), if any, and the sources it
+    has set aside (`degraded`), if any."""
+    given: dict[str, list[tuple[int | str, ...]]] = {"wanted": wanted_rows(ground)}
     if max_delay is not None:
         given["max_delay"] = [(round(max_delay * 10**9),)]
+    if degraded:
+        given["degraded"] = sorted(degraded)
     return given
 
 
 def match(
-    kb: KnowledgeBase, ground: list[GroundFeature], max_delay: Fraction | None = None
+    kb: KnowledgeBase,
+    ground: list[GroundFeature],
+    max_delay: Fraction | None = None,
+    degraded: Aside = frozenset(),
 ) -> tuple[list[Match], list[Rejected]]:
-    """`max_delay`: the monitor's (seconds), which a policy may veto slower topics by."""
-    given = given_rows(ground, max_delay)
+    """`max_delay`: the monitor's (seconds), which a policy may veto slower topics by;
+    `degraded`: the sources the monitor has set aside, which the policy may veto too."""
+    given = given_rows(ground, max_delay, degraded)
     if not given["wanted"]:
         return [], []
     engine = kb.engine

@@ -14,6 +14,7 @@ import functools
 import heapq
 import itertools
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from fractions import Fraction
 from operator import itemgetter
 from typing import Any, Protocol
@@ -33,11 +34,52 @@ from .progress.witness import Clock, Time, undecided
 from .stream.pace import paced
 from .stream.policy import StreamPolicy
 from .stream.processor import StreamProcessor, Violation
+from .stream.quality import Move
 from .stream.sources import Source
 from .stream.terms import term_key
 from .stream.units import NS, seconds
 
-Event = Verdict | Violation
+
+@dataclass(frozen=True, slots=True)
+class Rerouted:
+    """A feature read from other sources now: `source` (platform/topic) was set aside, its
+    samples having stopped, or taken back, a sample having come (thesis 8.2's adaptive
+    subscriptions); `before` and `after` are the feature's topics."""
+
+    time: float | int  # s, on the stream's clock, like a violation's
+    feature: FeatureKey
+    source: str
+    aside: bool
+    before: tuple[str, ...]
+    after: tuple[str, ...]
+    reason: str
+    t: float | int | None = None  # s from the start of the recording, exact
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"rerouted": str(self.feature), "time": self.time}
+        if self.t is not None:
+            out["t"] = self.t
+        return out | {
+            "source": self.source,
+            "change": "set_aside" if self.aside else "taken_back",
+            "before": list(self.before),
+            "after": list(self.after),
+            "reason": self.reason,
+        }
+
+    def __str__(self) -> str:
+        what = "set aside" if self.aside else "taken back"
+        return (
+            f"{self.feature}: {self.source} {what} ({self.reason}); read from "
+            f"{_topics(self.before)}, now from {_topics(self.after)}"
+        )
+
+
+def _topics(streams: tuple[str, ...]) -> str:
+    return " + ".join(streams) or "no topic"
+
+
+Event = Verdict | Violation | Rerouted
 WORDS: dict[bool | None, str] = {True: "held", False: "violated", None: "unknown"}
 """How a verdict is said, by the CLI, the plot and whatever shows a person one."""
 Watch = Callable[[int, dict[FeatureKey, Any], tuple[FeatureKey, ...] | None], None]
@@ -92,20 +134,31 @@ class Monitor:
     at it, its atoms over features without a value unknown there), at the instants its own
     features are sampled or change, and when the stream of its formula's features passes the
     end of a window it waits on.  Formulas over the same features share one progressor (the
-    instances of a quantified formula with bounded windows, only among themselves)."""
+    instances of a quantified formula with bounded windows, only among themselves).
+
+    A topic declaring a rate whose samples stop for `policy.set_aside_after` periods is set
+    aside (the rules are told `degraded(Platform, Topic)`) and taken back at its next sample:
+    the plan is matched again between messages, the instances judged on as they were, and
+    each feature whose topics changed is a `Rerouted` event."""
 
     def __init__(
         self,
         plan: Plan,
-        match: Callable[[Plan], StreamRequest],
+        match: Callable[..., StreamRequest],
         policy: StreamPolicy,
         *,
         keep_states: bool = False,
         robustness: bool = False,
         watch: Watch | None = None,
     ) -> None:
-        """`keep_states`: every state kept (`states`, for a plot); `watch`: told each one."""
+        """`match(plan)`: the stream request (with `degraded=` the sources set aside, once
+        one is: `KnowledgeManager.request`'s); `keep_states`: every state kept (`states`, for
+        a plot); `watch`: told each one."""
         self.plan, self.match, self.policy = plan, match, policy
+        self.aside: set[tuple[str, str]] = set()  # (platform, topic)s whose samples stopped
+        self.moved = False  # a source was set aside or taken back: match again (`events`)
+        # told the request after a source set aside or taken back (a live monitor follows it)
+        self.follow: Callable[[StreamRequest], list[Any]] | None = None
         self.watchers: list[Watch] = [self._keep] if keep_states else []
         if watch is not None:
             self.watchers.append(watch)
@@ -146,8 +199,9 @@ class Monitor:
             self._begin(list(self.waiting))
         self.seen = False  # a state was made
         self.states: list[tuple[int, dict[FeatureKey, Any]]] = []
-        self.pending: list[Event] = []
+        self.pending: list[Any] = []  # events, and sources set aside or taken back (Move)
         self.processor: StreamProcessor | None = None
+        self.source: Source | None = None
 
     def origin(self) -> int | None:
         """The start of the recording(s) (ns; None until known): `t` and `t+` count from it."""
@@ -157,6 +211,7 @@ class Monitor:
         """The stream processor over `source`, states going to the progressor; each feature's
         use in the formulas is checked against its fields' types before any message."""
         used = self._uses()
+        self.source = source
         self.processor = StreamProcessor(
             self.request,
             self.policy,
@@ -165,6 +220,7 @@ class Monitor:
             self.pending.append,
             frozenset(k for k, (use, _) in used.items() if use == "string"),
             self._terms(),
+            self._moved,
         )
         for k, (use, text) in used.items():
             for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
@@ -421,8 +477,50 @@ class Monitor:
         return all(j.said is not None and not j.open for j in self.judged)
 
     def events(self) -> list[Event]:
-        """What was decided or violated since the last call."""
+        """What was decided or violated since the last call, and the features read from
+        other sources since (a source set aside or taken back: matched again here, between
+        messages)."""
         out, self.pending[:] = list(self.pending), []
+        if self.moved:
+            self.moved = False
+            out = [e for event in out for e in self._rerouted(event)]
+        return out
+
+    def _moved(self, move: Move) -> None:
+        self.moved = True
+        self.pending.append(move)
+
+    def _rerouted(self, event: Any) -> list[Any]:
+        """A source set aside or taken back (else `event` as it is): the plan matched again
+        without it or with it; a line per feature whose topics changed (what a live monitor
+        following the request says after them)."""
+        if not isinstance(event, Move):
+            return [event]
+        assert self.source is not None
+        source = (event.platform, event.topic)
+        if event.aside:
+            self.aside.add(source)
+        else:
+            self.aside.discard(source)
+        before = _streams(self.request)
+        after = _streams(self.rematch(self.source))
+        origin = self.origin()
+        out: list[Any] = [
+            Rerouted(
+                seconds(event.time),
+                key,
+                f"{event.platform}/{event.topic}",
+                event.aside,
+                before.get(key, ()),
+                topics,
+                event.reason,
+                None if origin is None else seconds(event.time - origin),
+            )
+            for key, topics in after.items()
+            if topics != before.get(key, ())
+        ]
+        if self.follow is not None:
+            out += self.follow(self.request)
         return out
 
     def extend(self, plan: Plan) -> list[tuple[str, str]]:
@@ -458,7 +556,8 @@ class Monitor:
     def rematch(self, source: Source) -> StreamRequest:
         """The plan's features matched again (the knowledge changed); the streams follow."""
         assert self.processor is not None
-        self.request = self.match(self.plan)
+        aside = frozenset(self.aside)
+        self.request = self.match(self.plan, degraded=aside) if aside else self.match(self.plan)
         self._sources = None
         self.processor.texts = frozenset(
             k for k, (use, _) in self._uses().items() if use == "string"
@@ -622,6 +721,14 @@ class MonitorRun:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _streams(request: StreamRequest) -> dict[FeatureKey, tuple[str, ...]]:
+    """Each feature's topics, as `platform/topic`."""
+    return {
+        f.feature.key: tuple(dict.fromkeys(f"{t.platform}/{t.topic}" for t in f.topics))
+        for f in request.features
+    }
 
 
 def _joined(before: tuple[str, ...], now: tuple[str, ...]) -> tuple[str, ...]:

@@ -10,7 +10,7 @@ from fractions import Fraction
 
 from .inputs.numbers import decimal
 from .kb import KnowledgeBase
-from .match import Match, Rejected, match
+from .match import Aside, Match, Rejected, match
 from .model import (
     FeatureKey,
     FeatureRequest,
@@ -31,12 +31,13 @@ def request(
     *,
     max_delay: Fraction | None = None,
     best_source: bool = False,
+    degraded: Aside = frozenset(),
 ) -> StreamRequest:
     """The topics of every ground feature of the plan, matched in one query (`max_delay`:
     the monitor's, which the policy may veto topics by; `best_source`: each feature's first
-    topic only)."""
+    topic only; `degraded`: the sources a monitor set aside, which the policy vetoes)."""
     ground = list(plan.ground)
-    matches, rejected = match(kb, ground, max_delay)
+    matches, rejected = match(kb, ground, max_delay, degraded)
     made = build_request(
         kb, plan.text, ground, matches, rejected, plan.warnings, best_source=best_source
     )

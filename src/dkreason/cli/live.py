@@ -27,6 +27,7 @@ from ..monitor import Monitor, Watch
 from ..progress import Verdict
 from ..stream.binding import remaps
 from ..stream.policy import StreamPolicy
+from ..stream.processor import Violation
 from ..stream.sources import open_source
 from ..stream.typestore import load_typestore, msg_types
 from . import args as a
@@ -182,7 +183,7 @@ def _report(
                 continue
             if isinstance(event, Verdict):
                 verdicts.append(event)
-            else:
+            elif isinstance(event, Violation):
                 violations[event.constraint] += 1
             render.event(event, args.json)
     finally:

@@ -18,6 +18,7 @@ from ..progress.state import feature_uses
 from ..progress.statefile import read_states
 from ..stream.info import render as render_info
 from ..stream.policy import DEFAULT
+from ..stream.processor import Violation
 from . import live, render
 from .options import formulas, policy
 
@@ -104,7 +105,7 @@ def _monitored(args: argparse.Namespace, run: Any) -> int:
         except DkError as exc:
             error = exc
     verdicts = [e for e in events if isinstance(e, Verdict)]
-    violations = Counter(e.constraint for e in events if not isinstance(e, Verdict))
+    violations = Counter(e.constraint for e in events if isinstance(e, Violation))
     if not args.json:
         render.summary(verdicts, violations)
     if args.plot is not None and run.states:

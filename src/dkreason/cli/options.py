@@ -32,6 +32,7 @@ def policy(args: argparse.Namespace) -> StreamPolicy:
         "end_time": args.end,
         "max_delay": args.max_delay,
         "end_of_data": args.end_of_data,
+        "set_aside_after": args.set_aside_after,
     }
     chosen = {k: v for k, v in given.items() if v is not None}
     if chosen.get("max_age") == "inf":

@@ -318,6 +318,14 @@ def _policy(p: argparse.ArgumentParser) -> None:
     )
     _max_delay(pol)
     _best_source(pol)
+    pol.add_argument(
+        "--set-aside-after",
+        type=a.count,
+        metavar="N",
+        help="set aside a topic declaring a rate once its samples stop for N declared periods "
+        "(its features read from the other relevant topics until it sends again; "
+        f"default {DEFAULT.set_aside_after}, 0: never)",
+    )
     pol.add_argument("--ordered", action="store_true", help="samples must come in valid-time order")
     pol.add_argument("--unique", action="store_true", help="valid times must be unique")
     _end_of_data(pol)

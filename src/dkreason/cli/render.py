@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 from ..model import StreamRequest, ros_name
-from ..monitor import WORDS, Event
+from ..monitor import WORDS, Event, Rerouted
 from ..names import local_name
 from ..progress import InstanceVerdict, Verdict
 from ..stream.units import since
@@ -40,14 +40,16 @@ def shout(verdict: bool | None) -> str:
 
 
 def event(event: Event, as_json: bool) -> None:
-    """A verdict or violation; times as `t+…` from the start of the recording (and, on an
-    epoch clock, as ISO 8601 UTC)."""
+    """A verdict, violation or re-route; times as `t+…` from the start of the recording
+    (and, on an epoch clock, as ISO 8601 UTC)."""
     out = event.to_json()
     if as_json:
         print(json.dumps(out, ensure_ascii=False, default=str), flush=True)
         return
     when = _when(out.get("time"), event.t)
-    if isinstance(event, Verdict):
+    if isinstance(event, Rerouted):
+        print(f"rerouted at {when}: {event}", flush=True)
+    elif isinstance(event, Verdict):
         if event.update:  # the same verdict: more of its instances settled
             lines = [f"update (still {shout(event.verdict)}): {event.formula}"]
         else:

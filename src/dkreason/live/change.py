@@ -8,6 +8,7 @@ import datetime
 from dataclasses import dataclass
 from typing import Any
 
+from ..monitor import Rerouted
 from ..progress import Verdict
 from ..stream.processor import Violation
 from ..stream.units import seconds
@@ -55,7 +56,7 @@ class Change:
         return f"{when}: {what}" + (f" ({self.detail})" if self.detail else "")
 
 
-Event = Verdict | Violation | Change
+Event = Verdict | Violation | Rerouted | Change
 
 
 def change(

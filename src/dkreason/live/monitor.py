@@ -234,6 +234,7 @@ class LiveMonitor:
             self.km.plan(self.formulas), self.km.request, self.policy, watch=self.watch
         )
         processor = self.processor = monitor.start(self.source)
+        monitor.follow = self._follow
         self.read = dict_reader(self.source.name, processor.wanted)
         yield from self._subscribe(monitor.request, None, "")
         yield from monitor.events()
@@ -437,17 +438,29 @@ class LiveMonitor:
             *(change("instance", now, p, formula, feature=name) for formula, name in started),
         ]
 
+    def _follow(self, request: StreamRequest) -> list[Event]:
+        """The monitor set a source aside or took one back: the subscriptions follow (one set
+        aside stays subscribed, so its return is seen)."""
+        assert self.processor is not None
+        self.read = dict_reader(self.source.name, self.processor.wanted)
+        return self._subscribe(request, None, "a source set aside or taken back")
+
     def _subscribe(self, request: StreamRequest, p: str | None, why: str) -> list[Event]:
-        processor = self.processor
-        assert processor is not None  # called once started
+        processor, monitor = self.processor, self.monitor
+        assert processor is not None and monitor is not None  # called once started
+        # a topic set aside is subscribed while its platform is there, so its return is seen
+        # (a clock gone with its platform would hold the stream back)
+        aside = [pt for pt in sorted(monitor.aside) if pt[0] in self.present]
         now = self.watermark()
         before = self.topics
         self.topics = {
             f.feature.key: {(t.platform, t.topic) for t in f.topics} for f in request.features
         }
         changes: list[Event] = []
-        wanted = {pt: key for key, pts in self.topics.items() for pt in pts}
-        for (q, t), key in sorted(wanted.items()):
+        wanted = dict.fromkeys(aside, "") | {
+            pt: str(key) for key, pts in self.topics.items() for pt in pts
+        }
+        for (q, t), feature in sorted(wanted.items()):
             if (q, t) not in self.subs:
                 self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
@@ -463,7 +476,7 @@ class LiveMonitor:
                         )
                     ),
                 )
-                changes.append(change("subscribed", now, q, feature=str(key), topic=t))
+                changes.append(change("subscribed", now, q, feature=feature, topic=t))
         for q, t in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()
             self.clocks.pop((q, t), None)

@@ -9,6 +9,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..model import FeatureKey
+from ..monitor import Rerouted
 from ..progress import Verdict
 from ..stream.processor import Violation
 from .ros2node import Ros2Node
@@ -24,8 +25,9 @@ def cdr_string(text: str) -> bytes:
 
 class Announcer:
     """Verdicts and violations back onto the network: JSON on `dkreason/verdicts/<formula
-    id>` (`f1`, `f2`, … in the order the formulas were given), a violation on the id of each
-    formula reading its feature (`violations` when none does), and with `ros2` the same JSON
+    id>` (`f1`, `f2`, … in the order the formulas were given), a violation or a re-route (a
+    source set aside or taken back) on the id of each formula reading its feature
+    (`violations` when none does), and with `ros2` the same JSON
     once as std_msgs/msg/String on the ROS 2 topic `/dkreason/verdicts`."""
 
     def __init__(
@@ -46,7 +48,7 @@ class Announcer:
         self.node = Ros2Node(session, "dkreason_monitor", "/", domain) if ros2 else None
         self.topic = self.node.publisher(VERDICTS, "std_msgs/msg/String") if self.node else None
 
-    def _ids(self, event: Verdict | Violation) -> list[str]:
+    def _ids(self, event: Verdict | Violation | Rerouted) -> list[str]:
         if isinstance(event, Verdict):
             return [self.ids.get(event.formula, "other")]
         ids = self.readers.get(event.feature)
@@ -56,7 +58,7 @@ class Announcer:
         return ids or ["violations"]
 
     def __call__(self, event: Any) -> None:
-        if not isinstance(event, Verdict | Violation):
+        if not isinstance(event, Verdict | Violation | Rerouted):
             return
         ids = self._ids(event)
         for fid in ids:

@@ -47,6 +47,9 @@ class StreamPolicy:
     # each feature read from its best-ranked topic only (the policy's rank: by declared
     # quality), not from the merge of every relevant topic (the thesis')
     best_source: bool
+    # a topic declaring a rate whose samples stop for more than this many declared periods
+    # is set aside (its features matched again without it) until it sends again; 0: never
+    set_aside_after: int
 
     def __init__(
         self,
@@ -64,6 +67,7 @@ class StreamPolicy:
         span_from_start: bool = False,
         end_of_data: Literal["open", "finite"] = "open",
         best_source: bool = False,
+        set_aside_after: int = 3,
     ) -> None:
         if approximation not in APPROXIMATIONS:
             raise DkError(
@@ -73,6 +77,11 @@ class StreamPolicy:
         if end_of_data not in END_OF_DATA:
             raise DkError(
                 f"StreamPolicy end_of_data: {end_of_data!r} is not one of {', '.join(END_OF_DATA)}"
+            )
+        if type(set_aside_after) is not int or set_aside_after < 0:
+            raise DkError(
+                f"StreamPolicy set_aside_after must be a whole number of periods, 0 or more, "
+                f"not {set_aside_after!r}"
             )
         period = _optional(sample_period, "sample_period")
         if period == 0:
@@ -118,6 +127,7 @@ class StreamPolicy:
             "max_delay": _optional(max_delay, "max_delay"),
             **flags,
             "end_of_data": end_of_data,
+            "set_aside_after": set_aside_after,
         }
         for name, value in fields.items():
             object.__setattr__(self, name, value)

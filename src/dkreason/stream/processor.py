@@ -49,7 +49,7 @@ from ..errors import DkError
 from ..inputs.numbers import datum
 from ..model import FeatureKey, StreamRequest
 from .policy import StreamPolicy
-from .quality import Found, QualityWatch
+from .quality import Found, Move, QualityWatch
 from .sources import Message, Source
 from .terms import term_key, term_value
 from .units import NS, seconds
@@ -139,13 +139,15 @@ class StreamProcessor:
         on_violation: Callable[[Violation], None],
         texts: frozenset[FeatureKey] = frozenset(),
         terms: Iterable[tuple[str, FeatureKey]] = (),
+        moved: Callable[[Move], None] | None = None,
     ) -> None:
         """`on_state(time, values, fresh)` gets each state: `values` is read during the call
         only (on every change it is the processor's own dict, changed in place for the next
         state: a state costs what changed).  `texts`: the features the formulas compare with
         strings (their values are kept as strings; any other feature's value must be a number
         or boolean).  `terms`: the terms over samples (`("rate", Yaw[r1])`) the formulas read,
-        each a value of the states (stream.terms)."""
+        each a value of the states (stream.terms).  `moved`: told when a topic declaring a
+        rate is set aside or taken back (quality.py; the caller matches again)."""
         self.texts = texts
         self.policy = policy
         self.source = source
@@ -200,7 +202,8 @@ class StreamProcessor:
         self.last_seen: int | None = None
         self.read = 0  # messages replayed on the relevant topics
         self.wanted: dict[str, list[str]] = {}  # recording topic → fields its messages give
-        self.quality = QualityWatch()  # the topics that declare their rate or delay
+        # the topics that declare their rate or delay
+        self.quality = QualityWatch(policy.set_aside_after, moved)
         for f in request.features:
             self._feature(f.feature.key)
         self.terms: dict[FeatureKey, tuple[str, int]] = {}
@@ -255,21 +258,36 @@ class StreamProcessor:
         return self.first_taken if known is None else known
 
     def reroute(self, request: StreamRequest, source: Source) -> None:
-        """New topics for the features (a live federation changed), and new features (objects
-        joined a sort a formula ranges over): what each feature has seen so far stays."""
+        """New topics for the features (a live federation changed, a source was set aside),
+        and new features (objects joined a sort a formula ranges over): what each feature has
+        seen so far stays.  Changed in place, so a replay under way reads on (a topic keeps
+        its fields' places); a topic set aside is still read, feeding nothing, so its return
+        is seen."""
         keys = [f.feature.key for f in request.features]
         if set(self.keys) - set(keys):
             raise DkError("a new route must keep the features of the stream request")
         for key in keys:
             if key not in self.position:
                 self._feature(key)
-        self.groups, self.wanted, self.source = {}, {}, source
-        self._route(request, source)
+        before = {topic: fields_ for topic, fields_ in self.wanted.items()}
+        self.groups.clear()
+        self.wanted.clear()
+        self.source = source
+        self._route(request, source, before)
+        for topic in self.quality.aside():
+            if topic in before:
+                self.wanted.setdefault(topic, before[topic])
+                self.groups.setdefault(topic, [])
 
     # ---- set-up: which recording topic feeds which feature, checked before replay -------
 
-    def _route(self, request: StreamRequest, source: Source) -> None:
+    def _route(
+        self, request: StreamRequest, source: Source, before: dict[str, list[str]] | None = None
+    ) -> None:
+        """`before`: each topic's fields as read so far, kept in their places."""
         from .binding import message_type_fits, recording_names
+
+        before = before or {}
 
         types = source.types()
         namespaces = dict(request.namespaces)
@@ -304,7 +322,9 @@ class StreamProcessor:
                 stream = f"{m.platform}/{m.topic}"
                 ids = tuple(k for k, _ in m.filter)
                 for name in present[:1] if types else present:
-                    self.quality.declare(name, f.feature.key, stream, m.rate, m.delay)
+                    if name in before and name not in self.wanted:
+                        self.wanted[name] = list(before[name])
+                    self.quality.declare(name, f.feature.key, m.platform, m.topic, m.rate, m.delay)
                     route = _Route(
                         q,
                         itemgetter(self._position(name, m.field)),

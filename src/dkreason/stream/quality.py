@@ -9,15 +9,17 @@ a stream-constraint violation like those of thesis listing 5.2.
   delay (topics without stamps have none).
 
 Each kind is said at most once per REPORT_EVERY of record time and topic, so a degraded source
-is a line now and then, not one per message.  `observe` measures what a recording's topic runs
-at, for `dkreason info --timing`.
+is a line now and then, not one per message.  A topic with a declared rate that sends nothing
+for more than `set_aside_after` declared periods is set aside (a `Move` told to the monitor,
+which matches its features again without it) and taken back at its next sample.  `observe`
+measures what a recording's topic runs at, for `dkreason info --timing`.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -33,9 +35,23 @@ REPORT_EVERY = NS  # a topic's violations of one kind: at most one a second (rec
 Found = tuple[str, FeatureKey, str, int, str]  # kind, feature, stream, time (ns), detail
 
 
+@dataclass(frozen=True, slots=True)
+class Move:
+    """A source set aside (`aside`: its samples stopped) or taken back (a sample came), at
+    `time` (ns, record time), with the reason in words."""
+
+    platform: str
+    topic: str  # as its spec names it
+    aside: bool
+    time: int
+    reason: str
+
+
 @dataclass(slots=True)
 class _Watched:
     feature: FeatureKey  # the first feature the topic feeds (a violation names one)
+    platform: str
+    topic: str  # as its spec names it
     stream: str  # platform/topic, as violations name it
     rate: Fraction | None
     delay: int | None  # ns
@@ -43,33 +59,52 @@ class _Watched:
     arrivals: deque[int] = field(default_factory=deque)
     first: int | None = None
     quiet: dict[str, int] = field(default_factory=dict)  # kind → said again from then on
+    aside: bool = False
 
 
 class QualityWatch:
-    """The recording topics whose specs declare their quality, and what they broke."""
+    """The recording topics whose specs declare their quality, what they broke, and which
+    are set aside (`moved` is told each change)."""
 
-    def __init__(self) -> None:
+    def __init__(
+        self, set_aside_after: int = 0, moved: Callable[[Move], None] | None = None
+    ) -> None:
+        """`set_aside_after`: declared periods without a sample before a topic is set aside
+        (0: never)."""
         self.topics: dict[str, _Watched] = {}
+        self.set_aside_after, self.moved = set_aside_after, moved
 
     def declare(
         self,
         topic: str,
         feature: FeatureKey,
-        stream: str,
+        platform: str,
+        spec_topic: str,
         rate: Fraction | None,
         delay: Fraction | None,
     ) -> None:
-        """Watch recording topic `topic` (once, however many features it feeds)."""
+        """Watch recording topic `topic` (once, however many features it feeds; it stays
+        watched when it is set aside, so its return is seen)."""
         if topic in self.topics or (rate is None and delay is None):
             return
         window = round(RATE_WINDOW * NS / rate) if rate else 0
         ns = None if delay is None else round(delay * NS)
-        self.topics[topic] = _Watched(feature, stream, rate, ns, window)
+        stream = f"{platform}/{spec_topic}"
+        self.topics[topic] = _Watched(feature, platform, spec_topic, stream, rate, ns, window)
+
+    def aside(self) -> list[str]:
+        """The recording topics set aside now."""
+        return [name for name, w in self.topics.items() if w.aside]
 
     def sample(self, topic: str, available: int, valid: int) -> list[Found]:
-        """A message of a watched topic: its delay, and the rate over the window it ends."""
+        """A message of a watched topic: its delay, and the rate over the window it ends (a
+        topic set aside is taken back)."""
         w = self.topics[topic]
         out = []
+        if w.aside:
+            w.aside = False
+            gap = seconds_text(available - w.arrivals[-1])
+            self._move(w, False, available, f"a sample came after {gap} s without one")
         if w.delay is not None and available - valid > w.delay:
             lag = seconds_text(available - valid)
             declared = seconds_text(w.delay)
@@ -94,18 +129,36 @@ class QualityWatch:
         return out
 
     def silent(self, now: int) -> list[Found]:
-        """Topics with a declared rate that have sent nothing for a window by `now`."""
+        """Topics with a declared rate that have sent nothing for a window by `now`; those
+        silent for more than `set_aside_after` declared periods are set aside."""
         out = []
+        after = self.set_aside_after
         for w in self.topics.values():
-            if w.rate is not None and w.arrivals and now - w.arrivals[-1] > w.window:
-                gap = seconds_text(now - w.arrivals[-1])
+            if w.rate is None or not w.arrivals:
+                continue
+            quiet = now - w.arrivals[-1]
+            if after and not w.aside and quiet * w.rate > after * NS:
+                w.aside = True
+                self._move(
+                    w,
+                    True,
+                    now,
+                    f"no sample for {seconds_text(quiet)} s, over {after} periods of the "
+                    f"declared {decimal(w.rate)} Hz",
+                )
+            if quiet > w.window:
                 out += self._say(
                     w,
                     "declared_rate",
                     now,
-                    f"no sample for {gap} s, below the declared {decimal(w.rate)} Hz",
+                    f"no sample for {seconds_text(quiet)} s, below the declared "
+                    f"{decimal(w.rate)} Hz",
                 )
         return out
+
+    def _move(self, w: _Watched, aside: bool, at: int, reason: str) -> None:
+        if self.moved is not None:
+            self.moved(Move(w.platform, w.topic, aside, at, reason))
 
     def _say(self, w: _Watched, kind: str, at: int, detail: str) -> list[Found]:
         if at < w.quiet.get(kind, at):
