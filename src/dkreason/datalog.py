@@ -111,6 +111,10 @@ class Datalog:
         # relations empty for want of facts (no input rows, an empty view, nothing to derive
         # them from): a rule that needs one holds nowhere, a negation of one always holds
         self._void: frozenset[str] = frozenset()
+        # given relations without rows now (`degraded` while nothing is set aside): a rule
+        # needing one is asked with it, but a negation of one holds, so it is left out
+        self._bare: frozenset[str] = frozenset()
+        self._negated_given: set[str] = set()  # the given relations a rule negates (watched)
         self._void_key: tuple[bool, ...] | None = None
 
     def _activate(self) -> None:
@@ -133,6 +137,12 @@ class Datalog:
         rules = [rule for f in files for rule in f.rules]
         self.rules += rules
         self.modes = Modes(self.schema, self.rules)
+        self._negated_given = {
+            b.predicate
+            for rule in self.rules
+            for b in rule.body
+            if isinstance(b, Literal) and b.negated and self.schema[b.predicate].kind == "given"
+        }
         facts = [fact for f in files for fact in f.facts]
         self.texts += [f.text for f in files] + [repr([(x.predicate, x.row) for x in facts])]
         self._activate()
@@ -165,13 +175,13 @@ class Datalog:
         frozen view's): without its negations of relations that are empty."""
         from pyDatalog import pyEngine
 
-        void = self._void
+        void, bare = self._void, self._bare
         pruned = [
             b.predicate
             for b in rule.body
             if isinstance(b, Literal)
             and b.negated
-            and (self._empty(b.predicate) or b.predicate in void)
+            and (self._empty(b.predicate) or b.predicate in void or b.predicate in bare)
         ]
         clause = _clause(rule, pruned)
         old = self._clauses.get(rule)
@@ -200,7 +210,11 @@ class Datalog:
         from pyDatalog import Logic
 
         db = Logic.tl.logic.Db
-        watched = [r for r in self.schema.values() if r.kind == "input" or r.name in self._frozen]
+        watched = [
+            r
+            for r in self.schema.values()
+            if r.kind == "input" or r.name in self._frozen or r.name in self._negated_given
+        ]
         key = tuple(
             (pred := db.get(f"{r.name}/{r.arity}")) is not None and len(pred.db) > len(pred.clauses)
             for r in watched
@@ -225,7 +239,11 @@ class Datalog:
                     live.add(head)
                     grown = True
         void = frozenset(self.schema) - live
-        changed, self._void = void ^ self._void, void
+        bare = frozenset(
+            r.name for r, rows in zip(watched, key, strict=True) if r.kind == "given" and not rows
+        )
+        changed = (void ^ self._void) | (bare ^ self._bare)
+        self._void, self._bare = void, bare
         for rule in self.rules:
             if any(isinstance(b, Literal) and b.predicate in changed for b in rule.body):
                 self._assert(rule)
