@@ -13,6 +13,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from decimal import Decimal
 from fractions import Fraction
@@ -169,6 +170,39 @@ def untimed(verdict: dict[str, Any]) -> dict[str, Any]:
     if "instances" in out:
         out["instances"] = [clocked(i) for i in out["instances"]]
     return out
+
+
+@contextmanager
+def platform1_live(scenario: Path, formulas: list[str]) -> Iterator[tuple[Any, Any, list[Any]]]:
+    """Platform 1 of the scenario as a node and a live monitor of `formulas` on platform 1's
+    vocabulary, over loopback Zenoh (node, monitor, [the monitor's, the node's session]);
+    closed on leaving."""
+    from dkreason.live.monitor import LiveMonitor
+    from dkreason.live.serve import PlatformNode
+    from dkreason.live.session import open_session
+    from dkreason.stream.policy import StreamPolicy
+
+    (scenario / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
+    (scenario / "p1.toml").write_text(
+        '[platforms.platform1]\nontology = "ontologies/platform1.owl"\n'
+        'specs = "specs/platform1.sslt"\n'
+    )
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    sessions = [open_session([], [endpoint]), open_session([endpoint], [])]
+    node = PlatformNode(KnowledgeManager.from_config(scenario / "p1.toml"), sessions[1])
+    monitor = LiveMonitor(
+        KnowledgeManager.from_config(scenario / "monitor.toml", live=True),
+        formulas,
+        StreamPolicy(),
+        sessions[0],
+        wait=10,
+    )
+    try:
+        yield node, monitor, sessions
+    finally:
+        node.close()
+        for session in sessions:
+            session.close()
 
 
 def heard(publisher: Any, timeout: float = 30.0) -> Any:
@@ -790,27 +824,7 @@ def test_an_object_joining_the_live_federation_is_monitored_from_its_arrival(
     of `forall x in UAV` is judged from then on, and reports its violation; uav1's and
     uav2's instances go on as they were."""
     from dkreason.live.change import Change
-    from dkreason.live.monitor import LiveMonitor
-    from dkreason.live.serve import PlatformNode
-    from dkreason.live.session import open_session
     from dkreason.progress import Verdict
-    from dkreason.stream.policy import StreamPolicy
-
-    (scenario / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
-    (scenario / "p1.toml").write_text(
-        '[platforms.platform1]\nontology = "ontologies/platform1.owl"\n'
-        'specs = "specs/platform1.sslt"\n'
-    )
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    sessions = [open_session([], [endpoint]), open_session([endpoint], [])]
-    node = PlatformNode(KnowledgeManager.from_config(scenario / "p1.toml"), sessions[1])
-    monitor = LiveMonitor(
-        KnowledgeManager.from_config(scenario / "monitor.toml", live=True),
-        [ALTITUDE],
-        StreamPolicy(),
-        sessions[0],
-        wait=10,
-    )
 
     def altitudes(second: float, **alt: float) -> None:
         for uav, value in alt.items():
@@ -818,7 +832,7 @@ def test_an_object_joining_the_live_federation_is_monitored_from_its_arrival(
             node.publish("topic2", {"id": int(uav[-1]), "alt": value}, t, t)
 
     events: list[Any] = []
-    try:
+    with platform1_live(scenario, [ALTITUDE]) as (node, monitor, sessions):
         for event in monitor.run(duration=30):
             events.append(event)
             if isinstance(event, Change) and (event.event, event.topic) == (
@@ -834,10 +848,6 @@ def test_an_object_joining_the_live_federation_is_monitored_from_its_arrival(
                 altitudes(3, uav1=100.0)
             elif isinstance(event, Verdict) and not event.update:
                 monitor.stop.set()
-    finally:
-        node.close()
-        for session in sessions:
-            session.close()
     (joined,) = [e for e in events if isinstance(e, Change) and e.event == "instance"]
     assert (joined.feature, joined.detail) == ("x = uav3", ALTITUDE)
     verdict, *_ = [e for e in events if isinstance(e, Verdict)]
@@ -1404,31 +1414,12 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
     before it; the verdict is never restarted."""
     from dkreason.live import wire
     from dkreason.live.change import Change
-    from dkreason.live.monitor import LiveMonitor
-    from dkreason.live.serve import PlatformNode
-    from dkreason.live.session import open_session
     from dkreason.monitor import Rerouted
     from dkreason.progress import Verdict
-    from dkreason.stream.policy import StreamPolicy
 
     from .test_quality import TEN_HZ, declare
 
     declare(scenario, *TEN_HZ)
-    (scenario / "monitor.toml").write_text('local = "platform1"\n[platforms.platform1]\n')
-    (scenario / "p1.toml").write_text(
-        '[platforms.platform1]\nontology = "ontologies/platform1.owl"\n'
-        'specs = "specs/platform1.sslt"\n'
-    )
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    sessions = [open_session([], [endpoint]), open_session([endpoint], [])]
-    node = PlatformNode(KnowledgeManager.from_config(scenario / "p1.toml"), sessions[1])
-    monitor = LiveMonitor(
-        KnowledgeManager.from_config(scenario / "monitor.toml", live=True),
-        ["always (Altitude[uav1] > 1)"],
-        StreamPolicy(),
-        sessions[0],
-        wait=10,
-    )
 
     def send(topics: tuple[str, ...], tick: tuple[str, ...], tenths: range) -> None:
         for n in tenths:
@@ -1440,7 +1431,7 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
 
     subscribed: set[str] = set()
     events: list[Any] = []
-    try:
+    with platform1_live(scenario, ["always (Altitude[uav1] > 1)"]) as (node, monitor, sessions):
         for event in monitor.run(duration=30):
             events.append(event)
             if isinstance(event, Change) and event.event == "subscribed":
@@ -1455,10 +1446,6 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
                 send(("topic1", "topic2"), (), range(21, 26))
             elif isinstance(event, Rerouted):
                 monitor.stop.set()
-    finally:
-        node.close()
-        for session in sessions:
-            session.close()
     moves = [e for e in events if isinstance(e, Rerouted)]
     both, two = ("platform1/topic1", "platform1/topic2"), ("platform1/topic2",)
     assert [(m.source, m.aside, m.before, m.after) for m in moves] == [
