@@ -105,8 +105,9 @@ def main() -> None:
     if target.exists():
         print(f"{target} exists; remove it to record again")
         return
-    write_recording(target, "mcap", TYPES, messages())
-    print(f"wrote {target} ({len(messages())} messages)")
+    rows = messages()
+    write_recording(target, "mcap", TYPES, rows)
+    print(f"wrote {target} ({len(rows)} messages)")
 
 
 if __name__ == "__main__":
