@@ -14,16 +14,18 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .expand import Binder
 from .model import FeatureKey
 from .plan import Bindings, FormulaPlan, fold
 from .progress import InstanceVerdict, UnknownSpan, Verdict
-from .progress.robustness import UNKNOWN, Rho, lower, upper
 from .progress.verdict import INF, Margin
 from .progress.witness import SHOWN, UNDECIDED
 from .stream.units import seconds
+
+if TYPE_CHECKING:  # robustness (numpy) is loaded when asked for
+    from .progress.robustness import Rho
 
 PENDING: Any = "pending"  # an instance not settled yet: may still be anything
 STATUS = {True: "held", False: "violated", None: "unknown"}
@@ -111,6 +113,7 @@ class Judged:
         upper take it."""
         if not any(v.robustness is not None for v in self.settled.values()):
             return None
+        from .progress.robustness import UNKNOWN, lower, upper
 
         def leaf(bindings: Bindings) -> Rho:
             v = self.settled.get(self.index[bindings])

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from operator import itemgetter
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from .errors import DkError
 from .expand import Instance
@@ -27,8 +27,6 @@ from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
 from .progress.compile import scaled
-from .progress.kept import Kept
-from .progress.robustness import UNKNOWN, margin
 from .progress.state import USE, feature_uses, features, terms
 from .progress.witness import Clock, Time, undecided
 from .stream.pace import paced
@@ -38,6 +36,9 @@ from .stream.quality import Move
 from .stream.sources import Source
 from .stream.terms import term_key
 from .stream.units import NS, seconds
+
+if TYPE_CHECKING:  # robustness (numpy) is loaded when asked for: `match` needs none of it
+    from .progress.kept import Kept
 
 
 @dataclass(frozen=True, slots=True)
@@ -116,7 +117,7 @@ class _Group:
         self.progressor: Progressor
         # with robustness: the states it was judged at that a margin may still read, with
         # what its formulas read
-        self.kept = Kept()
+        self.kept: Kept | None = None
         self.reads: set[FeatureKey] = set()
 
 
@@ -286,6 +287,10 @@ class Monitor:
             self.units[name] = unit
             group.progressor.add(name, instance.tree)
             if self.robust:
+                if group.kept is None:
+                    from .progress.kept import Kept
+
+                    group.kept = Kept()
                 group.reads.update(features(instance.tree))
                 group.kept.add(name, scaled(instance.tree, Fraction(NS)))
                 self.begun[name] = group
@@ -354,7 +359,8 @@ class Monitor:
             steps = self.steps[fresh] = [g.progressor for g in self._due(fresh)]
         if self.robust:
             for g in self._due(fresh):
-                g.kept.append(time, {k: values[k] for k in g.reads})
+                if g.kept is not None:  # a group of robust formulas' instances
+                    g.kept.append(time, {k: values[k] for k in g.reads})
         decided: Sequence[Verdict] = self._timers(fresh, time, steps) if self.timers else ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
@@ -420,6 +426,8 @@ class Monitor:
         """An instance's robustness over the states it was judged at, up to its verdict's;
         a window reaching past the data seen then (or past the end of the data, unless every
         window closes at the last state) unknown in its unseen part."""
+        from .progress.robustness import UNKNOWN, margin
+
         group = self.begun.pop(v.formula, None)
         if group is None:
             return UNKNOWN  # never observed
@@ -427,6 +435,7 @@ class Monitor:
         if at_end:
             assert self.processor is not None
             end = self.processor.horizon() if self.policy.end_of_data == "open" else None
+        assert group.kept is not None
         found = group.kept.margin(v.formula, upto, end)
         return margin(found, Clock(Fraction(1, NS), self.origin), self.sources(), seconds)
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Iterable, Mapping
 from fractions import Fraction
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import DkError
 from ..inputs.numbers import exact
@@ -47,11 +47,12 @@ from .compile import scaled
 from .engine import Engine, Held, Report, Stepper, Timer
 from .fused import FusedSet
 from .general import General
-from .kept import Kept
-from .robustness import margin
 from .state import base_features, features, is_state, terms
 from .verdict import Margin, UnknownSpan, Verdict
 from .witness import Clock, Time, Why, cut_of, refuted, since, undecided
+
+if TYPE_CHECKING:  # robustness (numpy) is loaded when asked for
+    from .kept import Kept
 
 ENGINES = ("auto", "general")
 
@@ -168,7 +169,11 @@ class Progressor:
         self.keys: set[FeatureKey] = set()  # what `step` reads from the caller's states
         self.samples = Samples(unit)  # the terms over samples `step` writes into them
         # robustness: the states `step` was given that a formula's margin may still read
-        self.kept = Kept() if robustness else None
+        self.kept: Kept | None = None
+        if robustness:
+            from .kept import Kept
+
+            self.kept = Kept()
         # what `step` does with a state besides judging it (one test a state when nothing)
         self.keeping: Callable[[Time, dict[FeatureKey, Any]], None] | None = (
             None if self.kept is None else self.kept.append
@@ -361,6 +366,8 @@ class Progressor:
         """A formula's robustness over the states from its first to its verdict's; a window
         reaching past the data then seen (at the end: past its end, with end of data "open")
         unknown in its unseen part."""
+        from .robustness import margin
+
         assert self.kept is not None
         upto = end = None if time is None else exact_time(time)
         if at_end and self.end_of_data != "open":
