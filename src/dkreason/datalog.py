@@ -213,7 +213,7 @@ class Datalog:
         watched = [
             r
             for r in self.schema.values()
-            if r.kind == "input" or r.name in self._frozen or r.name in self._negated_given
+            if r.kind in ("input", "given") or r.name in self._frozen
         ]
         key = tuple(
             (pred := db.get(f"{r.name}/{r.arity}")) is not None and len(pred.db) > len(pred.clauses)
@@ -223,7 +223,6 @@ class Datalog:
             return
         self._void_key = key
         live = {r.name for r, rows in zip(watched, key, strict=True) if rows}
-        live |= {r.name for r in self.schema.values() if r.kind == "given"}
         live |= {t[0] for t in self.told if isinstance(t[0], str)}
         rules = [r for r in self.rules if r.head.predicate not in self._frozen]
         grown = True
@@ -340,6 +339,13 @@ class Datalog:
         they go in (each view's rows are then held once, by the engine)."""
         for name in list(views):
             self._freeze(name, views.pop(name))
+
+    def rows(self, name: str) -> list[Row]:
+        """Every row of a relation: a materialized view's read back as stored, anything else
+        (a thawed view too) asked."""
+        if name in self._frozen:
+            return self._rows(name)
+        return self.query(name, *[None] * self.schema[name].arity)
 
     def frozen(self) -> dict[str, list[Row]]:
         """The rows of every materialized view."""

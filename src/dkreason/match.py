@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from fractions import Fraction
 
 from .errors import DkError, MissingIdError, Span
@@ -79,7 +79,7 @@ def match(
     relation = engine.schema["match_result"]
     with engine.given(given):
         rows = engine.query("match_result", *[None] * relation.arity)
-    matches, rejected, ranks = [], [], []
+    answers, rejected, ranks = [], [], _ranks(engine.rows("topic_rank"))
     for row in rows:
         c = relation.row(row)
         q = int(c["Query"])
@@ -90,9 +90,9 @@ def match(
             k = int(c["K"])
             _check_answer(kb, ground[q], platform, what, k)
             ids = tuple(c[f"Filter{i}"] for i in range(1, n + 1))
-            matches.append(Match(q, platform, what, k, objects, ids))
+            answers.append((q, platform, what, k, objects, ids))
         elif c["Answer"] == "rank":  # the rank hook, K the rank
-            ranks.append((q, platform, what, c["K"]))
+            _rank(ranks, (q, platform, what), c["K"])
         elif c["Answer"] == "rejected":
             rejected.append(Rejected(q, platform, what, objects))
         else:
@@ -102,23 +102,35 @@ def match(
                 f"{what} filters on {c['Filter1']}",
                 Span(kb.platforms[platform].ontology.file),
             )
-    if ranks:
-        ranked = _ranks(ranks)
-        matches = [replace(m, rank=ranked.get((m.query, m.platform, m.topic), 0)) for m in matches]
-    return matches, rejected
+    if not ranks:
+        return [Match(*a) for a in answers], rejected
+    return [
+        Match(q, p, t, k, objects, ids, _ranked(ranks, q, p, t))
+        for q, p, t, k, objects, ids in answers
+    ], rejected
+
+
+def _ranked(ranks: dict[tuple[Value, ...], int], q: int, platform: str, topic: str) -> int:
+    """The smaller of the formula's rank of a topic and the topic's own; 0 without either."""
+    mine, own = ranks.get((q, platform, topic)), ranks.get((platform, topic))
+    return min(mine, own) if mine is not None and own is not None else mine or own or 0
 
 
 def _ranks(rows: Sequence[tuple[Value, ...]]) -> dict[tuple[Value, ...], int]:
-    """rank(Q, Platform, Topic, Rank) rows: each topic's smallest rank."""
+    """topic_rank(Platform, Topic, Rank) rows: each topic's smallest rank."""
     out: dict[tuple[Value, ...], int] = {}
-    for q, platform, topic, rank in rows:
-        if type(rank) is not int:
-            raise DkError(
-                f"the policy ranks topic {topic} on {platform} with {rank!r}, not a whole number"
-            )
-        key = (q, platform, topic)
-        out[key] = min(rank, out.get(key, rank))
+    for platform, topic, rank in rows:
+        _rank(out, (platform, topic), rank)
     return out
+
+
+def _rank(ranks: dict[tuple[Value, ...], int], key: tuple[Value, ...], rank: Value) -> None:
+    """A rank row (rank's or topic_rank's) for `key`: the smallest a topic gets wins."""
+    if type(rank) is not int:
+        raise DkError(
+            f"the policy ranks topic {key[-1]} on {key[-2]} with {rank!r}, not a whole number"
+        )
+    ranks[key] = min(rank, ranks.get(key, rank))
 
 
 def _check_answer(kb: KnowledgeBase, g: GroundFeature, platform: str, topic: str, k: int) -> None:

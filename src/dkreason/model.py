@@ -258,8 +258,9 @@ class TopicMatch:
     filter: tuple[tuple[str, IdValue], ...]
     as_feature: str
     as_args: tuple[str, ...]
-    rate: Fraction | None = None  # the topic's declared quality (TopicSpec's), if any
-    delay: Fraction | None = None
+    # the topic's declared quality (TopicSpec's), if any: the topic's, so not part of its key
+    rate: Fraction | None = field(default=None, compare=False)
+    delay: Fraction | None = field(default=None, compare=False)
 
     def to_json(self, local: str, namespace: str | None = None) -> dict[str, object]:
         """`namespace`: the platform's, which gives the topic its ROS name (`ros_name`)."""

@@ -43,17 +43,18 @@ def _declared(kb: KnowledgeBase, m: Match) -> tuple[str, ...]:
 
 
 def _ranked(replay: Replayer, m: Match) -> tuple[str, ...]:
-    """The policy's rank of a topic it ranks (its match_result 'rank' row), the rule that
-    ranks it and the declared properties it ranks by."""
+    """The policy's rank of a topic it ranks (its rank hook's match_result 'rank' row, else
+    its topic_rank row), the rule that ranks it and the declared properties it ranks by."""
     if not m.rank:
         return ()
-    row = ("match_result", m.query, "rank", m.platform, m.topic, m.rank, *("",) * 6)
-    answer = replay.prove(row)
-    # the step that ranks it (rank, or the shipped quality_rank), not the answer's routing
+    answer = replay.prove(
+        ("match_result", m.query, "rank", m.platform, m.topic, m.rank, *("",) * 6)
+    )
+    # the step that ranks it (rank), not the answer's routing
     proof = (
         next((c for c in answer.children if c.fact[0] != "relevant_topic"), answer)
         if answer
-        else None
+        else replay.prove(("topic_rank", m.platform, m.topic, m.rank))
     )
     where = f" [{proof.rule.span}]" if proof is not None and proof.rule else ""
     text = proof.text if proof is not None else f"rank {m.rank}"

@@ -171,7 +171,7 @@ def _kinds(
             relation.span,
         )
         for relation in relations.values()
-        if relation.kind in ("query", "view") and relation.name not in derived
+        if relation.kind == "query" and relation.name not in derived  # a view may be empty
     ]
     return errors
 
