@@ -259,8 +259,8 @@ class TopicMatch:
     as_feature: str
     as_args: tuple[str, ...]
     # the topic's declared quality (TopicSpec's), if any: the topic's, so not part of its key
-    rate: Fraction | None = field(default=None, compare=False)
-    delay: Fraction | None = field(default=None, compare=False)
+    rate: Fraction | None = dataclasses.field(default=None, compare=False)
+    delay: Fraction | None = dataclasses.field(default=None, compare=False)
 
     def to_json(self, local: str, namespace: str | None = None) -> dict[str, object]:
         """`namespace`: the platform's, which gives the topic its ROS name (`ros_name`)."""
