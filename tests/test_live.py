@@ -620,7 +620,7 @@ def test_a_spec_change_rederives_only_views_of_topics(federation_km: KnowledgeMa
     assert (added, removed) == (["uastopic9"], [])
     assert set(kb.rederived) <= {
         *("topic_objects", "topic_filter", "sort_arg_at", "sort_position"),
-        *("declares", "declaring", "topic_rank"),  # rules/quality.dl
+        *("declares", "declaring", "topic_rank", "excluded_topic"),  # rules/quality.dl
     }
     assert ("platform3", "uastopic9") in _request(kb, ALTITUDE)["Altitude[uav2]"]
 

@@ -121,21 +121,58 @@ def test_explanations_cite_declared_properties_and_what_ranks_a_topic(scenario: 
     assert "topic2 declares age 220ms" in ranked
 
 
-def test_a_rule_file_changes_the_ranking_without_python(scenario: Path) -> None:
-    """Rank by the declared delay alone: the smallest rank a topic gets is its rank."""
-    declare(scenario, SLOW, LAGGING)
-    (scenario / "own.dl").write_text(
-        "rank(Q, R, T, D) <= declaring(R) & topic_property(R, T, 'delay', D) "
-        "& wanted(Q, _F, _O1, _O2, _O3)\n",
-        encoding="utf-8",
-    )
+def own_rules(scenario: Path, text: str) -> KnowledgeManager:
+    """The single-platform scenario with a rule file of one's own beside the shipped ones."""
+    (scenario / "own.dl").write_text(text, encoding="utf-8")
     config = scenario / "own.toml"
     config.write_text(
         'rules = ["own.dl"]\n' + (scenario / "single.toml").read_text(encoding="utf-8")
     )
-    km = KnowledgeManager.from_config(config)
+    return KnowledgeManager.from_config(config)
+
+
+@pytest.mark.parametrize(
+    "rule",
+    [
+        "rank(Q, R, T, D) <= declaring(R) & topic_property(R, T, 'delay', D) "
+        "& wanted(Q, _F, _O1, _O2, _O3)",
+        "topic_rank(R, T, D) <= declaring(R) & topic_property(R, T, 'delay', D)",
+    ],
+    ids=["per-formula", "per-topic"],
+)
+def test_a_rule_file_changes_the_ranking_without_python(scenario: Path, rule: str) -> None:
+    """Rank by the declared delay alone: the smallest rank a topic gets is its rank."""
+    declare(scenario, SLOW, LAGGING)
+    km = own_rules(scenario, rule + "\n")
     assert topics(km.check_formula(ALTITUDE).features) == ["topic1", "topic2"]
     assert topics(km.check_formula(ALTITUDE, best_source=True).features) == ["topic1"]
+
+
+def test_a_rule_file_excludes_a_topic_from_every_formula_with_an_explanation(
+    scenario: Path,
+) -> None:
+    km = own_rules(scenario, "excluded_topic(R, T) <= topic(R, T, 'UavMsg') & (T != 'topic1')\n")
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic1"]
+    (why_not,) = km.explain(ALTITUDE, topic="topic2").features[0].why_not
+    assert why_not.reason.startswith("excluded_topic(platform1, topic2) holds [")
+    assert "own.dl:1]" in why_not.reason
+
+
+def test_a_monitors_max_delay_is_held_and_derives_again_only_what_reads_it(
+    scenario: Path,
+) -> None:
+    """--max-delay is the knowledge base's while a monitor matches with it: the same one
+    again derives nothing; another derives the exclusions and the topic tables only."""
+    km = KnowledgeManager.from_config(declare(scenario, SLOW, LAGGING))
+    kb = km.kb
+    assert topics(km.check_formula(ALTITUDE, max_delay="100ms").features) == ["topic1"]
+    assert {"excluded_topic", "topic_objects", "sort_arg_at"} <= set(kb.rederived)
+    assert not {"topic_rank", "declares"} & set(kb.rederived)
+    kb.rederived = []
+    assert topics(km.check_formula(ALTITUDE, max_delay="100ms").features) == ["topic1"]
+    assert kb.rederived == []
+    assert topics(km.check_formula(ALTITUDE).features) == ["topic2", "topic1"]
+    assert kb.engine.rows("max_delay") == []
 
 
 def test_specs_add_and_show_take_and_show_declared_properties(

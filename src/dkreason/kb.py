@@ -13,6 +13,7 @@ import hashlib
 from collections import defaultdict
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
+from fractions import Fraction
 from functools import cache
 from pathlib import Path
 
@@ -168,6 +169,7 @@ class KnowledgeBase:
         self.config = config
         self.live = online is not None
         self.rederived: list[str] = []  # the views the last change computed again
+        self._max_delay: list[Row] = []  # the max_delay rows set_max_delay holds
         self.warnings: list[str] = []
         self.engine = Datalog()
         files = read_policy(
@@ -382,6 +384,18 @@ class KnowledgeBase:
                 {"online": [(name,)]},
                 self.engine.assert_rows if online else self.engine.retract_rows,
             )
+
+    def set_max_delay(self, delay: Fraction | None) -> None:
+        """Match with the monitor's --max-delay (seconds; None: without one), held as the
+        `max_delay` fact: the views that read it are derived again only when it changes, so a
+        monitor's matches, which all ask with its own, pay nothing for it."""
+        rows: list[Row] = [] if delay is None else [(round(delay * 10**9),)]
+        if rows != self._max_delay:
+            self.rederived = self.engine.thaw(["max_delay"])
+            self.engine.retract_rows("max_delay", self._max_delay)
+            self.engine.assert_rows("max_delay", rows)
+            self.engine.materialize()
+            self._max_delay = rows
 
     def object_id(self, platform: str, iri: str) -> IdValue | None:
         """The id selecting the object in topic messages, by the policy's `object_id`."""

@@ -51,14 +51,11 @@ Aside = frozenset[tuple[str, str]]
 
 
 def given_rows(
-    ground: list[GroundFeature], max_delay: Fraction | None = None, degraded: Aside = frozenset()
+    ground: list[GroundFeature], degraded: Aside = frozenset()
 ) -> dict[str, list[tuple[int | str, ...]]]:
-    """What a formula tells the rules while they are asked: its ground features (`wanted`),
-    the monitor's --max-delay in whole nanoseconds (`max_delay`), if any, and the sources it
-    has set aside (`degraded`), if any."""
+    """What a formula tells the rules while they are asked: its ground features (`wanted`)
+    and the sources the monitor has set aside (`degraded`), if any."""
     given: dict[str, list[tuple[int | str, ...]]] = {"wanted": wanted_rows(ground)}
-    if max_delay is not None:
-        given["max_delay"] = [(round(max_delay * 10**9),)]
     if degraded:
         given["degraded"] = sorted(degraded)
     return given
@@ -72,9 +69,10 @@ def match(
 ) -> tuple[list[Match], list[Rejected]]:
     """`max_delay`: the monitor's (seconds), which a policy may veto slower topics by;
     `degraded`: the sources the monitor has set aside, which the policy may veto too."""
-    given = given_rows(ground, max_delay, degraded)
+    given = given_rows(ground, degraded)
     if not given["wanted"]:
         return [], []
+    kb.set_max_delay(max_delay)
     engine = kb.engine
     relation = engine.schema["match_result"]
     with engine.given(given):

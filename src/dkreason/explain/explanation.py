@@ -60,7 +60,8 @@ def explain(
         raise DkError(f"no topic {topic!r} on any platform")
     reader = Reader(kb, ground)
     replay = Replayer(kb, reader)
-    with kb.engine.given(given_rows(ground, max_delay)):
+    kb.set_max_delay(max_delay)
+    with kb.engine.given(given_rows(ground)):
         features = []
         for q in selected:
             mine = [m for m in matches if m.query == q and topic in (None, m.topic)]

@@ -73,6 +73,11 @@ def _unmatched(replay: Replayer, sound: Row, topic: str | None) -> Failure:
         for _, _, _, t, k, *_ in replay.rows(matched)
         if replay.rows(("topic_feature", platform, t, k, g, None))
     ]
+    excluded: Row = ("excluded_topic", platform, topic or "")
+    if not mine and topic is not None and replay.holds(excluded):  # whatever the formula
+        text = replay.reader.text(excluded)
+        proof = replay.prove(excluded)
+        return Failure(matched, replay.reader.text(matched), None, excluded, text, True, (), proof)
     if not mine:
         return replay.refute(matched, assume=sound)
     later: list[Pattern] = [
