@@ -108,10 +108,13 @@ class Datalog:
         self._derived: set[str] = set()  # the relations rules derive or files tell
         self._clauses: dict[Rule, object] = {}  # each rule's clause in the engine
         self._pruned: dict[str, set[Rule]] = defaultdict(set)  # empty relation → rules negating it
-        # relations empty for want of facts (no input rows, no given rows while a formula is
-        # asked — `degraded` while nothing is set aside —, an empty view, nothing to derive
+        # relations empty for want of facts (no input rows, an empty view, nothing to derive
         # them from): a rule that needs one holds nowhere, a negation of one always holds
         self._void: frozenset[str] = frozenset()
+        # given relations without rows now (`degraded` while nothing is set aside): a rule
+        # needing one is asked with it, but a negation of one holds, so it is left out
+        self._bare: frozenset[str] = frozenset()
+        self._negated_given: set[str] = set()  # the given relations a rule negates (watched)
         self._void_key: tuple[bool, ...] | None = None
 
     def _activate(self) -> None:
@@ -134,6 +137,12 @@ class Datalog:
         rules = [rule for f in files for rule in f.rules]
         self.rules += rules
         self.modes = Modes(self.schema, self.rules)
+        self._negated_given = {
+            b.predicate
+            for rule in self.rules
+            for b in rule.body
+            if isinstance(b, Literal) and b.negated and self.schema[b.predicate].kind == "given"
+        }
         facts = [fact for f in files for fact in f.facts]
         self.texts += [f.text for f in files] + [repr([(x.predicate, x.row) for x in facts])]
         self._activate()
@@ -166,13 +175,13 @@ class Datalog:
         frozen view's): without its negations of relations that are empty."""
         from pyDatalog import pyEngine
 
-        void = self._void
+        void, bare = self._void, self._bare
         pruned = [
             b.predicate
             for b in rule.body
             if isinstance(b, Literal)
             and b.negated
-            and (self._empty(b.predicate) or b.predicate in void)
+            and (self._empty(b.predicate) or b.predicate in void or b.predicate in bare)
         ]
         clause = _clause(rule, pruned)
         old = self._clauses.get(rule)
@@ -194,16 +203,18 @@ class Datalog:
 
     def _refresh(self) -> None:
         """Rules out of the engine while they need a relation that is empty for want of
-        facts (an input or a given relation without rows, a materialized view without rows,
-        or one derived only from such), and their negations of it left out: a policy's rules
-        over facts nobody told (declared stream quality in the thesis' scenarios, a monitor
-        without --max-delay) cost a query nothing.  Asked before each query; recomputed when
-        an input, a given relation or a view gains or loses its last row."""
+        facts (an input without rows, a materialized view without rows, or one derived only
+        from such), and their negations of it left out: a policy's rules over facts nobody
+        told (declared stream quality in the thesis' scenarios) cost a query nothing.  Asked
+        before each query; recomputed when an input or a view gains or loses its last row."""
         from pyDatalog import Logic
 
         db = Logic.tl.logic.Db
-        kinds = ("input", "given")
-        watched = [r for r in self.schema.values() if r.kind in kinds or r.name in self._frozen]
+        watched = [
+            r
+            for r in self.schema.values()
+            if r.kind == "input" or r.name in self._frozen or r.name in self._negated_given
+        ]
         key = tuple(
             (pred := db.get(f"{r.name}/{r.arity}")) is not None and len(pred.db) > len(pred.clauses)
             for r in watched
@@ -212,6 +223,7 @@ class Datalog:
             return
         self._void_key = key
         live = {r.name for r, rows in zip(watched, key, strict=True) if rows}
+        live |= {r.name for r in self.schema.values() if r.kind == "given"}
         live |= {t[0] for t in self.told if isinstance(t[0], str)}
         rules = [r for r in self.rules if r.head.predicate not in self._frozen]
         grown = True
@@ -227,8 +239,11 @@ class Datalog:
                     live.add(head)
                     grown = True
         void = frozenset(self.schema) - live
-        changed = void ^ self._void
-        self._void = void
+        bare = frozenset(
+            r.name for r, rows in zip(watched, key, strict=True) if r.kind == "given" and not rows
+        )
+        changed = (void ^ self._void) | (bare ^ self._bare)
+        self._void, self._bare = void, bare
         for rule in self.rules:
             if any(isinstance(b, Literal) and b.predicate in changed for b in rule.body):
                 self._assert(rule)
