@@ -404,3 +404,34 @@ def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only
     never.sample("t", 0, 0)
     never.silent(10**12)
     assert len(moves) == 2 and never.aside() == []
+
+
+def test_with_best_source_the_next_ranked_topic_is_read_while_the_best_one_is_set_aside(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Under --best-source uav1's altitude is read from topic1 alone, yet topic2, ranked
+    next, is read too (feeding nothing): when topic1 stops, the altitude is read from
+    topic2 until topic1 sends again, at the same stream times as the merge's changes."""
+    config, path = declare(scenario, *TEN_HZ), stalled(tmp_path)
+    km = KnowledgeManager.from_config(config)
+    request = km.check_formula(ALTITUDE, best_source=True)
+    assert topics(request.features) == ["topic1"]
+    assert [t.topic for t in request.features[0].standby] == ["topic2"]
+    events = replayed(km, path, best_source=True)
+    moves = [e for e in events if isinstance(e, Rerouted)]
+    one, two = ("platform1/topic1",), ("platform1/topic2",)
+    assert [(m.source, m.aside, m.before, m.after) for m in moves] == [
+        ("platform1/topic1", True, one, two),
+        ("platform1/topic1", False, two, one),
+    ]
+    merged = [e for e in replayed(km, path) if isinstance(e, Rerouted)]
+    assert [(m.time, m.t, m.reason) for m in moves] == [(m.time, m.t, m.reason) for m in merged]
+    (verdict,) = [e for e in events if isinstance(e, Verdict)]
+    assert verdict.verdict is True
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--best-source"]
+    assert main([*argv, "--json", ALTITUDE]) == 0
+    shown = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(m["change"], m["before"], m["after"]) for m in shown if "rerouted" in m] == [
+        ("set_aside", list(one), list(two)),
+        ("taken_back", list(two), list(one)),
+    ]

@@ -279,8 +279,13 @@ class TopicMatch:
 
 @dataclass(frozen=True, slots=True)
 class FeatureRequest:
+    """A ground feature, the topics it is read from and, with --best-source, the relevant
+    topics ranked after the chosen one (`standby`): read but feeding nothing, so a monitor
+    sees them run and can re-match to them when the chosen one is set aside."""
+
     feature: GroundFeature
     topics: tuple[TopicMatch, ...]
+    standby: tuple[TopicMatch, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -298,17 +303,18 @@ class StreamRequest:
 
     def to_json(self) -> dict[str, Any]:
         namespaces = dict(self.namespaces)
-        out: dict[str, Any] = {
-            "formula": self.formula,
-            "features": [
-                {
-                    "feature": f.feature.name,
-                    "args": list(f.feature.args),
-                    "topics": [t.to_json(self.local, namespaces.get(t.platform)) for t in f.topics],
-                }
-                for f in self.features
-            ],
-        }
+
+        def shown(topics: tuple[TopicMatch, ...]) -> list[dict[str, Any]]:
+            return [t.to_json(self.local, namespaces.get(t.platform)) for t in topics]
+
+        features = []
+        for f in self.features:
+            feature: dict[str, Any] = {"feature": f.feature.name, "args": list(f.feature.args)}
+            feature["topics"] = shown(f.topics)
+            if f.standby:  # --best-source: the topics ranked after the chosen one
+                feature["standby"] = shown(f.standby)
+            features.append(feature)
+        out: dict[str, Any] = {"formula": self.formula, "features": features}
         if self.warnings:
             out["warnings"] = list(self.warnings)
         return out

@@ -91,30 +91,30 @@ def build_request(
 ) -> StreamRequest:
     """`notes`: warnings about the formula itself (plan.FormulaPlan.warnings), said first;
     `best_source`: of each feature's topics in the policy's order, the first only, not their
-    merge (the thesis merges them all)."""
+    merge (the thesis merges them all); the others stand by, read by a monitor so that it can
+    re-route to them when the first one's samples stop."""
     per_feature: dict[int, dict[TopicMatch, int]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
         if topic is not None:
             per_feature[m.query][topic] = min(m.rank, per_feature[m.query].get(topic, m.rank))
-    features = tuple(
-        FeatureRequest(
-            g,
-            tuple(
-                sorted(
-                    per_feature[q],
-                    key=lambda t: (
-                        per_feature[q][t],  # the policy's rank (0 unless it ranks), then
-                        t.platform != kb.local,
-                        t.platform,
-                        kb.platforms[t.platform].rank[t.topic],
-                        t.filter,
-                    ),
-                )
-            )[: 1 if best_source else None],
+    features = []
+    for q, g in enumerate(ground):
+        ranked = tuple(
+            sorted(
+                per_feature[q],
+                key=lambda t: (
+                    per_feature[q][t],  # the policy's rank (0 unless it ranks), then
+                    t.platform != kb.local,
+                    t.platform,
+                    kb.platforms[t.platform].rank[t.topic],
+                    t.filter,
+                ),
+            )
         )
-        for q, g in enumerate(ground)
-    )
+        features.append(
+            FeatureRequest(g, ranked[:1], ranked[1:]) if best_source else FeatureRequest(g, ranked)
+        )
     warnings = [*notes, *kb.warnings, *_warnings(kb, ground, rejected)]
     namespaces = tuple(
         (p.name, p.namespace)
@@ -124,7 +124,7 @@ def build_request(
     return StreamRequest(
         formula,
         kb.local,
-        features,
+        tuple(features),
         tuple(dict.fromkeys(warnings)),
         namespaces,
         kb.shared_names(),

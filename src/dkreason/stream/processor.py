@@ -293,12 +293,14 @@ class StreamProcessor:
         namespaces = dict(request.namespaces)
         for f in request.features:
             q = self.position[f.feature.key]
-            for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
+            feeding = sorted(f.topics, key=lambda t: t.platform != request.local)
+            for prio, m in enumerate((*feeding, *f.standby)):
                 names = recording_names(
                     m, request.local, namespaces.get(m.platform), request.shared_names
                 )
                 present = [n for n in names if n in types] if types else names
-                if types and not present:
+                standby = prio >= len(feeding)
+                if types and not present and not standby:
                     self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(str(f.feature.key))
                 if types and present:
                     msgtype = types[present[0]]
@@ -325,6 +327,11 @@ class StreamProcessor:
                     if name in before and name not in self.wanted:
                         self.wanted[name] = list(before[name])
                     self.quality.declare(name, f.feature.key, m.platform, m.topic, m.rate, m.delay)
+                    if standby:  # read and watched, feeding nothing: its fields get places
+                        for field in (m.field, *ids):
+                            self._position(name, field)
+                        self.groups.setdefault(name, [])
+                        continue
                     route = _Route(
                         q,
                         itemgetter(self._position(name, m.field)),
@@ -452,12 +459,17 @@ class StreamProcessor:
         periodic = self.period is not None
         max_valid, quiet = self.max_valid, self.quiet_until
         made = self.made
-        declared = self.quality.topics
+        quality = self.quality
+        declared = quality.topics
         n, seen = 0, None
         try:
             for topic, available, valid, values in messages:
-                if declared and topic in declared:
-                    self._report(self.quality.sample(topic, available, valid))
+                if declared:  # a topic declaring its quality: silent ones are seen as time
+                    # passes (a message of any topic read), its samples measured
+                    if available > quality.due:
+                        self._report(quality.silent(available))
+                    if topic in declared:
+                        self._report(quality.sample(topic, available, valid))
                 for group in groups[topic]:
                     try:  # `_Group.routes`, its common case inline: a hashable id, found
                         routes = group.index.get(group.key(values))
@@ -662,7 +674,7 @@ class StreamProcessor:
 
     def _emit(self, now: int, final: bool) -> None:
         self.last_seen = now
-        if self.quality.topics:
+        if self.quality.topics and now > self.quality.due:
             self._report(self.quality.silent(now))
         try:
             self.quiet_until = self._make_due(now, final)
