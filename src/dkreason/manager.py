@@ -113,8 +113,10 @@ class KnowledgeManager:
             degraded=degraded,
         )
 
-    def _matcher(self, policy: StreamPolicy) -> Callable[..., StreamRequest]:
-        """How a monitor under `policy` matches: with its --max-delay and --best-source."""
+    def matcher(self, policy: StreamPolicy) -> Callable[..., StreamRequest]:
+        """How a monitor under `policy` matches (a `Monitor`'s `match`, every caller's: the
+        offline, live federation and ROS 2 monitors): with its --max-delay and --best-source,
+        and the sources it has set aside."""
 
         def matcher(plan: Plan, *, degraded: Aside = frozenset()) -> StreamRequest:
             return self.request(
@@ -212,7 +214,7 @@ class KnowledgeManager:
         try:
             engine = Monitor(
                 self.plan(formulas),
-                self._matcher(policy),
+                self.matcher(policy),
                 policy,
                 keep_states=keep_states,
                 robustness=robustness,
@@ -391,7 +393,7 @@ class KnowledgeManager:
         policy = policy or StreamPolicy()
         job = Job(
             plan,
-            self._matcher(policy)(plan),
+            self.matcher(policy)(plan),
             policy,
             tuple(self.platforms),
             tuple((remap if isinstance(remap, Mapping) else remaps(remap or ())).items()),

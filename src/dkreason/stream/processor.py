@@ -464,12 +464,8 @@ class StreamProcessor:
         n, seen = 0, None
         try:
             for topic, available, valid, values in messages:
-                if declared:  # a topic declaring its quality: silent ones are seen as time
-                    # passes (a message of any topic read), its samples measured
-                    if available > quality.due:
-                        self._report(quality.silent(available))
-                    if topic in declared:
-                        self._report(quality.sample(topic, available, valid))
+                if declared and topic in declared:
+                    self._report(quality.sample(topic, available, valid))
                 for group in groups[topic]:
                     try:  # `_Group.routes`, its common case inline: a hashable id, found
                         routes = group.index.get(group.key(values))
@@ -542,6 +538,9 @@ class StreamProcessor:
                 if available > quiet:
                     self._emit(available, final=False)
                     quiet, made = self.quiet_until, self.made
+                elif declared and available > quality.due:  # a topic declaring a rate went
+                    # silent: seen at a message of any topic read (one on standby makes no state)
+                    self._report(quality.silent(available))
                 if watch or not n & 4095:
                     yield n
         finally:
@@ -566,8 +565,9 @@ class StreamProcessor:
         )
 
     def advance(self, available: int) -> None:
-        """Every source has passed `available`: make the states due by then."""
-        if available <= self.quiet_until:
+        """Every source has passed `available`: make the states due by then (and set aside
+        the topics silent too long by then)."""
+        if available <= self.quiet_until and available <= self.quality.due:
             self.last_seen = available
             return  # nothing is due yet
         self._emit(available, final=False)
