@@ -435,3 +435,24 @@ def test_with_best_source_the_next_ranked_topic_is_read_while_the_best_one_is_se
         ("set_aside", list(one), list(two)),
         ("taken_back", list(two), list(one)),
     ]
+
+
+def test_explain_under_best_source_says_which_topic_is_chosen_and_why_another_stands_by(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
+    assert why["topic2"][-1] == "chosen (--best-source): ranked first"
+    assert why["topic1"][-1] == (
+        "standing by (--best-source): ranked after platform1/topic2 (rank 1020000000 > "
+        "220000000); read, and re-routed to if that one is set aside"
+    )
+    assert not any(
+        "best-source" in line for w in km.explain(ALTITUDE).features[0].why for line in w.summary
+    )
+    # with --max-delay topic2 is excluded: topic1, the only one left, is chosen
+    (only,) = km.explain(ALTITUDE, max_delay="100ms", best_source=True).features[0].why
+    assert (only.topic, only.summary[-1]) == ("topic1", "chosen (--best-source): ranked first")
+    assert main(["explain", "--config", str(config), "--best-source", ALTITUDE]) == 0
+    assert "standing by (--best-source): ranked after platform1/topic2" in capsys.readouterr().out

@@ -146,17 +146,25 @@ class KnowledgeManager:
         topic: str | None = None,
         *,
         max_delay: float | Fraction | str | None = None,
+        best_source: bool = False,
     ) -> Explanation:
         """Why each topic of the request matched; for a feature without topics, or a named
         topic that was not chosen, the closest candidates and the first condition that failed
-        (`max_delay` as `request`'s: a topic it excludes is explained by its declared delay)."""
+        (`max_delay` as `request`'s: a topic it excludes is explained by its declared delay;
+        `best_source`: which topic is chosen, and what ranks each other one after it)."""
         from .explain import explain
         from .match import match
+        from .request import build_request
 
         ground = list(self.plan(formula).ground)
         limit = _seconds(max_delay, "max_delay")
-        matches, _ = match(self.kb, ground, limit)
-        return explain(self.kb, formula, ground, matches, feature, topic, limit)
+        matches, rejected = match(self.kb, ground, limit)
+        chosen = (
+            build_request(self.kb, formula, ground, matches, rejected, best_source=True).features
+            if best_source
+            else None
+        )
+        return explain(self.kb, formula, ground, matches, feature, topic, limit, chosen)
 
     def monitor(
         self,
