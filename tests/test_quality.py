@@ -83,6 +83,10 @@ def test_topics_are_ranked_by_declared_quality_and_best_source_takes_the_best(
     assert main(["match", "--config", str(config), "--best-source", "--json", ALTITUDE]) == 0
     (feature,) = json.loads(capsys.readouterr().out)["features"]
     assert [t["topic"] for t in feature["topics"]] == ["topic2"]
+    assert [t["topic"] for t in feature["standby"]] == ["topic1"]  # read, feeding nothing
+    assert main(["match", "--config", str(config), "--best-source", ALTITUDE]) == 0
+    assert "Standing by:\n  Topic: topic1, Message type: UavMsg" in capsys.readouterr().out
+    assert "standby" not in km.check_formula(ALTITUDE).to_json()["features"][0]
 
 
 def test_a_topic_declaring_nothing_comes_after_those_that_declare(scenario: Path) -> None:
