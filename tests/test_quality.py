@@ -460,3 +460,34 @@ def test_explain_under_best_source_says_which_topic_is_chosen_and_why_another_st
     assert (only.topic, only.summary[-1]) == ("topic1", "chosen (--best-source): ranked first")
     assert main(["explain", "--config", str(config), "--best-source", ALTITUDE]) == 0
     assert "standing by (--best-source): ranked after platform1/topic2" in capsys.readouterr().out
+
+
+def test_a_batch_run_under_best_source_is_re_routed_as_monitor_does(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """topic2 says uav1 flies at 5 m: once topic1 (the best) is set aside, the altitude is
+    read from topic2 and the formula fails, in a batch worker (no knowledge base to match
+    again) as in `monitor`."""
+    from dkreason.batch import Job, Run, monitor_run
+
+    km = KnowledgeManager.from_config(declare(scenario, *TEN_HZ))
+    rows: list[Row] = [("topic2", UAV, n * 100 * MS, {"id": 1, "alt": 5.0}) for n in range(1, 61)]
+    rows += [
+        ("topic1", UAV, n * 100 * MS + 50 * MS, {"id": 1, "alt": 50.0})
+        for n in range(1, 60)
+        if not 20 <= n < 40
+    ]
+    path = tmp_path / "low.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    formula, policy = "always (Altitude[uav1] > 10)", StreamPolicy(best_source=True)
+    with km.monitor(formula, [path], policy) as run:
+        (alone,) = [e for e in run if isinstance(e, Verdict)]
+    # set aside at 2.3 s (topic2's sample then, 0.35 s after topic1's last, shows it); the
+    # next one, at 2.4 s (t+2.3), is the first read from topic2
+    assert (alone.verdict, alone.t) == (False, 2.3)
+    plan = km.plan(formula)
+    job = Job(
+        plan, km.matcher(policy)(plan), policy, tuple(km.platforms), (), "auto", (), None, None
+    )
+    ((_, verdict),) = monitor_run(job, Run("low", (str(path),))).verdicts
+    assert verdict is not None and (verdict.verdict, verdict.t) == (False, 2.3)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import Any, Literal, NamedTuple
 
@@ -300,6 +300,25 @@ class StreamRequest:
     # spec topic names (without a leading slash) that several platforms' specs use: such a
     # name is never read bare (`T`, `/T`) for a remote platform (stream/binding.py)
     shared_names: frozenset[str] = frozenset()
+
+    def without(self, aside: frozenset[tuple[str, str]]) -> StreamRequest:
+        """The request with the (platform, topic)s a monitor set aside dropped, as the shipped
+        policy drops them (`degraded`): a feature whose chosen topic (--best-source) is aside
+        is read from the first topic standing by that is not.  For a monitor that cannot
+        match again, having no knowledge base (a batch worker)."""
+        if not aside:
+            return self
+
+        def kept(topics: tuple[TopicMatch, ...]) -> tuple[TopicMatch, ...]:
+            return tuple(t for t in topics if (t.platform, t.topic) not in aside)
+
+        features = []
+        for f in self.features:
+            topics, standby = kept(f.topics), kept(f.standby)
+            if not topics and standby:
+                topics, standby = standby[:1], standby[1:]
+            features.append(FeatureRequest(f.feature, topics, standby))
+        return replace(self, features=tuple(features))
 
     def to_json(self) -> dict[str, Any]:
         namespaces = dict(self.namespaces)
