@@ -460,6 +460,9 @@ def test_explain_under_best_source_says_which_topic_is_chosen_and_why_another_st
     assert (only.topic, only.summary[-1]) == ("topic1", "chosen (--best-source): ranked first")
     assert main(["explain", "--config", str(config), "--best-source", ALTITUDE]) == 0
     assert "standing by (--best-source): ranked after platform1/topic2" in capsys.readouterr().out
+    # a topic named that feeds another feature only: nothing to rank
+    speed = km.explain("always (Speed[car1] > 1)", topic="topic1", best_source=True)
+    assert not speed.features[0].why and speed.features[0].why_not
 
 
 def test_a_batch_run_under_best_source_is_re_routed_as_monitor_does(

@@ -70,7 +70,7 @@ def explain(
             mine = [m for m in matches if m.query == q and topic in (None, m.topic)]
             why = tuple(topic_why(kb, replay, m) for m in mine)
             if chosen is not None and chosen[q].topics:
-                why = _best(why, mine, chosen[q].topics[0], matches)
+                why = _best(why, mine, chosen[q].topics[0], [m for m in matches if m.query == q])
             why_not: tuple[TopicWhyNot, ...] = ()
             if not mine:
                 platforms = (
@@ -89,13 +89,13 @@ def explain(
 
 
 def _best(
-    why: tuple[TopicWhy, ...], mine: list[Match], first: TopicMatch, matches: list[Match]
+    why: tuple[TopicWhy, ...], mine: list[Match], first: TopicMatch, feature: list[Match]
 ) -> tuple[TopicWhy, ...]:
     """Each topic's last line under --best-source: the one chosen, or what ranks another
     after it (a smaller rank first; on the same rank, the local platform, then the order of
-    platforms and of the specs)."""
+    platforms and of the specs).  `feature`: every match of the feature, `mine` those shown."""
     best = (first.platform, first.topic)
-    top = min(m.rank for m in matches if m.query == mine[0].query and (m.platform, m.topic) == best)
+    top = min(m.rank for m in feature if (m.platform, m.topic) == best)
     out = []
     for w, m in zip(why, mine, strict=True):
         if (m.platform, m.topic) == best:
