@@ -22,7 +22,7 @@ from dkreason.stream.policy import StreamPolicy
 from dkreason.stream.processor import Violation
 from dkreason.stream.recording import Row, write_recording
 
-from .conftest import REPO
+from .conftest import REPO, SCENARIOS
 from .test_foxglove import read_mcap
 
 ALTITUDE = "always (Altitude[uav1] > 1)"
@@ -494,3 +494,18 @@ def test_a_batch_run_under_best_source_is_re_routed_as_monitor_does(
     )
     ((_, verdict),) = monitor_run(job, Run("low", (str(path),))).verdicts
     assert verdict is not None and (verdict.verdict, verdict.t) == (False, 2.3)
+
+
+def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scenario: Path) -> None:
+    """topic2, chosen, declares no rate: it is never set aside, so topic1 is not read."""
+    km = KnowledgeManager.from_config(declare(scenario, "topic2:UavMsg [delay 10ms]"))
+    (feature,) = km.check_formula(ALTITUDE, best_source=True).features
+    assert [t.topic for t in feature.topics] == ["topic2"] and not feature.standby
+    why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
+    assert why["topic1"][-1] == (
+        "not chosen (--best-source): ranked after platform1/topic2 (rank "
+        "4611686018427387904 > 10000000)"
+    )
+    thesis = KnowledgeManager.from_config(SCENARIOS / "federation.toml")  # declaring nothing
+    formula = "always (Altitude[uav1] > Altitude[uav2])"
+    assert not any(f.standby for f in thesis.check_formula(formula, best_source=True).features)

@@ -280,8 +280,9 @@ class TopicMatch:
 @dataclass(frozen=True, slots=True)
 class FeatureRequest:
     """A ground feature, the topics it is read from and, with --best-source, the relevant
-    topics ranked after the chosen one (`standby`): read but feeding nothing, so a monitor
-    sees them run and can re-match to them when the chosen one is set aside."""
+    topics ranked after the chosen one when it declares a rate (`standby`): read but feeding
+    nothing, so a monitor sees them run and can re-match to them when the chosen one's
+    samples stop and it is set aside."""
 
     feature: GroundFeature
     topics: tuple[TopicMatch, ...]

@@ -91,8 +91,9 @@ def build_request(
 ) -> StreamRequest:
     """`notes`: warnings about the formula itself (plan.FormulaPlan.warnings), said first;
     `best_source`: of each feature's topics in the policy's order, the first only, not their
-    merge (the thesis merges them all); the others stand by, read by a monitor so that it can
-    re-route to them when the first one's samples stop."""
+    merge (the thesis merges them all); the others stand by when the first one declares a
+    rate, read by a monitor so that it can re-route to them when the first one's samples stop
+    (a topic declaring none is never set aside: nothing to read them for)."""
     per_feature: dict[int, dict[TopicMatch, int]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
@@ -112,9 +113,12 @@ def build_request(
                 ),
             )
         )
-        features.append(
-            FeatureRequest(g, ranked[:1], ranked[1:]) if best_source else FeatureRequest(g, ranked)
-        )
+        if not best_source:
+            features.append(FeatureRequest(g, ranked))
+        else:  # the others stand by if the first one can be set aside: it declares a rate
+            features.append(
+                FeatureRequest(g, ranked[:1], ranked[1:] if ranked[:1] and ranked[0].rate else ())
+            )
     warnings = [*notes, *kb.warnings, *_warnings(kb, ground, rejected)]
     namespaces = tuple(
         (p.name, p.namespace)

@@ -106,9 +106,12 @@ def _best(
                 if m.rank != top
                 else "the same rank, after it in the order of platforms and specs"
             )
+            after = f"ranked after {first.platform}/{first.topic} ({order})"
             line = (
-                f"standing by (--best-source): ranked after {first.platform}/{first.topic} "
-                f"({order}); read, and re-routed to if that one is set aside"
+                f"standing by (--best-source): {after}; read, and re-routed to if that one "
+                "is set aside"
+                if first.rate
+                else f"not chosen (--best-source): {after}"  # it is never set aside
             )
         out.append(replace(w, summary=(*w.summary, line)))
     return tuple(out)
