@@ -538,8 +538,9 @@ class StreamProcessor:
                 if available > quiet:
                     self._emit(available, final=False)
                     quiet, made = self.quiet_until, self.made
-                elif declared and available > quality.due:  # a topic declaring a rate went
-                    # silent: seen at a message of any topic read (one on standby makes no state)
+                elif declared and available > quality.due:
+                    # a topic declaring a rate went silent: seen at a message of any topic
+                    # read, whether or not it makes a state (one standing by makes none)
                     self._report(quality.silent(available))
                 if watch or not n & 4095:
                     yield n
