@@ -1262,7 +1262,7 @@ def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
         (False, POSE2, read),
     ]
     assert 7 <= moves()[0].time <= 8 and moves()[1].time == 9  # (when the clock passed)
-    standing = {c.topic: c.detail.endswith("(standing by)") for c in run.changes("subscribed")}
+    standing = {c.topic: c.detail.startswith("standing by: ") for c in run.changes("subscribed")}
     assert standing == {"/robot1/pose": False, "/robot2/pose": best_source}
     assert [v.verdict for v in run.verdicts()] == [True]
 

@@ -442,9 +442,9 @@ class Ros2Monitor:
         for key in features:
             self.feeding.setdefault(key, set()).add(pub.key)
             m = next(m for k, m in self.wants[name] if k == key)
-            role = " (standing by)" if (name, key) in self.standby else ""
+            role = "standing by: " if (name, key) in self.standby else ""
             changes.append(
-                change("subscribed", now, m.platform, pub.describe() + role, str(key), m.topic)
+                change("subscribed", now, m.platform, role + pub.describe(), str(key), m.topic)
             )
         return changes
 
