@@ -173,10 +173,12 @@ def untimed(verdict: dict[str, Any]) -> dict[str, Any]:
 
 
 @contextmanager
-def platform1_live(scenario: Path, formulas: list[str]) -> Iterator[tuple[Any, Any, list[Any]]]:
+def platform1_live(
+    scenario: Path, formulas: list[str], policy: Any = None
+) -> Iterator[tuple[Any, Any, list[Any]]]:
     """Platform 1 of the scenario as a node and a live monitor of `formulas` on platform 1's
     vocabulary, over loopback Zenoh (node, monitor, [the monitor's, the node's session]);
-    closed on leaving."""
+    closed on leaving.  `policy`: the monitor's (default: StreamPolicy())."""
     from dkreason.live.monitor import LiveMonitor
     from dkreason.live.serve import PlatformNode
     from dkreason.live.session import open_session
@@ -193,7 +195,7 @@ def platform1_live(scenario: Path, formulas: list[str]) -> Iterator[tuple[Any, A
     monitor = LiveMonitor(
         KnowledgeManager.from_config(scenario / "monitor.toml", live=True),
         formulas,
-        StreamPolicy(),
+        policy or StreamPolicy(),
         sessions[0],
         wait=10,
     )
@@ -1405,17 +1407,27 @@ def test_a_live_monitor_has_every_attribute_from_construction(scenario: Path) ->
     assert fed.monitor.processor is not None
 
 
+ONE, TWO = ("platform1/topic1",), ("platform1/topic2",)
+
+
+@pytest.mark.parametrize(
+    ("best_source", "read", "aside"),
+    [(False, (*ONE, *TWO), TWO), (True, ONE, TWO)],
+    ids=["merged", "best-source"],
+)
 def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_returns(
-    scenario: Path,
+    scenario: Path, best_source: bool, read: tuple[str, ...], aside: tuple[str, ...]
 ) -> None:
     """Platform 1 sends uav1's altitude on topic1 and topic2 (both declared 10 Hz); topic1's
     samples stop while its clock goes on: the monitor reads topic2 alone, keeping topic1
-    subscribed, and reads both again once topic1 sends.  Each step waits on the event
+    subscribed, and reads topic1 again once it sends.  With --best-source topic1 alone is
+    read at first, topic2 subscribed beside it (ranked next).  Each step waits on the event
     before it; the verdict is never restarted."""
     from dkreason.live import wire
     from dkreason.live.change import Change
     from dkreason.monitor import Rerouted
     from dkreason.progress import Verdict
+    from dkreason.stream.policy import StreamPolicy
 
     from .test_quality import TEN_HZ, declare
 
@@ -1431,7 +1443,12 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
 
     subscribed: set[str] = set()
     events: list[Any] = []
-    with platform1_live(scenario, ["always (Altitude[uav1] > 1)"]) as (node, monitor, sessions):
+    policy = StreamPolicy(best_source=best_source)
+    with platform1_live(scenario, ["always (Altitude[uav1] > 1)"], policy) as (
+        node,
+        monitor,
+        sessions,
+    ):
         for event in monitor.run(duration=30):
             events.append(event)
             if isinstance(event, Change) and event.event == "subscribed":
@@ -1447,12 +1464,39 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
             elif isinstance(event, Rerouted):
                 monitor.stop.set()
     moves = [e for e in events if isinstance(e, Rerouted)]
-    both, two = ("platform1/topic1", "platform1/topic2"), ("platform1/topic2",)
     assert [(m.source, m.aside, m.before, m.after) for m in moves] == [
-        ("platform1/topic1", True, both, two),
-        ("platform1/topic1", False, two, both),
+        ("platform1/topic1", True, read, aside),
+        ("platform1/topic1", False, aside, read),
     ]
     assert moves[1].time == 2.1
+    roles = {e.topic: e.detail for e in events if isinstance(e, Change) and e.event == "subscribed"}
+    assert roles == {"topic1": "", "topic2": "standing by" if best_source else ""}
     assert not any(isinstance(e, Change) and e.event == "unsubscribed" for e in events)
     (verdict,) = [e for e in events if isinstance(e, Verdict)]
     assert (verdict.verdict, verdict.at_end) == (True, True)
+
+
+def test_a_live_monitor_matches_with_its_max_delay_as_the_knowledge_changes(
+    scenario: Path,
+) -> None:
+    """With --max-delay 100ms, topic2 (declaring a 200 ms delay) is never subscribed, nor a
+    topic announced later that declares 300 ms; one announced after it declaring 10 ms is."""
+    from dkreason.live.change import Change
+    from dkreason.stream.policy import StreamPolicy
+
+    from .test_quality import LAGGING, SLOW, declare
+
+    declare(scenario, SLOW, LAGGING)
+    later = "topic {}:UavMsg [delay {}] contains Altitude(uav1) = msg.alt for uav1 = msg.id"
+    subscribed: list[str] = []
+    policy = StreamPolicy(max_delay=Fraction(1, 10))
+    with platform1_live(scenario, ["always (Altitude[uav1] > 1)"], policy) as (node, monitor, _):
+        for event in monitor.run(duration=30):
+            if isinstance(event, Change) and event.event == "subscribed":
+                subscribed.append(event.topic)
+                if event.topic == "topic1":
+                    node.add_topic(later.format("lagging", "300ms"))
+                    node.add_topic(later.format("prompt", "10ms"))
+                elif event.topic == "prompt":
+                    monitor.stop.set()
+    assert subscribed == ["topic1", "prompt"]

@@ -22,7 +22,7 @@ from dkreason.stream.policy import StreamPolicy
 from dkreason.stream.processor import Violation
 from dkreason.stream.recording import Row, write_recording
 
-from .conftest import REPO
+from .conftest import REPO, SCENARIOS
 from .test_foxglove import read_mcap
 
 ALTITUDE = "always (Altitude[uav1] > 1)"
@@ -83,6 +83,10 @@ def test_topics_are_ranked_by_declared_quality_and_best_source_takes_the_best(
     assert main(["match", "--config", str(config), "--best-source", "--json", ALTITUDE]) == 0
     (feature,) = json.loads(capsys.readouterr().out)["features"]
     assert [t["topic"] for t in feature["topics"]] == ["topic2"]
+    assert [t["topic"] for t in feature["standby"]] == ["topic1"]  # read, feeding nothing
+    assert main(["match", "--config", str(config), "--best-source", ALTITUDE]) == 0
+    assert "Standing by:\n  Topic: topic1, Message type: UavMsg" in capsys.readouterr().out
+    assert "standby" not in km.check_formula(ALTITUDE).to_json()["features"][0]
 
 
 def test_a_topic_declaring_nothing_comes_after_those_that_declare(scenario: Path) -> None:
@@ -404,3 +408,104 @@ def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only
     never.sample("t", 0, 0)
     never.silent(10**12)
     assert len(moves) == 2 and never.aside() == []
+
+
+def test_with_best_source_the_next_ranked_topic_is_read_while_the_best_one_is_set_aside(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Under --best-source uav1's altitude is read from topic1 alone, yet topic2, ranked
+    next, is read too (feeding nothing): when topic1 stops, the altitude is read from
+    topic2 until topic1 sends again, at the same stream times as the merge's changes."""
+    config, path = declare(scenario, *TEN_HZ), stalled(tmp_path)
+    km = KnowledgeManager.from_config(config)
+    request = km.check_formula(ALTITUDE, best_source=True)
+    assert topics(request.features) == ["topic1"]
+    assert [t.topic for t in request.features[0].standby] == ["topic2"]
+    events = replayed(km, path, best_source=True)
+    moves = [e for e in events if isinstance(e, Rerouted)]
+    one, two = ("platform1/topic1",), ("platform1/topic2",)
+    assert [(m.source, m.aside, m.before, m.after) for m in moves] == [
+        ("platform1/topic1", True, one, two),
+        ("platform1/topic1", False, two, one),
+    ]
+    merged = [e for e in replayed(km, path) if isinstance(e, Rerouted)]
+    assert [(m.time, m.t, m.reason) for m in moves] == [(m.time, m.t, m.reason) for m in merged]
+    (verdict,) = [e for e in events if isinstance(e, Verdict)]
+    assert verdict.verdict is True
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--best-source"]
+    assert main([*argv, "--json", ALTITUDE]) == 0
+    shown = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(m["change"], m["before"], m["after"]) for m in shown if "rerouted" in m] == [
+        ("set_aside", list(one), list(two)),
+        ("taken_back", list(two), list(one)),
+    ]
+
+
+def test_explain_under_best_source_says_which_topic_is_chosen_and_why_another_stands_by(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
+    assert why["topic2"][-1] == "chosen (--best-source): ranked first"
+    assert why["topic1"][-1] == (
+        "standing by (--best-source): ranked after platform1/topic2 (rank 1020000000 > "
+        "220000000); read, and re-routed to if that one is set aside"
+    )
+    assert not any(
+        "best-source" in line for w in km.explain(ALTITUDE).features[0].why for line in w.summary
+    )
+    # with --max-delay topic2 is excluded: topic1, the only one left, is chosen
+    (only,) = km.explain(ALTITUDE, max_delay="100ms", best_source=True).features[0].why
+    assert (only.topic, only.summary[-1]) == ("topic1", "chosen (--best-source): ranked first")
+    assert main(["explain", "--config", str(config), "--best-source", ALTITUDE]) == 0
+    assert "standing by (--best-source): ranked after platform1/topic2" in capsys.readouterr().out
+    # a topic named that feeds another feature only: nothing to rank
+    speed = km.explain("always (Speed[car1] > 1)", topic="topic1", best_source=True)
+    assert not speed.features[0].why and speed.features[0].why_not
+
+
+def test_a_batch_run_under_best_source_is_re_routed_as_monitor_does(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """topic2 says uav1 flies at 5 m: once topic1 (the best) is set aside, the altitude is
+    read from topic2 and the formula fails, in a batch worker (no knowledge base to match
+    again) as in `monitor`."""
+    from dkreason.batch import Job, Run, monitor_run
+
+    km = KnowledgeManager.from_config(declare(scenario, *TEN_HZ))
+    rows: list[Row] = [("topic2", UAV, n * 100 * MS, {"id": 1, "alt": 5.0}) for n in range(1, 61)]
+    rows += [
+        ("topic1", UAV, n * 100 * MS + 50 * MS, {"id": 1, "alt": 50.0})
+        for n in range(1, 60)
+        if not 20 <= n < 40
+    ]
+    path = tmp_path / "low.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    formula, policy = "always (Altitude[uav1] > 10)", StreamPolicy(best_source=True)
+    with km.monitor(formula, [path], policy) as run:
+        (alone,) = [e for e in run if isinstance(e, Verdict)]
+    # set aside at 2.3 s (topic2's sample then, 0.35 s after topic1's last, shows it); the
+    # next one, at 2.4 s (t+2.3), is the first read from topic2
+    assert (alone.verdict, alone.t) == (False, 2.3)
+    plan = km.plan(formula)
+    job = Job(
+        plan, km.matcher(policy)(plan), policy, tuple(km.platforms), (), "auto", (), None, None
+    )
+    ((_, verdict),) = monitor_run(job, Run("low", (str(path),))).verdicts
+    assert verdict is not None and (verdict.verdict, verdict.t) == (False, 2.3)
+
+
+def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scenario: Path) -> None:
+    """topic2, chosen, declares no rate: it is never set aside, so topic1 is not read."""
+    km = KnowledgeManager.from_config(declare(scenario, "topic2:UavMsg [delay 10ms]"))
+    (feature,) = km.check_formula(ALTITUDE, best_source=True).features
+    assert [t.topic for t in feature.topics] == ["topic2"] and not feature.standby
+    why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
+    assert why["topic1"][-1] == (
+        "not chosen (--best-source): ranked after platform1/topic2 (rank "
+        "4611686018427387904 > 10000000)"
+    )
+    thesis = KnowledgeManager.from_config(SCENARIOS / "federation.toml")  # declaring nothing
+    formula = "always (Altitude[uav1] > Altitude[uav2])"
+    assert not any(f.standby for f in thesis.check_formula(formula, best_source=True).features)

@@ -1212,12 +1212,25 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
         publishing.close()
 
 
+BOTH_POSES, POSE1, POSE2 = (
+    ("fleet//robot1/pose", "fleet//robot2/pose"),
+    ("fleet//robot1/pose",),
+    ("fleet//robot2/pose",),
+)
+
+
+@pytest.mark.parametrize(
+    ("best_source", "read"), [(False, BOTH_POSES), (True, POSE1)], ids=["merged", "best-source"]
+)
 def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
-    tmp_path: Path, live: Callable[..., Live]
+    tmp_path: Path, live: Callable[..., Live], best_source: bool, read: tuple[str, ...]
 ) -> None:
     """X[r1] from both robots' poses, each declared 1 Hz: robot 1's poses stop after 3 s
     while /clock goes on, so X[r1] is read from robot 2's alone until robot 1 sends again
-    at 9 s (its topic stays subscribed)."""
+    at 9 s (its topic stays subscribed).  With --best-source robot 1's alone is read at
+    first, robot 2's subscribed beside it (ranked next; its poses before the switch, which
+    may come at 7 or 8 s as the loop takes its batches, feed nothing: the maximum age
+    bridges them)."""
     from dkreason.monitor import Rerouted
 
     (tmp_path / "pair.ttl").write_text(FLEET_TTL)
@@ -1231,7 +1244,8 @@ def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
         '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
     )
     km = KnowledgeManager.from_config(tmp_path / "pair.toml")
-    run = live(km, ["always (X[r1] < 15)"], sim_time=True, policy=StreamPolicy(max_age=5))
+    policy = StreamPolicy(max_age=10, best_source=best_source)
+    run = live(km, ["always (X[r1] < 15)"], sim_time=True, policy=policy)
     sim = SimRobots(run)
 
     def moves() -> list[Rerouted]:
@@ -1243,10 +1257,39 @@ def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
     sim.second(9, r1=1.0, r2=2.0)
     run.until(lambda: len(moves()) == 2, "robot 1's pose taken back")
     run.finish()
-    both, two = ("fleet//robot1/pose", "fleet//robot2/pose"), ("fleet//robot2/pose",)
     assert [(m.aside, m.before, m.after) for m in moves()] == [
-        (True, both, two),
-        (False, two, both),
+        (True, read, POSE2),
+        (False, POSE2, read),
     ]
     assert 7 <= moves()[0].time <= 8 and moves()[1].time == 9  # (when the clock passed)
+    standing = {c.topic: c.detail.startswith("standing by: ") for c in run.changes("subscribed")}
+    assert standing == {"/robot1/pose": False, "/robot2/pose": best_source}
     assert [v.verdict for v in run.verdicts()] == [True]
+
+
+def test_a_ros2_monitor_matches_with_its_max_delay(
+    tmp_path: Path, live: Callable[..., Live]
+) -> None:
+    """With --max-delay 100ms, robot 2's pose (declaring a 200 ms delay) is not relevant: it
+    is not subscribed though it publishes, announced before robot 1's."""
+    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
+    (tmp_path / "pair.sslt").write_text(
+        "".join(
+            f"topic /robot{n}/pose:{POSE} [delay {delay}] contains X(r1) = msg.pose.position.x\n"
+            for n, delay in ((1, "20ms"), (2, "200ms"))
+        )
+    )
+    (tmp_path / "pair.toml").write_text(
+        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
+    )
+    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    run = live(km, ["always (X[r1] < 15)"], policy=StreamPolicy(max_delay=Fraction(1, 10)))
+    assert not [name for name in run.monitor.wants if "robot2" in name]
+    robots = [
+        Ros2Node(run.publishing, "turtle", f"/robot{n}").publisher(f"/robot{n}/pose", POSE)
+        for n in (2, 1)
+    ]
+    run.until(lambda: bool(run.changes("subscribed")), "robot 1's pose subscribed")
+    run.matched(robots[1])
+    assert [c.topic for c in run.changes("subscribed")] == ["/robot1/pose"]
+    run.finish()

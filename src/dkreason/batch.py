@@ -153,13 +153,17 @@ def monitor_run(job: Job, run: Run) -> Outcome:
             msg=[Path(m) for m in job.msg],
             typestore=job.typestore,
         )
-        fixed = Monitor(job.plan, lambda _plan, **_: job.request, job.policy)
+        fixed = Monitor(
+            job.plan,
+            lambda _plan, degraded=frozenset(): job.request.without(degraded),
+            job.policy,
+        )
         monitored = MonitorRun(fixed, source)
         try:
             for event in monitored.events(tick):
                 if isinstance(event, Verdict):  # an update names more instances settled
                     decided[event.formula] = event
-                elif isinstance(event, Violation):  # (a source set aside: the request stays)
+                elif isinstance(event, Violation):
                     violations[event.constraint] += 1
         except DkError as exc:
             error = one_line(str(exc))

@@ -113,8 +113,10 @@ class KnowledgeManager:
             degraded=degraded,
         )
 
-    def _matcher(self, policy: StreamPolicy) -> Callable[..., StreamRequest]:
-        """How a monitor under `policy` matches: with its --max-delay and --best-source."""
+    def matcher(self, policy: StreamPolicy) -> Callable[..., StreamRequest]:
+        """How a monitor under `policy` matches (a `Monitor`'s `match`, every caller's: the
+        offline, live federation and ROS 2 monitors): with its --max-delay and --best-source,
+        and the sources it has set aside."""
 
         def matcher(plan: Plan, *, degraded: Aside = frozenset()) -> StreamRequest:
             return self.request(
@@ -144,17 +146,25 @@ class KnowledgeManager:
         topic: str | None = None,
         *,
         max_delay: float | Fraction | str | None = None,
+        best_source: bool = False,
     ) -> Explanation:
         """Why each topic of the request matched; for a feature without topics, or a named
         topic that was not chosen, the closest candidates and the first condition that failed
-        (`max_delay` as `request`'s: a topic it excludes is explained by its declared delay)."""
+        (`max_delay` as `request`'s: a topic it excludes is explained by its declared delay;
+        `best_source`: which topic is chosen, and what ranks each other one after it)."""
         from .explain import explain
         from .match import match
+        from .request import build_request
 
         ground = list(self.plan(formula).ground)
         limit = _seconds(max_delay, "max_delay")
-        matches, _ = match(self.kb, ground, limit)
-        return explain(self.kb, formula, ground, matches, feature, topic, limit)
+        matches, rejected = match(self.kb, ground, limit)
+        chosen = (
+            build_request(self.kb, formula, ground, matches, rejected, best_source=True).features
+            if best_source
+            else None
+        )
+        return explain(self.kb, formula, ground, matches, feature, topic, limit, chosen)
 
     def monitor(
         self,
@@ -212,7 +222,7 @@ class KnowledgeManager:
         try:
             engine = Monitor(
                 self.plan(formulas),
-                self._matcher(policy),
+                self.matcher(policy),
                 policy,
                 keep_states=keep_states,
                 robustness=robustness,
@@ -391,7 +401,7 @@ class KnowledgeManager:
         policy = policy or StreamPolicy()
         job = Job(
             plan,
-            self._matcher(policy)(plan),
+            self.matcher(policy)(plan),
             policy,
             tuple(self.platforms),
             tuple((remap if isinstance(remap, Mapping) else remaps(remap or ())).items()),

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from typing import Any, Literal, NamedTuple
 
@@ -279,8 +279,14 @@ class TopicMatch:
 
 @dataclass(frozen=True, slots=True)
 class FeatureRequest:
+    """A ground feature, the topics it is read from and, with --best-source, the relevant
+    topics ranked after the chosen one when it declares a rate (`standby`): read but feeding
+    nothing, so a monitor sees them run and can re-match to them when the chosen one's
+    samples stop and it is set aside."""
+
     feature: GroundFeature
     topics: tuple[TopicMatch, ...]
+    standby: tuple[TopicMatch, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -296,19 +302,39 @@ class StreamRequest:
     # name is never read bare (`T`, `/T`) for a remote platform (stream/binding.py)
     shared_names: frozenset[str] = frozenset()
 
+    def without(self, aside: frozenset[tuple[str, str]]) -> StreamRequest:
+        """The request with the (platform, topic)s a monitor set aside dropped, as the shipped
+        policy drops them (`degraded`): a feature whose chosen topic (--best-source) is aside
+        is read from the first topic standing by that is not.  For a monitor that cannot
+        match again, having no knowledge base (a batch worker)."""
+        if not aside:
+            return self
+
+        def kept(topics: tuple[TopicMatch, ...]) -> tuple[TopicMatch, ...]:
+            return tuple(t for t in topics if (t.platform, t.topic) not in aside)
+
+        features = []
+        for f in self.features:
+            topics, standby = kept(f.topics), kept(f.standby)
+            if not topics and standby:
+                topics, standby = standby[:1], standby[1:]
+            features.append(FeatureRequest(f.feature, topics, standby))
+        return replace(self, features=tuple(features))
+
     def to_json(self) -> dict[str, Any]:
         namespaces = dict(self.namespaces)
-        out: dict[str, Any] = {
-            "formula": self.formula,
-            "features": [
-                {
-                    "feature": f.feature.name,
-                    "args": list(f.feature.args),
-                    "topics": [t.to_json(self.local, namespaces.get(t.platform)) for t in f.topics],
-                }
-                for f in self.features
-            ],
-        }
+
+        def shown(topics: tuple[TopicMatch, ...]) -> list[dict[str, Any]]:
+            return [t.to_json(self.local, namespaces.get(t.platform)) for t in topics]
+
+        features = []
+        for f in self.features:
+            feature: dict[str, Any] = {"feature": f.feature.name, "args": list(f.feature.args)}
+            feature["topics"] = shown(f.topics)
+            if f.standby:  # --best-source: the topics ranked after the chosen one
+                feature["standby"] = shown(f.standby)
+            features.append(feature)
+        out: dict[str, Any] = {"formula": self.formula, "features": features}
         if self.warnings:
             out["warnings"] = list(self.warnings)
         return out

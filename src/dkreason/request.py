@@ -91,30 +91,34 @@ def build_request(
 ) -> StreamRequest:
     """`notes`: warnings about the formula itself (plan.FormulaPlan.warnings), said first;
     `best_source`: of each feature's topics in the policy's order, the first only, not their
-    merge (the thesis merges them all)."""
+    merge (the thesis merges them all); the others stand by when the first one declares a
+    rate, read by a monitor so that it can re-route to them when the first one's samples stop
+    (a topic declaring none is never set aside: nothing to read them for)."""
     per_feature: dict[int, dict[TopicMatch, int]] = defaultdict(dict)  # ordered, no repeats
     for m in matches:
         topic = topic_match(kb, m)
         if topic is not None:
             per_feature[m.query][topic] = min(m.rank, per_feature[m.query].get(topic, m.rank))
-    features = tuple(
-        FeatureRequest(
-            g,
-            tuple(
-                sorted(
-                    per_feature[q],
-                    key=lambda t: (
-                        per_feature[q][t],  # the policy's rank (0 unless it ranks), then
-                        t.platform != kb.local,
-                        t.platform,
-                        kb.platforms[t.platform].rank[t.topic],
-                        t.filter,
-                    ),
-                )
-            )[: 1 if best_source else None],
+    features = []
+    for q, g in enumerate(ground):
+        ranked = tuple(
+            sorted(
+                per_feature[q],
+                key=lambda t: (
+                    per_feature[q][t],  # the policy's rank (0 unless it ranks), then
+                    t.platform != kb.local,
+                    t.platform,
+                    kb.platforms[t.platform].rank[t.topic],
+                    t.filter,
+                ),
+            )
         )
-        for q, g in enumerate(ground)
-    )
+        if not best_source:
+            features.append(FeatureRequest(g, ranked))
+        else:  # the others stand by if the first one can be set aside: it declares a rate
+            features.append(
+                FeatureRequest(g, ranked[:1], ranked[1:] if ranked[:1] and ranked[0].rate else ())
+            )
     warnings = [*notes, *kb.warnings, *_warnings(kb, ground, rejected)]
     namespaces = tuple(
         (p.name, p.namespace)
@@ -124,7 +128,7 @@ def build_request(
     return StreamRequest(
         formula,
         kb.local,
-        features,
+        tuple(features),
         tuple(dict.fromkeys(warnings)),
         namespaces,
         kb.shared_names(),

@@ -37,7 +37,13 @@ def explain(args: argparse.Namespace) -> int:
 
     km = KnowledgeManager.from_config(args.config)
     render.warnings(km.rule_warnings)
-    result = km.explain(args.formula, args.feature, args.topic, max_delay=args.max_delay)
+    result = km.explain(
+        args.formula,
+        args.feature,
+        args.topic,
+        max_delay=args.max_delay,
+        best_source=args.best_source,
+    )
     print(why.render(result, args.format, proof=args.proof, depth=args.depth))
     return 0
 

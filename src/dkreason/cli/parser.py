@@ -478,6 +478,7 @@ def _explain(sub: a.Sub) -> None:
     p.add_argument("--feature", help='only this ground feature, e.g. "Altitude[uav2]"')
     p.add_argument("--topic", help="only this topic; explains why it was not chosen if not")
     _max_delay(p)
+    _best_source(p)
     p.add_argument("--format", choices=("text", "json", "dot"), default="text")
     p.add_argument(
         "--proof",

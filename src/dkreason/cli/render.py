@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
-from ..model import StreamRequest, ros_name
+from ..model import StreamRequest, TopicMatch, ros_name
 from ..monitor import WORDS, Event, Rerouted
 from ..names import local_name
 from ..progress import InstanceVerdict, Verdict
@@ -156,20 +156,24 @@ def request(request: StreamRequest) -> str:
             f"Feature: {f.feature.key}",
             "Topics to merge:" if f.topics else "Topics to merge: none",
         ]
-        for t in f.topics:
-            ids = "".join(f"Id: {k} = {v}, " for k, v in t.filter)
-            where = (
-                ""
-                if t.platform == request.local
-                else f" (platform {t.platform}, as {t.as_feature}[{', '.join(t.as_args)}])"
-            )
-            namespace = namespaces.get(t.platform)
-            name = t.topic if namespace is None else ros_name(t.topic, namespace)
-            lines.append(
-                f"  Topic: {name}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
-            )
+        lines += [_topic(t, request.local, namespaces) for t in f.topics]
+        if f.standby:  # --best-source: read too, to re-route to when the first one stops
+            lines.append("Standing by:")
+            lines += [_topic(t, request.local, namespaces) for t in f.standby]
     lines += [f"Warning: {w}" for w in request.warnings]
     return "\n".join(lines)
+
+
+def _topic(t: TopicMatch, local: str, namespaces: dict[str, str]) -> str:
+    ids = "".join(f"Id: {k} = {v}, " for k, v in t.filter)
+    where = (
+        ""
+        if t.platform == local
+        else f" (platform {t.platform}, as {t.as_feature}[{', '.join(t.as_args)}])"
+    )
+    namespace = namespaces.get(t.platform)
+    name = t.topic if namespace is None else ros_name(t.topic, namespace)
+    return f"  Topic: {name}{where}, Message type: {t.msgtype}, {ids}Field: {t.field}"
 
 
 def formula_warnings(found: Sequence[str], as_json: bool) -> None:

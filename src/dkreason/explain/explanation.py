@@ -3,13 +3,14 @@ for a feature without topics (or a named topic that was not chosen) why not."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from fractions import Fraction
 
 from ..errors import DkError
 from ..kb import KnowledgeBase
 from ..match import Match, given_rows
-from ..model import GroundFeature
+from ..model import FeatureRequest, GroundFeature, TopicMatch
 from ..parse.formula import feature_key
 from .provenance import Reader
 from .replay import Replayer
@@ -43,10 +44,12 @@ def explain(
     feature: str | None = None,
     topic: str | None = None,
     max_delay: Fraction | None = None,
+    chosen: Sequence[FeatureRequest] | None = None,
 ) -> Explanation:
     """Why the `matches` of `formula`'s ground features hold (only `feature`'s, only `topic`'s
     if given), and for a feature without them why not, computed on demand: `check_formula`
-    does not pay for it."""
+    does not pay for it.  `chosen`: the --best-source request's features (one per ground
+    feature), each topic's line saying whether it is chosen or stands by."""
     selected = list(range(len(ground)))
     if feature is not None:
         wanted_key = feature_key(feature)
@@ -66,6 +69,8 @@ def explain(
         for q in selected:
             mine = [m for m in matches if m.query == q and topic in (None, m.topic)]
             why = tuple(topic_why(kb, replay, m) for m in mine)
+            if chosen is not None and chosen[q].topics:
+                why = _best(why, mine, chosen[q].topics[0], [m for m in matches if m.query == q])
             why_not: tuple[TopicWhyNot, ...] = ()
             if not mine:
                 platforms = (
@@ -81,3 +86,32 @@ def explain(
                 )
             features.append(FeatureExplanation(str(ground[q].key), why, why_not))
     return Explanation(formula, tuple(features))
+
+
+def _best(
+    why: tuple[TopicWhy, ...], mine: list[Match], first: TopicMatch, feature: list[Match]
+) -> tuple[TopicWhy, ...]:
+    """Each topic's last line under --best-source: the one chosen, or what ranks another
+    after it (a smaller rank first; on the same rank, the local platform, then the order of
+    platforms and of the specs).  `feature`: every match of the feature, `mine` those shown."""
+    best = (first.platform, first.topic)
+    top = min(m.rank for m in feature if (m.platform, m.topic) == best)
+    out = []
+    for w, m in zip(why, mine, strict=True):
+        if (m.platform, m.topic) == best:
+            line = "chosen (--best-source): ranked first"
+        else:
+            order = (
+                f"rank {m.rank} > {top}"
+                if m.rank != top
+                else "the same rank, after it in the order of platforms and specs"
+            )
+            after = f"ranked after {first.platform}/{first.topic} ({order})"
+            line = (
+                f"standing by (--best-source): {after}; read, and re-routed to if that one "
+                "is set aside"
+                if first.rate
+                else f"not chosen (--best-source): {after}"  # it is never set aside
+            )
+        out.append(replace(w, summary=(*w.summary, line)))
+    return tuple(out)

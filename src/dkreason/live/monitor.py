@@ -231,7 +231,7 @@ class LiveMonitor:
         verdicts."""
         yield from self._gather()
         monitor = self.monitor = Monitor(
-            self.km.plan(self.formulas), self.km.request, self.policy, watch=self.watch
+            self.km.plan(self.formulas), self.km.matcher(self.policy), self.policy, watch=self.watch
         )
         processor = self.processor = monitor.start(self.source)
         monitor.follow = self._follow
@@ -440,7 +440,8 @@ class LiveMonitor:
 
     def _follow(self, request: StreamRequest) -> list[Event]:
         """The monitor set a source aside or took one back: the subscriptions follow (one set
-        aside stays subscribed, so its return is seen)."""
+        aside stays subscribed, so its return is seen, and with --best-source so do the
+        topics standing by, so the features can be re-routed to them)."""
         assert self.processor is not None
         self.read = dict_reader(self.source.name, self.processor.wanted)
         return self._subscribe(request, None, "a source set aside or taken back")
@@ -457,10 +458,17 @@ class LiveMonitor:
             f.feature.key: {(t.platform, t.topic) for t in f.topics} for f in request.features
         }
         changes: list[Event] = []
-        wanted = dict.fromkeys(aside, "") | {
-            pt: str(key) for key, pts in self.topics.items() for pt in pts
-        }
-        for (q, t), feature in sorted(wanted.items()):
+        # (platform, topic) → (the feature it feeds, or stands by for under --best-source)
+        wanted = (
+            dict.fromkeys(aside, ("", ""))
+            | {
+                (t.platform, t.topic): (str(f.feature.key), "standing by")
+                for f in request.features
+                for t in f.standby
+            }
+            | {pt: (str(key), "") for key, pts in self.topics.items() for pt in pts}
+        )
+        for (q, t), (feature, role) in sorted(wanted.items()):
             if (q, t) not in self.subs:
                 self.since[(q, t)] = time.monotonic()
                 self.subs[(q, t)] = self.session.declare_subscriber(
@@ -476,7 +484,7 @@ class LiveMonitor:
                         )
                     ),
                 )
-                changes.append(change("subscribed", now, q, feature=feature, topic=t))
+                changes.append(change("subscribed", now, q, role, feature=feature, topic=t))
         for q, t in sorted(set(self.subs) - set(wanted)):
             self.subs.pop((q, t)).undeclare()
             self.clocks.pop((q, t), None)

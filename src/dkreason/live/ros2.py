@@ -133,25 +133,31 @@ class Ros2Monitor:
         self.remap = dict(remap or {})
         self.recorder = recorder
         self.monitor = Monitor(
-            km.plan(formulas), km.request, policy, keep_states=keep_states, watch=watch
+            km.plan(formulas), km.matcher(policy), policy, keep_states=keep_states, watch=watch
         )
         self.processor = self.monitor.start(loop.LiveSource())
         request = self.monitor.request
         namespaces = dict(request.namespaces)
+        # recording name → the features it feeds, or stands by for (--best-source: ranked
+        # after the chosen topic, subscribed so that the features can be re-routed to it)
         self.wants: dict[str, list[tuple[FeatureKey, TopicMatch]]] = {}
+        self.standby: set[tuple[str, FeatureKey]] = set()
         for f in request.features:
-            for m in f.topics:
+            for m in (*f.topics, *f.standby):
                 for name in recording_names(
                     m, request.local, namespaces.get(m.platform), request.shared_names
                 ):
                     self.wants.setdefault(name, []).append((f.feature.key, m))
+                    if m in f.standby:
+                        self.standby.add((name, f.feature.key))
         self.inbox = Inbox(QUEUED)
         self.dropped = 0  # samples the queue had no room for within PUT_WAIT (zenoh threads)
         self.told = 0  # of those, reported
         self.seen: dict[str, rmw.Publisher] = {}  # token → every publisher discovered
         self.taken: dict[str, str] = {}  # token → the key expression subscribed for it
         self.subs: dict[str, _Sub] = {}  # key expression → subscription
-        self.feeding: dict[FeatureKey, set[str]] = {}  # feature → its subscribed keys
+        # feature → its subscribed keys (standing by too: they feed it once re-routed)
+        self.feeding: dict[FeatureKey, set[str]] = {}
         self.warned: set[tuple[str, ...]] = set()
         self.hashes: dict[str, str] = {}  # type → its definition's REP-2011 hash, here
         self.rejected: dict[tuple[str, str], int] = {}
@@ -436,7 +442,10 @@ class Ros2Monitor:
         for key in features:
             self.feeding.setdefault(key, set()).add(pub.key)
             m = next(m for k, m in self.wants[name] if k == key)
-            changes.append(change("subscribed", now, m.platform, pub.describe(), str(key), m.topic))
+            role = "standing by: " if (name, key) in self.standby else ""
+            changes.append(
+                change("subscribed", now, m.platform, role + pub.describe(), str(key), m.topic)
+            )
         return changes
 
     def _gone(self, token: str) -> list[Event]:

@@ -293,12 +293,14 @@ class StreamProcessor:
         namespaces = dict(request.namespaces)
         for f in request.features:
             q = self.position[f.feature.key]
-            for prio, m in enumerate(sorted(f.topics, key=lambda t: t.platform != request.local)):
+            feeding = sorted(f.topics, key=lambda t: t.platform != request.local)
+            for prio, m in enumerate((*feeding, *f.standby)):
                 names = recording_names(
                     m, request.local, namespaces.get(m.platform), request.shared_names
                 )
                 present = [n for n in names if n in types] if types else names
-                if types and not present:
+                standby = prio >= len(feeding)
+                if types and not present and not standby:
                     self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(str(f.feature.key))
                 if types and present:
                     msgtype = types[present[0]]
@@ -325,6 +327,11 @@ class StreamProcessor:
                     if name in before and name not in self.wanted:
                         self.wanted[name] = list(before[name])
                     self.quality.declare(name, f.feature.key, m.platform, m.topic, m.rate, m.delay)
+                    if standby:  # read and watched, feeding nothing: its fields get places
+                        for field in (m.field, *ids):
+                            self._position(name, field)
+                        self.groups.setdefault(name, [])
+                        continue
                     route = _Route(
                         q,
                         itemgetter(self._position(name, m.field)),
@@ -452,12 +459,13 @@ class StreamProcessor:
         periodic = self.period is not None
         max_valid, quiet = self.max_valid, self.quiet_until
         made = self.made
-        declared = self.quality.topics
+        quality = self.quality
+        declared = quality.topics
         n, seen = 0, None
         try:
             for topic, available, valid, values in messages:
                 if declared and topic in declared:
-                    self._report(self.quality.sample(topic, available, valid))
+                    self._report(quality.sample(topic, available, valid))
                 for group in groups[topic]:
                     try:  # `_Group.routes`, its common case inline: a hashable id, found
                         routes = group.index.get(group.key(values))
@@ -530,6 +538,10 @@ class StreamProcessor:
                 if available > quiet:
                     self._emit(available, final=False)
                     quiet, made = self.quiet_until, self.made
+                elif declared and available > quality.due:
+                    # a topic declaring a rate went silent: seen at a message of any topic
+                    # read, whether or not it makes a state (one standing by makes none)
+                    self._report(quality.silent(available))
                 if watch or not n & 4095:
                     yield n
         finally:
@@ -554,8 +566,9 @@ class StreamProcessor:
         )
 
     def advance(self, available: int) -> None:
-        """Every source has passed `available`: make the states due by then."""
-        if available <= self.quiet_until:
+        """Every source has passed `available`: make the states due by then (and set aside
+        the topics silent too long by then)."""
+        if available <= self.quiet_until and available <= self.quality.due:
             self.last_seen = available
             return  # nothing is due yet
         self._emit(available, final=False)
@@ -662,7 +675,7 @@ class StreamProcessor:
 
     def _emit(self, now: int, final: bool) -> None:
         self.last_seen = now
-        if self.quality.topics:
+        if self.quality.topics and now > self.quality.due:
             self._report(self.quality.silent(now))
         try:
             self.quiet_until = self._make_due(now, final)

@@ -73,6 +73,9 @@ class QualityWatch:
         (0: never)."""
         self.topics: dict[str, _Watched] = {}
         self.set_aside_after, self.moved = set_aside_after, moved
+        # the record time (ns) after which `silent` may have something to say: a replay asks
+        # it at the first message past it, of any topic, whether or not a state is due then
+        self.due: float = math.inf
 
     def declare(
         self,
@@ -113,6 +116,7 @@ class QualityWatch:
             return out
         arrivals = w.arrivals
         arrivals.append(available)
+        self.due = min(self.due, self._due(w))
         if w.first is None:
             w.first = available
         while arrivals[0] <= available - w.window:
@@ -133,6 +137,7 @@ class QualityWatch:
         silent for more than `set_aside_after` declared periods are set aside."""
         out = []
         after = self.set_aside_after
+        self.due = math.inf
         for w in self.topics.values():
             if w.rate is None or not w.arrivals:
                 continue
@@ -154,7 +159,19 @@ class QualityWatch:
                     f"no sample for {seconds_text(quiet)} s, below the declared "
                     f"{decimal(w.rate)} Hz",
                 )
+            self.due = min(self.due, self._due(w))
         return out
+
+    def _due(self, w: _Watched) -> float:
+        """When `silent` next has something to say of `w` (a topic with a declared rate and
+        a sample): past its window without a sample (once it may be said again), or past
+        `set_aside_after` periods (unless it is aside)."""
+        assert w.rate is not None
+        last = w.arrivals[-1]
+        due = max(last + w.window, w.quiet.get("declared_rate", 0) - 1)
+        if self.set_aside_after and not w.aside:
+            due = min(due, math.floor(last + self.set_aside_after * NS / w.rate))
+        return due
 
     def _move(self, w: _Watched, aside: bool, at: int, reason: str) -> None:
         if self.moved is not None:
