@@ -129,6 +129,15 @@ class _Group:
         return found
 
 
+
+def _read_from(hist: list[Any], i: int) -> int:
+    """The oldest sample of a history still read once sample i is the newest valid: the
+    newest of an earlier time (what `prev` reads, however many samples share i's time)."""
+    j = i - 1
+    while j > 0 and hist[j][0] == hist[i][0]:
+        j -= 1
+    return j
+
 class StreamProcessor:
     def __init__(
         self,
@@ -758,8 +767,8 @@ class StreamProcessor:
                         valid, _, v = hist[i]
                         if max_age is None or s - valid <= max_age:
                             value = v
-                        if i > 32:  # older samples are never read again (but by `prev`)
-                            del hist[: i - 1]
+                        if i > 32:
+                            del hist[: _read_from(hist, i)]
                     current[keys[q]] = value
                 redo.clear()
                 values = current
@@ -804,8 +813,9 @@ class StreamProcessor:
         return out, taken
 
     def newest(self, key: FeatureKey) -> int | None:
-        """The valid time (ns) of the feature's newest sample; None before its first."""
-        hist = self.hist[self.position[key]]
+        """The valid time (ns) of the feature's newest sample (a term's: its feature's); None
+        before its first."""
+        hist = self.hist[self.terms[key][1] if key in self.terms else self.position[key]]
         return hist[-1][0] if hist else None
 
     def _stale(self, q: int, s: int) -> bool:
@@ -836,7 +846,7 @@ class StreamProcessor:
                         value = v
                 elif s - valid <= deviation:
                     value = v
-                if i > 32:  # older samples are never read again (but by `prev`)
-                    del hist[: i - 1]
+                if i > 32:
+                    del hist[: _read_from(hist, i)]
             values[key] = value
         return values, None if fresh is None else tuple(fresh)
