@@ -129,7 +129,6 @@ class _Group:
         return found
 
 
-
 def _read_from(hist: list[Any], i: int) -> int:
     """The oldest sample of a history still read once sample i is the newest valid: the
     newest of an earlier time (what `prev` reads, however many samples share i's time)."""
@@ -137,6 +136,7 @@ def _read_from(hist: list[Any], i: int) -> int:
     while j > 0 and hist[j][0] == hist[i][0]:
         j -= 1
     return j
+
 
 class StreamProcessor:
     def __init__(
