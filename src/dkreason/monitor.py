@@ -115,10 +115,9 @@ class _Group:
     def __init__(self, keys: frozenset[FeatureKey], formula: int | None) -> None:
         self.keys, self.formula = keys, formula
         self.progressor: Progressor
-        # with robustness: the states it was judged at that a margin may still read, with
-        # what its formulas read
+        # with robustness: the states it was judged at that a margin may still read (what
+        # its formulas read of them)
         self.kept: Kept | None = None
-        self.reads: set[FeatureKey] = set()
 
 
 Unit = tuple[int, int]  # an instance being judged: (formula, instance) in the plan
@@ -291,7 +290,6 @@ class Monitor:
                     from .progress.kept import Kept
 
                     group.kept = Kept()
-                group.reads.update(features(instance.tree))
                 group.kept.add(name, scaled(instance.tree, Fraction(NS)))
                 self.begun[name] = group
         self.steps.clear()
@@ -360,7 +358,7 @@ class Monitor:
         if self.robust:
             for g in self._due(fresh):
                 if g.kept is not None:  # a group of robust formulas' instances
-                    g.kept.append(time, {k: values[k] for k in g.reads})
+                    g.kept.append(time, values)
         decided: Sequence[Verdict] = self._timers(fresh, time, steps) if self.timers else ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
