@@ -235,10 +235,8 @@ class Signals:
         if found is None:
             trace = self.trace
             try:
-                found = np.array(
-                    trace.columns[k] if isinstance(trace, Columns) else [v[k] for _, v in trace],
-                    dtype=float,
-                )
+                raw = trace.columns[k] if isinstance(trace, Columns) else [v[k] for _, v in trace]
+                found = np.fromiter(raw, float, len(raw))  # (None: NaN)
             except (TypeError, ValueError):  # not numbers: said as the Boolean path says it
                 assert not isinstance(e, Fresh)
                 found = np.array(
