@@ -27,7 +27,7 @@ from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
 from .progress.compile import scaled
-from .progress.state import USE, feature_uses, features, terms
+from .progress.state import USE, feature_uses, fresh_limits, terms
 from .progress.witness import Clock, Time, undecided
 from .stream.pace import paced
 from .stream.policy import StreamPolicy
@@ -221,6 +221,7 @@ class Monitor:
             frozenset(k for k, (use, _) in used.items() if use == "string"),
             self._terms(),
             self._moved,
+            self._limits(),
         )
         for k, (use, text) in used.items():
             for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
@@ -238,6 +239,10 @@ class Monitor:
     def _terms(self) -> set[tuple[str, FeatureKey]]:
         """The terms over samples the formulas read (`prev(X)`): the states carry them."""
         return {t for f in self.plan.formulas for i in f.instances for t in terms(i.tree)}
+
+    def _limits(self) -> set[tuple[FeatureKey, Fraction]]:
+        """The formulas' `fresh(X, d)`: a state is made when X's last sample grows too old."""
+        return {x for f in self.plan.formulas for i in f.instances for x in fresh_limits(i.tree)}
 
     def _keep(self, time: int, values: dict[FeatureKey, Any], _: object) -> None:
         self.states.append((time, dict(values)))
@@ -570,7 +575,7 @@ class Monitor:
             k for k, (use, _) in self._uses().items() if use == "string"
         )
         self.processor.reroute(self.request, source)
-        self.processor.want(self._terms())
+        self.processor.want(self._terms(), self._limits())
         return self.request
 
     def finish(self, end: int | None = None) -> list[Event]:

@@ -384,7 +384,7 @@ class Direct:
     exact, and with robustness what keeps the states."""
 
     spelling: Mapping[FeatureKey, Any]
-    last: Time
+    last: Time | float  # (-inf before the first)
     again: Callable[[Any, Any], Sequence[Any]]
     exact: Callable[[Any], Time]
     keeper: Keeper | None = None
@@ -475,7 +475,12 @@ class FusedSet:
         return made
 
     def entry(
-        self, t: Time, pos: int, given: Any, resume: Callable[[int, Any], Sequence[V]], direct: Direct
+        self,
+        t: Time,
+        pos: int,
+        given: Any,
+        resume: Callable[[int, Any], Sequence[V]],
+        direct: Direct,
     ) -> tuple[Entry, Held] | None:
         """`fast` for the owner's caller's states as they come (`Direct`), which keeps them for
         robustness itself."""
@@ -660,11 +665,13 @@ def _generate(fs: FusedSet) -> Code:
         "entry": (
             "def entry(pos, given, resume, direct):\n"
             f"    ({spelled}{',' if every else ''}), last, again, exact, keep = direct\n"
-            + (f"    T, ({appends}{',' if appends else ''}), room, fold = keep\n" if fs.keeps else "")
+            + (
+                f"    T, ({appends}{',' if appends else ''}), room, fold = keep\n"
+                if fs.keeps
+                else ""
+            )
             + "    def entry(time, v):\n"
-            "        nonlocal pos, given, last"
-            + (", room\n" if fs.keeps else "\n")
-            + f"{entry}\n"
+            "        nonlocal pos, given, last" + (", room\n" if fs.keeps else "\n") + f"{entry}\n"
             "        if decided:\n"
             "            fs.changed()\n"
             "            return resume(pos, given)\n"

@@ -248,7 +248,9 @@ class Progressor:
             self.spelling = _spelling(values, self.keys, time)
             typed = {k: values[s] for k, s in self.spelling}
         if self.fused.members and not self.general.roots and not self.samples.terms:
-            direct = Direct(dict(self.spelling), self.stepped[0], self._again, exact_time, self.kept)
+            direct = Direct(
+                dict(self.spelling), self.stepped[0], self._again, exact_time, self.kept
+            )
             made = self.fused.entry(t, self.pos, self.last_input, self.resume, direct)
             if made is not None:  # this state on, one call: `entry`
                 self._start()
