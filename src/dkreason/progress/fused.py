@@ -508,14 +508,20 @@ def _never(t: Time, values: Any, pos: int, given: Any) -> bool:
 
 
 def _generate(fs: FusedSet) -> Code:
-    """`step(t, v, pos, given) -> decided?` for the current members, compiled once; and
-    `make(pos, given, resume, direct)`, which gives `fast`: the same as the owner's whole step
-    for one state (its verdicts returned), which the owner calls instead while every part it
-    has is fused and started: one call a state.  `fast` holds the position and time in its own
-    closure (no attribute stores a state) and passes them to what notes an unknown; at a
-    decision it returns `resume(pos, given)`; `held` reads them for the owner otherwise.  With
-    `direct`, also `entry`: `fast` for the caller's own states (`Direct`), unchecked and
-    unconverted, which keeps them for robustness itself."""
+    """The code for the current members, three functions over one scope:
+
+    - `step(t, v, pos, given) -> decided?`, for a progressor that has other parts too;
+    - `fast(pos, given, resume)`, which gives the owner's whole step for one state (its
+      verdicts returned), called instead while every part it has is fused: one call a state.
+      It holds the position and time in its own closure (no attribute stores a state) and
+      passes them to what notes an unknown; at a decision it returns `resume(pos, given)`;
+      `held` reads them for the owner otherwise;
+    - `entry(pos, given, resume, direct)`: the same for the states `Progressor.step` is given
+      (`Direct`), as they come: it checks the time, reads each feature by the caller's key
+      and keeps what robustness needs, so a state is one call from the caller's loop.
+
+    Values are read into locals first; a rare path (an unknown value, a failure) is given
+    them as a dict again."""
     formulas: dict[Formula, str] = {}
     thresholds: dict[tuple[FeatureKey, str], list[tuple[int | float, Member]]] = {}
     for m in fs.members:

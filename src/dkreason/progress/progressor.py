@@ -181,13 +181,15 @@ class Progressor:
         self.pos = -1
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
-        # what a state calls: `step_state`, or once every part is fused and started, the
-        # fused set's `fast` (the same, generated whole: one call a state), which holds
-        # pos and last_input meanwhile (`held` reads them)
+        # what a state calls: `step_state`, or while every part is fused, the fused set's
+        # `fast` (the same, generated whole: one call a state), which holds pos and
+        # last_input meanwhile (`held` reads them)
         self.stepper: Stepper[Verdict] = self.step_state
         self.held: Held | None = None
-        # what `step` calls: `checked`, or with the fast step, its own `entry` for the
-        # caller's states (no terms over samples to write in)
+        # what `step` calls: `checked`, or while every part is fused (and no term over
+        # samples is written into the states), the fused set's `entry`, which holds them
+        # and the last time given, and keeps the states for robustness (`stepper` is then
+        # `_handed`)
         self.entry: Entry = self.checked
         # `step`: the last time given, and how the caller spells each feature
         self.stepped: tuple[Time | float, Any] = (float("-inf"), None)
