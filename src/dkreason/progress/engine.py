@@ -76,5 +76,8 @@ Entry = Callable[[Any, Any], list[Any]]
 as given, checked): its verdicts."""
 
 
+Append = Callable[[Any], None]
+"""A list's append: what keeps a state's time or a feature's value (progress.kept)."""
+
 Held = Callable[[], tuple[int, Any]]
 """The position and time (as given) of the last state a fused fast step took."""

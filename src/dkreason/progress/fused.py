@@ -46,7 +46,7 @@ from ..parse.formula import (
     unparse,
 )
 from .compile import exact
-from .engine import Entry, Held, Report, Stepper, Timer, Unknown
+from .engine import Append, Entry, Held, Report, Stepper, Timer, Unknown
 from .state import GLOBALS, boolean_keys, evaluate, features, is_state, key, python, reads
 from .witness import Clock, Time, Why, but, settled, state_was, window_closed, window_cut
 
@@ -365,7 +365,6 @@ class Thresholds:
 
 
 Run = Callable[[Time, Any, int, Any], bool]  # one state (t, values, pos, given): decided?
-Append = Callable[[Any], None]
 
 
 class Keeper(Protocol):

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import bisect
 import dataclasses
-from collections.abc import Callable, Hashable, Mapping
+from collections.abc import Hashable, Mapping
 from typing import Any
 
 import numpy as np
@@ -37,13 +37,13 @@ from ..parse.formula import (
     Until,
     children,
 )
+from .engine import Append
 from .robustness import Columns, Rho, Signals, at_start, lower, upper
 from .state import features
 from .verdict import INF
 from .witness import Time
 
 CHUNK = 4096
-Append = Callable[[Any], None]
 
 
 def reach(f: Any) -> tuple[Any, Any] | None:
