@@ -207,6 +207,7 @@ class Signals:
         self._times: NDArray[Any] | None = None
         self.memo: dict[int, Array] = {}
         self.columns: dict[FeatureKey, Array] = {}
+        self.windows: dict[tuple[Interval, bool], tuple[Index, Index]] = {}
 
     @property
     def times(self) -> NDArray[Any]:
@@ -300,19 +301,26 @@ class Signals:
 
     def bounds(self, interval: Interval, future: bool) -> tuple[Index, Index]:
         """Each state's window [first, stop) of positions: those at least `lo` and at most `hi`
-        after it (`future`) or before it."""
+        after it (`future`) or before it (found once a window: a critical atom looks again)."""
+        found = self.windows.get((interval, future))
+        if found is None:
+            found = self.windows[(interval, future)] = self._bounds(interval, future)
+        return found
+
+    def _bounds(self, interval: Interval, future: bool) -> tuple[Index, Index]:
         n = self.n
+        idx = np.arange(n, dtype=np.intp)
         if interval.lo == 0 and interval.hi is None:  # from each state to the end (or start)
-            idx = np.arange(n, dtype=np.intp)
             return (idx, np.full(n, n, np.intp)) if future else (np.zeros(n, np.intp), idx + 1)
         times = self.times
         lo, hi = self.integral(interval)
+        # (times increase strictly: a window from the state itself starts, or ends, there)
         if future:
-            first = np.searchsorted(times, times + lo, "left")
+            first = idx if lo == 0 else np.searchsorted(times, times + lo, "left")
             stop = np.full(n, n) if hi is None else np.searchsorted(times, times + hi, "right")
         else:
             first = np.zeros(n, np.intp) if hi is None else np.searchsorted(times, times - hi)
-            stop = np.searchsorted(times, times - lo, "right")
+            stop = idx + 1 if lo == 0 else np.searchsorted(times, times - lo, "right")
         return first.astype(np.intp), stop.astype(np.intp)
 
     def integral(self, interval: Interval) -> tuple[Any, Any]:
