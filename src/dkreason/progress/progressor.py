@@ -186,11 +186,11 @@ class Progressor:
         # last_input meanwhile (`held` reads them)
         self.stepper: Stepper[Verdict] = self.step_state
         self.held: Held | None = None
-        # what `step` calls: `checked`, or while every part is fused (and no term over
+        # what `step` calls: `_checked`, or while every part is fused (and no term over
         # samples is written into the states), the fused set's `entry`, which holds them
         # and the last time given, and keeps the states for robustness (`stepper` is then
         # `_handed`)
-        self.entry: Entry = self.checked
+        self.entry: Entry = self._checked
         # `step`: the last time given, and how the caller spells each feature
         self.stepped: tuple[Time | float, Any] = (float("-inf"), None)
         self.spelling = _UNSEEN
@@ -231,7 +231,7 @@ class Progressor:
         sample of it (`prev(X)` is its value at the last such state before)."""
         return self.entry(time, values)
 
-    def checked(
+    def _checked(
         self, time: Any, values: Mapping[FeatureKey, Any] | Mapping[str, Any]
     ) -> list[Verdict]:
         """`step` in general: the time checked and made exact, the features read through
@@ -313,14 +313,14 @@ class Progressor:
         """For the fused fast step, at a decision: the position and time it held come back,
         the decided verdicts are reported, and `step_state` runs from the next state on."""
         self.pos, self.last_input = pos, given
-        self.stepper, self.held, self.entry = self.step_state, None, self.checked
+        self.stepper, self.held, self.entry = self.step_state, None, self._checked
         self.stepped = (exact_time(given), given)
         return self._decided(at_end=False)
 
     def _again(self, time: Any, values: Any) -> list[Verdict]:
         """For the fast step's `entry`, a state it does not take: checked, from here on."""
         self._general()
-        return self.checked(time, values)
+        return self._checked(time, values)
 
     def advance(self, time: Any) -> list[Verdict]:
         """The stream passed `time` (after the last state) without a state of these formulas:
@@ -366,7 +366,7 @@ class Progressor:
             self.pos, self.last_input = self.held()
             if self.pos >= 0:
                 self.stepped = (exact_time(self.last_input), self.last_input)
-        self.stepper, self.held, self.entry = self.step_state, None, self.checked
+        self.stepper, self.held, self.entry = self.step_state, None, self._checked
 
     def _decided(self, at_end: bool, time: Any = None) -> list[Verdict]:
         """The decided formulas' verdicts, at the current state (or `time`, advanced to)."""
