@@ -699,13 +699,20 @@ class Code:
 
     def get(self, name: str) -> Any:
         if name not in self.scope:
-            exec(_compiled(self.sources[name]), self.scope)
+            source = self.sources[name]
+            code = _compiled(source) if len(source) <= CACHED else _compile(source)
+            exec(code, self.scope)
         return self.scope[name]
 
 
-@functools.lru_cache(maxsize=64)
-def _compiled(source: str) -> CodeType:
-    """Generated source compiled once a process: the same formulas' code (a quantified
-    formula's instances over other objects, a run again) is the same text, its constants and
-    features bound in each scope."""
+CACHED = 1 << 15  # longer code (hundreds of formulas) is compiled each time: memory stays small
+
+
+def _compile(source: str) -> CodeType:
     return compile(source, "<fused monitors>", "exec")
+
+
+_compiled = functools.lru_cache(maxsize=64)(_compile)
+"""Generated source compiled once a process: the same formulas' code (a quantified formula's
+instances over other objects, a progressor made again) is the same text, its constants and
+features bound in each scope."""
