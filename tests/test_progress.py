@@ -317,6 +317,23 @@ def test_bad_states_are_errors_naming_feature_and_time(steps: list[Any], says: s
             p.step(t, values)
 
 
+def test_a_bad_state_once_the_fast_step_took_over_is_the_same_error_and_changes_nothing() -> None:
+    """The generated step takes `step`'s states itself after the first: a time not after the
+    last, or a state without a feature, is still the one-line error, and is neither judged
+    nor kept for robustness."""
+    p = Progressor(robustness=True)
+    p.add("always (X > 0)")
+    for t in range(3):
+        assert not p.step(t, {"X": 1})
+    with pytest.raises(DkError, match="time 2 is not after the previous state's time 2"):
+        p.step(2, {"X": -5})
+    with pytest.raises(DkError, match="the state at time 3 has no value for X"):
+        p.step(3, {"Y": -5})
+    (v,) = p.step(3, {"X": -1})
+    assert (v.verdict, v.time) == (False, 3)
+    assert v.robustness is not None and v.robustness.value == -1
+
+
 families = st.tuples(
     atoms,
     atoms,

@@ -269,6 +269,39 @@ def test_the_states_kept_give_the_margin_every_state_gives(
     )
 
 
+fused_shapes = st.one_of(
+    st.builds(lambda a: f"always {a}", comparisons),
+    st.builds(lambda a, b: f"always ({a} and {b})", comparisons, comparisons),
+    st.builds(lambda a, b: f"always ({a} -> eventually[0, 3] {b})", comparisons, comparisons),
+    st.builds(lambda a: f"always not always[0, 2] {a}", comparisons),
+)
+
+
+@SETTINGS
+@given(st.lists(fused_shapes, min_size=1, max_size=3), irregular, st.booleans())
+def test_the_fast_step_keeps_what_the_general_engine_keeps(
+    formulas: list[str], rows: list[tuple[int, Any, Any]], text: bool
+) -> None:
+    """Progressor.step with the fused fast step taking the states itself (and keeping them:
+    folds every few states here), as text keys or feature keys: the verdicts, times and margins
+    of the general engine, and the margin over the states judged."""
+    trace = _trace(rows)
+    seen = []
+    for engine in ("auto", "general"):
+        p = Progressor(engine=engine, robustness=True)
+        assert p.kept is not None
+        p.kept.chunk = p.kept.fold_at = 3
+        for f in formulas:
+            p.add(f)
+        out = []
+        for t, values in trace:
+            given = {str(k): v for k, v in values.items()} if text else values
+            out += [(v.verdict, v.time, v.robustness) for v in p.step(t, given)]
+        out += [(v.verdict, v.time, v.robustness) for v in p.finish()]
+        seen.append(out)
+    assert seen[0] == seen[1]
+
+
 @pytest.mark.parametrize(
     "formula",
     [

@@ -14,9 +14,12 @@ import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
+from dkreason.live.loop import LiveSource
+from dkreason.monitor import Monitor
 from dkreason.parse.formula import parse_formula, unparse
-from dkreason.progress import Progressor
+from dkreason.progress import Progressor, Verdict
 from dkreason.stream.policy import StreamPolicy
+from dkreason.stream.recording import write_recording
 from dkreason.stream.terms import term_value
 
 Trace = Sequence[tuple[Any, Any]]  # (time, X)
@@ -274,6 +277,72 @@ def test_a_term_over_two_topics_sampled_at_once_keeps_its_earlier_sample(
         capsys, robot, recording(tmp_path / "yaw.jsonl", rows), "always (delta(Yaw[r1]) < 1)"
     )
     assert (code, verdict["verdict"]) == (0, True)
+
+
+STOPS = "always fresh(Fix[r1], 2s)"
+TYPES = {"test_msgs/msg/Imu": "float64 yaw\n", "test_msgs/msg/NavSatFix": "float64 latitude\n"}
+
+
+def stopped_fix(path: Path) -> Path:
+    """A bag: the fix at 1 Hz from 0 to 5 s, silent until 9 s, then again at 9 and 10 s;
+    yaw at 10 Hz throughout (the recording goes on without the fix)."""
+    s = 10**9
+    rows = [
+        ("/gps", "test_msgs/msg/NavSatFix", t * s, {"latitude": 48.0}) for t in (*range(6), 9, 10)
+    ]
+    rows += [("/imu", "test_msgs/msg/Imu", n * s // 10, {"yaw": 0.0}) for n in range(101)]
+    write_recording(path, "bare-mcap", TYPES, rows)
+    return path
+
+
+def test_fresh_is_a_deadline_its_verdict_comes_when_the_last_sample_grows_too_old(
+    robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """No --max-age, and no sample of the fix between 5 and 9 s: `fresh(Fix[r1], 2s)` turns
+    false 2 s after the last one (and 1 ns: the instant it is older), where a state is made
+    for it, not at the next sample (fresh again) nor at the end."""
+    bag = stopped_fix(tmp_path / "gps.mcap")
+    code, (verdict,) = monitor_json(capsys, robot, bag, STOPS)
+    assert (code, verdict["verdict"], verdict["t"]) == (1, False, 7.000000001)
+    assert verdict["witness"] == (
+        "violated at t+7.000000001 s: fresh(Fix[r1], 2s) was false at t+7.000000001 s "
+        "(age(Fix[r1]) = 2.000000001)"
+    )
+    km = KnowledgeManager.from_config(robot)
+    (found,) = [e for e in km.monitor(STOPS, bag) if isinstance(e, Verdict)]
+    assert (found.verdict, found.t) == (False, 7.000000001)
+
+
+def test_a_deadline_past_the_end_of_the_data_makes_no_state(
+    robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The fix stops at 5 s and the recording at 6 s: the deadline at 7 s is past the data,
+    which never showed the fix older than 2 s."""
+    s = 10**9
+    rows = [("/gps", "test_msgs/msg/NavSatFix", t * s, {"latitude": 48.0}) for t in range(6)]
+    rows += [("/imu", "test_msgs/msg/Imu", n * s // 10, {"yaw": 0.0}) for n in range(61)]
+    write_recording(tmp_path / "short.mcap", "bare-mcap", TYPES, rows)
+    code, (verdict,) = monitor_json(capsys, robot, tmp_path / "short.mcap", STOPS)
+    assert (code, verdict["verdict"]) == (0, True)
+
+
+def test_a_live_monitor_decides_at_the_deadline_as_time_passes(robot: Path) -> None:
+    """Live, the fix's samples stop at 5 s: as the sources' clock passes 7 s (no sample of
+    anything meanwhile), the state at the deadline is made and decides."""
+    km = KnowledgeManager.from_config(robot)
+    monitor = Monitor(km.plan(STOPS), km.request, StreamPolicy())
+    processor = monitor.start(LiveSource())
+    s = 10**9
+    for t in range(6):
+        processor.put("gps", t * s, t * s, (48.0,))
+        processor.advance(t * s + s // 2)
+    assert monitor.events() == []
+    processor.advance(7 * s)
+    assert monitor.events() == []
+    processor.advance(7 * s + s // 2)
+    (verdict,) = monitor.events()
+    assert isinstance(verdict, Verdict)
+    assert (verdict.verdict, verdict.t) == (False, 7.000000001)
 
 
 def test_orb_slam_publishes_within_5_s_from_the_api(robot: Path, tmp_path: Path) -> None:

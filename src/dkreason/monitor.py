@@ -27,7 +27,7 @@ from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
 from .progress.compile import scaled
-from .progress.state import USE, feature_uses, features, terms
+from .progress.state import USE, feature_uses, fresh_limits, terms
 from .progress.witness import Clock, Time, undecided
 from .stream.pace import paced
 from .stream.policy import StreamPolicy
@@ -115,10 +115,9 @@ class _Group:
     def __init__(self, keys: frozenset[FeatureKey], formula: int | None) -> None:
         self.keys, self.formula = keys, formula
         self.progressor: Progressor
-        # with robustness: the states it was judged at that a margin may still read, with
-        # what its formulas read
+        # with robustness: the states it was judged at that a margin may still read (what
+        # its formulas read of them)
         self.kept: Kept | None = None
-        self.reads: set[FeatureKey] = set()
 
 
 Unit = tuple[int, int]  # an instance being judged: (formula, instance) in the plan
@@ -222,6 +221,7 @@ class Monitor:
             frozenset(k for k, (use, _) in used.items() if use == "string"),
             self._terms(),
             self._moved,
+            self._limits(),
         )
         for k, (use, text) in used.items():
             for topic, field, kind, ros_type in self.processor.kinds.get(k, ()):
@@ -239,6 +239,10 @@ class Monitor:
     def _terms(self) -> set[tuple[str, FeatureKey]]:
         """The terms over samples the formulas read (`prev(X)`): the states carry them."""
         return {t for f in self.plan.formulas for i in f.instances for t in terms(i.tree)}
+
+    def _limits(self) -> set[tuple[FeatureKey, Fraction]]:
+        """The formulas' `fresh(X, d)`: a state is made when X's last sample grows too old."""
+        return {x for f in self.plan.formulas for i in f.instances for x in fresh_limits(i.tree)}
 
     def _keep(self, time: int, values: dict[FeatureKey, Any], _: object) -> None:
         self.states.append((time, dict(values)))
@@ -291,7 +295,6 @@ class Monitor:
                     from .progress.kept import Kept
 
                     group.kept = Kept()
-                group.reads.update(features(instance.tree))
                 group.kept.add(name, scaled(instance.tree, Fraction(NS)))
                 self.begun[name] = group
         self.steps.clear()
@@ -360,7 +363,7 @@ class Monitor:
         if self.robust:
             for g in self._due(fresh):
                 if g.kept is not None:  # a group of robust formulas' instances
-                    g.kept.append(time, {k: values[k] for k in g.reads})
+                    g.kept.append(time, values)
         decided: Sequence[Verdict] = self._timers(fresh, time, steps) if self.timers else ()
         for progressor in steps:  # its stepper changes as formulas are decided
             out = progressor.stepper(time, values)
@@ -572,7 +575,7 @@ class Monitor:
             k for k, (use, _) in self._uses().items() if use == "string"
         )
         self.processor.reroute(self.request, source)
-        self.processor.want(self._terms())
+        self.processor.want(self._terms(), self._limits())
         return self.request
 
     def finish(self, end: int | None = None) -> list[Event]:

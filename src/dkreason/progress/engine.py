@@ -71,5 +71,13 @@ class Stepper(Protocol[V]):
     ) -> Sequence[V]: ...
 
 
+Entry = Callable[[Any, Any], list[Any]]
+"""A progressor's step for a state as its caller gives it (`Progressor.step`: time and values
+as given, checked): its verdicts."""
+
+
+Append = Callable[[Any], None]
+"""A list's append: what keeps a state's time or a feature's value (progress.kept)."""
+
 Held = Callable[[], tuple[int, Any]]
 """The position and time (as given) of the last state a fused fast step took."""

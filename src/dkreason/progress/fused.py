@@ -26,7 +26,8 @@ import operator
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from types import CodeType
+from typing import Any, Protocol, TypeVar
 
 from ..model import FeatureKey
 from ..parse.formula import (
@@ -45,7 +46,7 @@ from ..parse.formula import (
     unparse,
 )
 from .compile import exact
-from .engine import Held, Report, Stepper, Timer, Unknown
+from .engine import Append, Entry, Held, Report, Stepper, Timer, Unknown
 from .state import GLOBALS, boolean_keys, evaluate, features, is_state, key, python, reads
 from .witness import Clock, Time, Why, but, settled, state_was, window_closed, window_cut
 
@@ -364,7 +365,28 @@ class Thresholds:
 
 
 Run = Callable[[Time, Any, int, Any], bool]  # one state (t, values, pos, given): decided?
-Make = Callable[[int, Any, Callable[[int, Any], Any]], tuple[Stepper[Any], Held]]
+
+
+class Keeper(Protocol):
+    """What keeps states for robustness (progress.kept.Kept), as `entry` appends to it."""
+
+    def appenders(self) -> tuple[Append, dict[FeatureKey, Append], int]: ...
+
+    def fold(self) -> int: ...
+
+
+@dataclass(frozen=True, slots=True)
+class Direct:
+    """What `entry` needs to take the owner's caller's states as they come: how the caller
+    spells each feature, the last state's time, the owner's checked step (for a state `entry`
+    does not take: a time not after the last, a feature spelled otherwise), how a time is made
+    exact, and with robustness what keeps the states."""
+
+    spelling: Mapping[FeatureKey, Any]
+    last: Time | float  # (-inf before the first)
+    again: Callable[[Any, Any], Sequence[Any]]
+    exact: Callable[[Any], Time]
+    keeper: Keeper | None = None
 
 
 class FusedSet:
@@ -376,10 +398,14 @@ class FusedSet:
         self.clock, self.unknown, self.timer = clock, unknown, timer
         self.members: list[Member] = []
         self.groups: dict[tuple[Formula, Formula, Time], Group] = {}
-        # the generated step for the current members (None: generate it at the next state),
-        # and what makes the fast step from it
+        # the generated code for the current members (None: generate it at the next state),
+        # and its step, compiled when first needed
+        self.code: Code | None = None
         self.run: Run | None = None
-        self.make: Make | None = None
+        # with robustness: the features a keeper keeps of each state (`entry` appends them);
+        # and what the generated `entry` reads (these and the members')
+        self.keeps: list[FeatureKey] = []
+        self.reads: list[FeatureKey] = []
 
     def add(self, part: Formula, report: Report) -> bool:
         s = shape(part)
@@ -395,16 +421,23 @@ class FusedSet:
 
     def changed(self) -> None:
         """A part came or was decided: the code is generated again at the next state."""
-        self.run = self.make = None
+        self.code = self.run = None
 
-    def step(self, pos: int, t: Time, values: Mapping[FeatureKey, Any], given: Any) -> None:
-        if self.run is None:
+    def _generated(self, t: Time) -> Code | None:
+        """The code for the members at the state at t (None: none is left)."""
+        if self.code is None:
             self.members = [m for m in self.members if not m.done]
             for m in self.members:
                 if m.first is None:  # added since the last state: starts now
                     m.first = t
             self.groups = {k: g for k, g in self.groups.items() if g.members}
-            self.run, self.make = _generate(self) if self.members else (_never, None)
+            self.code = _generate(self) if self.members else None
+        return self.code
+
+    def step(self, pos: int, t: Time, values: Mapping[FeatureKey, Any], given: Any) -> None:
+        if self.run is None:
+            code = self._generated(t)
+            self.run = _never if code is None else code.get("step")
         if self.run(t, values, pos, given):
             self.changed()
 
@@ -428,13 +461,42 @@ class FusedSet:
                 m.report(None if m.unknown else True, None)
 
     def fast(
-        self, pos: int, given: Any, resume: Callable[[int, Any], Sequence[V]]
+        self, t: Time, pos: int, given: Any, resume: Callable[[int, Any], Sequence[V]]
     ) -> tuple[Stepper[V], Held] | None:
-        """The owner's whole step for one state, from position `pos` (time `given`) on, its
-        position kept inside (`Held` reads it); at a decision it hands back to the owner's
-        `resume(pos, given)`, which reports and steps generally from the next state on.  None
-        while the code is not generated."""
-        return None if self.make is None else self.make(pos, given, resume)
+        """The owner's whole step for one state, from the state at t on (position `pos`, time
+        `given` before it), its position kept inside (`Held` reads it); at a decision it hands
+        back to the owner's `resume(pos, given)`, which reports and steps generally from the
+        next state on.  None when no part is left."""
+        code = self._generated(t)
+        if code is None:
+            return None
+        made: tuple[Stepper[V], Held] = code.get("fast")(pos, given, resume)
+        return made
+
+    def entry(
+        self,
+        t: Time,
+        pos: int,
+        given: Any,
+        resume: Callable[[int, Any], Sequence[V]],
+        direct: Direct,
+    ) -> tuple[Entry, Held] | None:
+        """`fast` for the owner's caller's states as they come (`Direct`), which keeps them for
+        robustness itself."""
+        code = self._generated(t)
+        if code is None:
+            return None
+        keep = None
+        if self.keeps:
+            assert direct.keeper is not None
+            times, columns, room = direct.keeper.appenders()
+            appends = tuple(columns[k] for k in self.reads if k in self.keeps)
+            keep = (times, appends, room, direct.keeper.fold)
+        spelled = tuple(direct.spelling[k] for k in self.reads)
+        made: tuple[Entry, Held] = code.get("entry")(
+            pos, given, resume, (spelled, direct.last, direct.again, direct.exact, keep)
+        )
+        return made
 
     def note_unknown(self, values: Any, keys: list[FeatureKey], pos: int, given: Any) -> None:
         self.unknown([k for k in keys if values[k] is None], pos, given)
@@ -444,13 +506,21 @@ def _never(t: Time, values: Any, pos: int, given: Any) -> bool:
     return False
 
 
-def _generate(fs: FusedSet) -> tuple[Run, Make]:
-    """`step(t, v, pos, given) -> decided?` for the current members, compiled once; and
-    `make(pos, given, resume)`, which gives `fast`: the same as the owner's whole step for one
-    state (its verdicts returned), which the owner calls instead while every part it has is
-    fused and started: one call a state.  `fast` holds the position and time in its own
-    closure (no attribute stores a state) and passes them to what notes an unknown; at a
-    decision it returns `resume(pos, given)`; `held` reads them for the owner otherwise."""
+def _generate(fs: FusedSet) -> Code:
+    """The code for the current members, three functions over one scope:
+
+    - `step(t, v, pos, given) -> decided?`, for a progressor that has other parts too;
+    - `fast(pos, given, resume)`, which gives the owner's whole step for one state (its
+      verdicts returned), called instead while every part it has is fused: one call a state.
+      It holds the position and time in its own closure (no attribute stores a state) and
+      passes them to what notes an unknown; at a decision it returns `resume(pos, given)`;
+      `held` reads them for the owner otherwise;
+    - `entry(pos, given, resume, direct)`: the same for the states `Progressor.step` is given
+      (`Direct`), as they come: it checks the time, reads each feature by the caller's key
+      and keeps what robustness needs, so a state is one call from the caller's loop.
+
+    Values are read into locals first; a rare path (an unknown value, a failure) is given
+    them as a dict again."""
     formulas: dict[Formula, str] = {}
     thresholds: dict[tuple[FeatureKey, str], list[tuple[int | float, Member]]] = {}
     for m in fs.members:
@@ -466,93 +536,183 @@ def _generate(fs: FusedSet) -> tuple[Run, Make]:
     keys = list(
         dict.fromkeys([*(k for f in formulas for k in features(f)), *(k for k, _ in thresholds)])
     )
+    every = list(dict.fromkeys([*keys, *fs.keeps]))  # what `entry` reads
+    fs.reads = every
     scope: dict[str, Any] = {"fs": fs, "slow": evaluate, **GLOBALS}
-    names, reading = reads(keys, "v", scope)
+    names, reading = reads(every, "v", scope)
+    reading = reading[: len(keys)]
 
     def const(value: Any) -> str:  # a global of the generated code: one lookup, no index
         scope[f"c{len(scope)}"] = value
         return f"c{len(scope) - 1}"
 
-    lines = [*(f"    {line}" for line in reading)]
-    by_known: dict[str, list[tuple[Formula, str]]] = {}  # formulas tested alike, tested once
-    for f, var in formulas.items():
-        bools = boolean_keys(f)
-        known = (
-            " and ".join(
-                f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None"
-                for k in features(f)
+    # `vals`: the state's values keyed by feature, where a rare path needs them
+    def body(vals: str) -> list[str]:
+        lines = []
+        by_known: dict[str, list[tuple[Formula, str]]] = {}  # formulas tested alike, once
+        for f, var in formulas.items():
+            bools = boolean_keys(f)
+            known = (
+                " and ".join(
+                    f"type({names[k]}) is bool" if k in bools else f"{names[k]} is not None"
+                    for k in features(f)
+                )
+                or "True"
             )
-            or "True"
-        )
-        by_known.setdefault(known, []).append((f, var))
-    for known, alike in by_known.items():
-        lines += [
-            f"    if {known}:",
-            *(f"        {var} = {python(f, names)}" for f, var in alike),
-            "    else:",
-        ]
-        for f, var in alike:
+            by_known.setdefault(known, []).append((f, var))
+        for known, alike in by_known.items():
             lines += [
-                f"        {var} = slow({const(f)}, v, t)",
-                f"        fs.note_unknown(v, {const(features(f))}, pos, given)",
+                f"    if {known}:",
+                *(f"        {var} = {python(f, names)}" for f, var in alike),
+                "    else:",
             ]
-    lines.append("    decided = False")
+            for f, var in alike:
+                lines += [
+                    f"        {var} = slow({const(f)}, {vals}, t)",
+                    f"        fs.note_unknown({vals}, {const(features(f))}, pos, given)",
+                ]
+        lines.append("    decided = False")
+        for x, (cs, group_step, op) in zip(threshold_reads, groups, strict=True):
+            # the first threshold is fixed until one breaks (which regenerates this code): a
+            # state that breaks none costs one comparison, not a call
+            lines += [
+                f"    if {x} is None or {cs} {_BREAKS[op]} {x}:",
+                f"        if {group_step}(t, {x}, {vals}, pos, given):",
+                "            decided = True",
+            ]
+        for m in fs.members:
+            if m.shape.kind == "invariant" and id(m) not in shared:
+                var, me = value(m.shape.a), members[id(m)]
+                lines += [
+                    f"    if {var} is not True:",
+                    f"        if {var} is False:",
+                    f"            {me}.fail_now(t, {vals})",
+                    "            decided = True",
+                    "        else:",
+                    f"            {me}.unknown = True",
+                ]
+        lines += responses
+        return lines
 
     def value(f: Formula) -> str:
         return "True" if f == TRUE else formulas[f]
 
-    for (k, op), members in thresholds.items():
-        group = Thresholds(op, members, functools.partial(fs.unknown, [k]))
-        x = names[k]
-        # the first threshold is fixed until one breaks (which regenerates this code): a
-        # state that breaks none costs one comparison, not a call
-        lines += [
-            f"    if {x} is None or {const(group.cs[0])} {_BREAKS[op]} {x}:",
-            f"        if {const(group.step)}(t, {x}, v, pos, given):",
-            "            decided = True",
-        ]
-    for m in fs.members:
-        if m.shape.kind == "invariant" and id(m) not in shared:
-            var, me = value(m.shape.a), const(m)
-            lines += [
-                f"    if {var} is not True:",
-                f"        if {var} is False:",
-                f"            {me}.fail_now(t, v)",
-                "            decided = True",
-                "        else:",
-                f"            {me}.unknown = True",
-            ]
-    for (a, b, lo), responses in fs.groups.items():
+    threshold_reads, groups = [], []
+    for (k, op), ms in thresholds.items():
+        group = Thresholds(op, ms, functools.partial(fs.unknown, [k]))
+        threshold_reads.append(names[k])
+        groups.append((const(group.cs[0]), const(group.step), op))
+    members = {id(m): const(m) for m in fs.members}
+    responses = []
+    for (a, b, lo), group_ in fs.groups.items():
         # with no position waiting, a state changes nothing when the trigger is known false
         # or, for a window from now on, the target holds: no call
         idle = [
             *([f"{value(a)} is False"] if a != TRUE else []),
             *([f"{value(b)} is True"] if lo == 0 else []),
         ]
-        guard = f"(not ({' or '.join(idle)}) or {const(responses.pending)}) and " if idle else ""
-        lines += [
-            f"    if {guard}{const(responses.step)}(t, {value(a)}, {value(b)}):",
+        guard = f"(not ({' or '.join(idle)}) or {const(group_.pending)}) and " if idle else ""
+        responses += [
+            f"    if {guard}{const(group_.step)}(t, {value(a)}, {value(b)}):",
             "        decided = True",
         ]
-    body = "\n".join(lines)
+    lines = [*(f"    {line}" for line in reading), *body("v")]
+    step = "\n".join(lines)
     fast = "\n".join("    " + line for line in lines)
-    source = (
-        f"def step(t, v, pos, given):\n{body}\n    return decided\n"
-        "def make(pos, given, resume):\n"
-        "    def fast(t, v, g=None):\n"
-        "        nonlocal pos, given\n"
-        "        pos += 1\n"
-        "        given = t if g is None else g\n"
-        f"{fast}\n"
-        "        if decided:  # generated again at the next state, by the owner's own step\n"
-        "            fs.changed()\n"
-        "            return resume(pos, given)\n"
-        "        return ()\n"
-        "    def held():\n"
-        "        return pos, given\n"
-        "    return fast, held\n"
+    # `entry`: the caller's key for each feature (S0, …), read before anything changes (a
+    # state without one goes to the owner's checked step, as does a time not after the last)
+    spelled = ", ".join(f"S{i}" for i in range(len(every)))
+    whole = "{" + ", ".join(f"K{i}: {names[k]}" for i, k in enumerate(every)) + "}"
+    keeping = [
+        "T(t)",
+        *(f"A{i}({names[k]})" for i, k in enumerate(every) if k in fs.keeps),
+        "room -= 1",
+        "if not room:",
+        "    room = fold()",
+    ]
+    entry = "\n".join(
+        [
+            "        t = time if type(time) is int else exact(time)",
+            "        if not t > last:",
+            "            return again(time, v)",
+            *(
+                ["        try:"]
+                + [f"            {names[k]} = v[S{i}]" for i, k in enumerate(every)]
+                + ["        except KeyError:", "            return again(time, v)"]
+                if every
+                else []
+            ),
+            "        last = t",
+            "        pos += 1",
+            "        given = time",
+            *(f"        {line}" for line in (keeping if fs.keeps else ())),
+            *("    " + line for line in body(whole)),
+        ]
     )
-    exec(compile(source, "<fused monitors>", "exec"), scope)
-    run: Run = scope["step"]
-    make: Make = scope["make"]
-    return run, make
+    appends = ", ".join(f"A{i}" for i, k in enumerate(every) if k in fs.keeps)
+    sources = {
+        "step": f"def step(t, v, pos, given):\n{step}\n    return decided\n",
+        "fast": (
+            "def fast(pos, given, resume):\n"
+            "    def fast(t, v, g=None):\n"
+            "        nonlocal pos, given\n"
+            "        pos += 1\n"
+            "        given = t if g is None else g\n"
+            f"{fast}\n"
+            "        if decided:  # generated again at the next state, by the owner's own step\n"
+            "            fs.changed()\n"
+            "            return resume(pos, given)\n"
+            "        return ()\n"
+            "    def held():\n"
+            "        return pos, given\n"
+            "    return fast, held\n"
+        ),
+        "entry": (
+            "def entry(pos, given, resume, direct):\n"
+            f"    ({spelled}{',' if every else ''}), last, again, exact, keep = direct\n"
+            + (
+                f"    T, ({appends}{',' if appends else ''}), room, fold = keep\n"
+                if fs.keeps
+                else ""
+            )
+            + "    def entry(time, v):\n"
+            "        nonlocal pos, given, last" + (", room\n" if fs.keeps else "\n") + f"{entry}\n"
+            "        if decided:\n"
+            "            fs.changed()\n"
+            "            return resume(pos, given)\n"
+            "        return []\n"
+            "    def held():\n"
+            "        return pos, given\n"
+            "    return entry, held\n"
+        ),
+    }
+    return Code(scope, sources)
+
+
+class Code:
+    """The generated code for a fused set's members: one scope (the members, their shared
+    checks), each function compiled when first needed (a state of a progressor with other
+    parts needs `step`; a progressor's own fast step `fast`, its caller's `entry`)."""
+
+    def __init__(self, scope: dict[str, Any], sources: dict[str, str]) -> None:
+        self.scope, self.sources = scope, sources
+
+    def get(self, name: str) -> Any:
+        if name not in self.scope:
+            source = self.sources[name]
+            code = _compiled(source) if len(source) <= CACHED else _compile(source)
+            exec(code, self.scope)
+        return self.scope[name]
+
+
+CACHED = 1 << 15  # longer code (hundreds of formulas) is compiled each time: memory stays small
+
+
+def _compile(source: str) -> CodeType:
+    return compile(source, "<fused monitors>", "exec")
+
+
+_compiled = functools.lru_cache(maxsize=64)(_compile)
+"""Generated source compiled once a process: the same formulas' code (a quantified formula's
+instances over other objects, a progressor made again) is the same text, its constants and
+features bound in each scope."""

@@ -13,16 +13,17 @@ that reads depends on its shape:
 - `not`, `and`, `or`, … of those: each part kept so, joined at the margin;
 - anything else (`always eventually X`, an unbounded `until`): every state from its first.
 
-States are shared by the formulas of one stream; a fold happens when the list has doubled
-since the last (at least CHUNK states), so keeping a state costs one append.
+States are shared by the formulas of one stream, kept as columns (a time list, and a list per
+feature the formulas read); a fold happens when the lists have doubled since the last (at least
+CHUNK states), so keeping a state costs an append per column (the fused fast step appends to
+them itself: `appenders`).
 """
 
 from __future__ import annotations
 
 import bisect
 import dataclasses
-from collections.abc import Hashable
-from operator import itemgetter
+from collections.abc import Hashable, Mapping
 from typing import Any
 
 import numpy as np
@@ -36,13 +37,13 @@ from ..parse.formula import (
     Until,
     children,
 )
-from .robustness import Rho, Signals, at_start, lower, upper
+from .engine import Append
+from .robustness import Columns, Rho, Signals, at_start, lower, upper
+from .state import features
 from .verdict import INF
 from .witness import Time
 
 CHUNK = 4096
-State = tuple[Time, dict[FeatureKey, Any]]
-_time = itemgetter(0)
 
 
 def reach(f: Any) -> tuple[Any, Any] | None:
@@ -84,31 +85,51 @@ class Kept:
     """The states of one stream that the formulas registered (`add`) may still read."""
 
     def __init__(self, chunk: int = CHUNK) -> None:
-        self.states: list[State] = []
-        self.offset = 0  # the index in the stream of states[0]
+        self.times: list[Time] = []
+        self.columns: dict[FeatureKey, list[Any]] = {}  # what the formulas read, by feature
+        self.offset = 0  # the index in the stream of times[0]
         self.parts: dict[Hashable, _Part] = {}
         self.chunk = self.fold_at = chunk
+        self.last: tuple[Hashable, Signals] | None = None  # the last `window`
+
+    @property
+    def states(self) -> Columns:
+        return Columns(self.times, self.columns)
 
     def add(self, name: Hashable, tree: Formula) -> None:
         """A formula judged from the next state on (its bounds in the stream's units)."""
-        self.parts[name] = _part(tree, self.offset + len(self.states))
+        for k in features(tree):
+            self.columns.setdefault(k, [None] * len(self.times))  # (none read before)
+        self.parts[name] = _part(tree, self.offset + len(self.times))
 
-    def append(self, t: Time, values: dict[FeatureKey, Any]) -> None:
-        self.states.append((t, values))
-        if len(self.states) >= self.fold_at:
+    def append(self, t: Time, values: Mapping[FeatureKey, Any]) -> None:
+        self.times.append(t)
+        for k, column in self.columns.items():
+            column.append(values[k])
+        if len(self.times) >= self.fold_at:
             self.fold()
 
-    def fold(self) -> None:
-        """Fold in what is settled, and forget the states no formula reads any more."""
+    def appenders(self) -> tuple[Append, dict[FeatureKey, Append], int]:
+        """For a caller appending a state itself (the fused fast step): the time list's
+        append, each column's, and how many states until `fold` is due."""
+        columns = {k: c.append for k, c in self.columns.items()}
+        return self.times.append, columns, self.fold_at - len(self.times)
+
+    def fold(self) -> int:
+        """Fold in what is settled, and forget the states no formula reads any more; returns
+        how many states until the next fold."""
         signals = Signals(self.states)  # one reading of the columns for every formula
         for part in self.parts.values():
             part.fold(self, signals)
-        end = self.offset + len(self.states)
+        end = self.offset + len(self.times)
         need = min((k for p in self.parts.values() if (k := p.keep()) is not None), default=end)
         if need > self.offset:
-            del self.states[: need - self.offset]
+            del self.times[: need - self.offset]
+            for column in self.columns.values():
+                del column[: need - self.offset]
             self.offset = need
-        self.fold_at = max(self.chunk, 2 * len(self.states))
+        self.fold_at = max(self.chunk, 2 * len(self.times))
+        return self.fold_at - len(self.times)
 
     def margin(self, name: Hashable, upto: Time | None, end: Time | None) -> Rho:
         """A formula's margin over its states up to `upto` (None: all), a window reaching past
@@ -116,15 +137,31 @@ class Kept:
         is forgotten."""
         return self.parts.pop(name).value(self, upto, end)
 
+    def time(self, i: int) -> Time:
+        """The time of the state at stream index i."""
+        return self.times[i - self.offset]
+
     def index(self, t: Time, at: int, right: bool = False) -> int:
         """The stream index of the first state from `at` on at or (`right`) after time t."""
         find = bisect.bisect_right if right else bisect.bisect_left
-        return self.offset + find(self.states, t, max(at - self.offset, 0), key=_time)
+        return self.offset + find(self.times, t, max(at - self.offset, 0))
 
-    def window(self, start: int, upto: Time | None) -> list[State]:
-        """The kept states from stream index `start` to time `upto`."""
-        stop = len(self.states) if upto is None else self.index(upto, start, True) - self.offset
-        return self.states[start - self.offset : stop]
+    def window(self, start: int, upto: Time | None, end: Time | None = None) -> Signals:
+        """The margins over the kept states from stream index `start` to time `upto` (`end`:
+        the data's, as Signals takes it); the formulas a state decides read the same window,
+        read once."""
+        stop = len(self.times) if upto is None else self.index(upto, start, True) - self.offset
+        at = (self.offset, len(self.times), start, stop, end)
+        if self.last is None or self.last[0] != at:
+            states = self.states
+            if start > self.offset or stop < len(self.times):
+                states = states[start - self.offset : stop]
+            self.last = (at, Signals(states, end))
+        return self.last[1]
+
+    def end(self) -> int:
+        """The stream index after the last state kept."""
+        return self.offset + len(self.times)
 
 
 class _Part:
@@ -139,8 +176,8 @@ class _Part:
         return self.start
 
     def value(self, kept: Kept, upto: Time | None, end: Time | None) -> Rho:
-        trace = kept.window(self.start, upto)
-        return at_start(self.tree, trace, end) if trace else None
+        signals = kept.window(self.start, upto, end)
+        return at_start(self.tree, signals) if signals.n else None
 
 
 class _Head(_Part):
@@ -152,11 +189,11 @@ class _Head(_Part):
         self.settled: tuple[Rho] | None = None
 
     def fold(self, kept: Kept, signals: Signals) -> None:
-        if self.settled is not None or kept.offset + len(kept.states) <= self.start:
+        if self.settled is not None or kept.end() <= self.start:
             return
-        past = kept.index(kept.states[self.start - kept.offset][0] + self.ahead, self.start, True)
-        if past < kept.offset + len(kept.states):  # windows closed: the end no longer matters
-            self.settled = (at_start(self.tree, kept.states[self.start - kept.offset :]),)
+        past = kept.index(kept.time(self.start) + self.ahead, self.start, True)
+        if past < kept.end():  # windows closed: the end no longer matters
+            self.settled = (at_start(self.tree, kept.window(self.start, None)),)
 
     def keep(self) -> int | None:
         return self.start if self.settled is None else None
@@ -180,18 +217,17 @@ class _Fold(_Part):
         self.context = start  # the first state the next fold reads
 
     def fold(self, kept: Kept, signals: Signals) -> None:
-        states = kept.states
-        if kept.offset + len(states) <= self.done:
+        if kept.end() <= self.done:
             return
-        self.origin = states[self.start - kept.offset][0] if self.origin is None else self.origin
-        closed = kept.index(states[-1][0] - self.ahead, self.done)  # t + ahead < last
+        self.origin = kept.time(self.start) if self.origin is None else self.origin
+        closed = kept.index(kept.times[-1] - self.ahead, self.done)  # t + ahead < last
         if closed > self.done:
             base = kept.offset
             if self.back and base < self.start:  # past operators must not see before start
-                signals, base = Signals(states[self.context - base :]), self.context
+                signals, base = Signals(kept.states[self.context - base :]), self.context
             self.acc = self._fold(kept, signals, base, self.acc, closed)
             self.done = closed
-            t_done = states[closed - kept.offset][0]
+            t_done = kept.time(closed)
             self.context = max(self.start, kept.index(t_done - self.back, self.context))
 
     def _fold(self, kept: Kept, signals: Signals, base: int, acc: Rho, stop: int) -> Rho:
@@ -222,12 +258,11 @@ class _Fold(_Part):
         return self.context
 
     def value(self, kept: Kept, upto: Time | None, end: Time | None) -> Rho:
-        trace = kept.window(self.context, upto)
-        if kept.offset + len(kept.states) <= self.start or not trace:
+        signals = kept.window(self.context, upto, end)
+        if kept.end() <= self.start or not signals.n:
             return None
-        self.origin = trace[0][0] if self.origin is None else self.origin
-        signals = Signals(trace, end)
-        return self._fold(kept, signals, self.context, self.acc, self.context + len(trace))
+        self.origin = signals.trace[0][0] if self.origin is None else self.origin
+        return self._fold(kept, signals, self.context, self.acc, self.context + signals.n)
 
 
 class _Join(_Part):

@@ -26,7 +26,7 @@ no violation is claimed past the data.  Unbounded operators keep their finite-tr
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from fractions import Fraction
 from typing import TYPE_CHECKING, Any
 
@@ -44,8 +44,8 @@ from ..parse.formula import (
 from ..stream.policy import END_OF_DATA
 from ..stream.terms import Samples
 from .compile import scaled
-from .engine import Engine, Held, Report, Stepper, Timer
-from .fused import FusedSet
+from .engine import Engine, Entry, Held, Report, Stepper, Timer
+from .fused import Direct, FusedSet
 from .general import General
 from .state import base_features, features, is_state, terms
 from .verdict import Margin, UnknownSpan, Verdict
@@ -181,11 +181,16 @@ class Progressor:
         self.pos = -1
         self.last_input: Any = None
         self.unknown: dict[FeatureKey, list[list[Any]]] = {}
-        # what a state calls: `step_state`, or once every part is fused and started, the
-        # fused set's `fast` (the same, generated whole: one call a state), which holds
-        # pos and last_input meanwhile (`held` reads them)
+        # what a state calls: `step_state`, or while every part is fused, the fused set's
+        # `fast` (the same, generated whole: one call a state), which holds pos and
+        # last_input meanwhile (`held` reads them)
         self.stepper: Stepper[Verdict] = self.step_state
         self.held: Held | None = None
+        # what `step` calls: `_checked`, or while every part is fused (and no term over
+        # samples is written into the states), the fused set's `entry`, which holds them
+        # and the last time given, and keeps the states for robustness (`stepper` is then
+        # `_handed`)
+        self.entry: Entry = self._checked
         # `step`: the last time given, and how the caller spells each feature
         self.stepped: tuple[Time | float, Any] = (float("-inf"), None)
         self.spelling = _UNSEEN
@@ -208,6 +213,7 @@ class Progressor:
             next(e for e in self.engines if e.add(part, report))
         if self.kept is not None:
             self.kept.add(id(judged), parsed)
+            self.fused.keeps = list(self.kept.columns)
         self.formulas.append(judged)
         self.unstarted.append(judged)
         self.keys.update(base_features(parsed))
@@ -223,13 +229,19 @@ class Progressor:
         (as the stream processor makes them); keys written as text (`"Close[uav1, uav2]"`) are
         read at this boundary, once per spelling.  Each state where a feature has a value is a
         sample of it (`prev(X)` is its value at the last such state before)."""
+        return self.entry(time, values)
+
+    def _checked(
+        self, time: Any, values: Mapping[FeatureKey, Any] | Mapping[str, Any]
+    ) -> list[Verdict]:
+        """`step` in general: the time checked and made exact, the features read through
+        their spelling; the fused fast step's `entry` does the same, generated."""
         t = time if type(time) is int else exact_time(time)
         if not t > self.stepped[0]:
             raise DkError(
                 f"time {time} is not after the previous state's time "
                 f"{self.stepped[1]} (times must increase strictly)"
             )
-        self.stepped = (t, time)
         typed = {}  # the features the formulas read, as the caller spells them
         try:
             for k, s in self.spelling:
@@ -237,6 +249,17 @@ class Progressor:
         except KeyError:
             self.spelling = _spelling(values, self.keys, time)
             typed = {k: values[s] for k, s in self.spelling}
+        if self.fused.members and not self.general.roots and not self.samples.terms:
+            direct = Direct(
+                dict(self.spelling), self.stepped[0], self._again, exact_time, self.kept
+            )
+            made = self.fused.entry(t, self.pos, self.last_input, self.resume, direct)
+            if made is not None:  # this state on, one call: `entry`
+                self._start()
+                self.entry, self.held = made
+                self.stepper = self._handed
+                return self.entry(time, values)
+        self.stepped = (t, time)
         if self.keeping is not None:
             self.keeping(t, typed)
         return [*self.stepper(t, typed, time)]
@@ -251,38 +274,59 @@ class Progressor:
 
     def step_state(
         self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
-    ) -> list[Verdict]:
+    ) -> Sequence[Verdict]:
         """`step` for the stream processor's states, checked already: exact times that
         increase, every feature a value (`given`: the time as the caller wrote it)."""
+        given = t if given is None else given
+        if not self.general.roots:  # every part fused: this state on, one call (`fast`)
+            fast = self.fused.fast(t, self.pos, self.last_input, self.resume)
+            if fast is not None:
+                self._start()
+                self.stepper, self.held = fast
+                return self.stepper(t, values, given)
         self.pos += 1
-        self.last_input = given = t if given is None else given
-        if self.unstarted:
-            for m in self.unstarted:
-                m.started = True
-            self.unstarted = []
+        self.last_input = given
+        self._start()
         if self.fused.members:
             self.fused.step(self.pos, t, values, given)
         if self.general.roots:
             self.general.step(self.pos, t, values, given)
-        else:  # from the next state on, one call (when the fused code stands)
-            fast = self.fused.fast(self.pos, given, self.resume)
-            if fast is not None:
-                self.stepper, self.held = fast
         if not self.decided:
             return []
         return self._decided(at_end=False)
+
+    def _start(self) -> None:
+        """The formulas added since the last state start at this one."""
+        if self.unstarted:
+            for m in self.unstarted:
+                m.started = True
+            self.unstarted = []
+
+    def _handed(
+        self, t: Time, values: Mapping[FeatureKey, Any], given: Any = None
+    ) -> Sequence[Verdict]:
+        """`stepper` while `entry` holds the fast step: back to `step_state`."""
+        self._general()
+        return self.step_state(t, values, given)
 
     def resume(self, pos: int, given: Any) -> list[Verdict]:
         """For the fused fast step, at a decision: the position and time it held come back,
         the decided verdicts are reported, and `step_state` runs from the next state on."""
         self.pos, self.last_input = pos, given
-        self.stepper, self.held = self.step_state, None
+        self.stepper, self.held, self.entry = self.step_state, None, self._checked
+        self.stepped = (exact_time(given), given)
         return self._decided(at_end=False)
+
+    def _again(self, time: Any, values: Any) -> list[Verdict]:
+        """For the fast step's `entry`, a state it does not take: checked, from here on."""
+        self._general()
+        return self._checked(time, values)
 
     def advance(self, time: Any) -> list[Verdict]:
         """The stream passed `time` (after the last state) without a state of these formulas:
         the windows that ended by then close.  Returns the verdicts that decides, at `time`;
         the next state must come after it."""
+        self._general()
         t = time if type(time) is int else exact_time(time)
         if not t > self.stepped[0]:
             raise DkError(
@@ -290,7 +334,6 @@ class Progressor:
                 f"(times must increase strictly)"
             )
         self.stepped = (t, time)
-        self._general()
         for engine in self.engines:
             engine.advance(t)
         return self._decided(at_end=False, time=time) if self.decided else []
@@ -321,7 +364,9 @@ class Progressor:
         """Back to `step_state`, with what the fast step held."""
         if self.held is not None:
             self.pos, self.last_input = self.held()
-        self.stepper, self.held = self.step_state, None
+            if self.pos >= 0:
+                self.stepped = (exact_time(self.last_input), self.last_input)
+        self.stepper, self.held, self.entry = self.step_state, None, self._checked
 
     def _decided(self, at_end: bool, time: Any = None) -> list[Verdict]:
         """The decided formulas' verdicts, at the current state (or `time`, advanced to)."""

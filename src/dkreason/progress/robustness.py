@@ -26,9 +26,9 @@ ties).  kept.py decides which states a monitor keeps for this.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -168,6 +168,36 @@ class Critical:
     values: tuple[tuple[FeatureKey, Any], ...]
 
 
+class Columns(Sequence[tuple[Time, Mapping[FeatureKey, Any]]]):
+    """A trace held as columns, as kept.py keeps states: its times, and each feature's values in
+    a list of their own (a state costs an append per feature, a column reads in one call); a
+    state is made again as (time, values) only where an atom needs one."""
+
+    __slots__ = ("times", "columns")
+
+    def __init__(self, times: list[Time], columns: dict[FeatureKey, list[Any]]) -> None:
+        self.times, self.columns = times, columns
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+    @overload
+    def __getitem__(self, j: int) -> tuple[Time, Mapping[FeatureKey, Any]]: ...
+
+    @overload
+    def __getitem__(self, j: slice) -> Columns: ...
+
+    def __getitem__(self, j: int | slice) -> Any:
+        if isinstance(j, slice):
+            return Columns(self.times[j], {k: c[j] for k, c in self.columns.items()})
+        return self.times[j], {k: c[j] for k, c in self.columns.items()}
+
+    def __iter__(self) -> Iterator[tuple[Time, Mapping[FeatureKey, Any]]]:
+        keys = list(self.columns)
+        for t, *values in zip(self.times, *self.columns.values(), strict=True):
+            yield t, dict(zip(keys, values, strict=True))
+
+
 class Signals:
     """One trace's margins: each subformula's at every state, computed once; `end`: where the
     data ends (None: every window closes at the last state)."""
@@ -177,12 +207,14 @@ class Signals:
         self._times: NDArray[Any] | None = None
         self.memo: dict[int, Array] = {}
         self.columns: dict[FeatureKey, Array] = {}
+        self.windows: dict[tuple[Interval, bool], tuple[Index, Index]] = {}
 
     @property
     def times(self) -> NDArray[Any]:
         """The states' times (read when a window needs them)."""
         if self._times is None:
-            times = [t for t, _ in self.trace]
+            trace = self.trace
+            times = trace.times if isinstance(trace, Columns) else [t for t, _ in trace]
             self._times = np.array(times)
             if self._times.dtype.kind != "i":  # exact: Fractions, or integers past int64
                 self._times = np.array(times, dtype=object)
@@ -202,8 +234,10 @@ class Signals:
         k = read_key(e)
         found = self.columns.get(k)
         if found is None:
+            trace = self.trace
             try:
-                found = np.array([v[k] for _, v in self.trace], dtype=float)
+                raw = trace.columns[k] if isinstance(trace, Columns) else [v[k] for _, v in trace]
+                found = np.fromiter(raw, float, len(raw))  # (None: NaN)
             except (TypeError, ValueError):  # not numbers: said as the Boolean path says it
                 assert not isinstance(e, Fresh)
                 found = np.array(
@@ -267,19 +301,26 @@ class Signals:
 
     def bounds(self, interval: Interval, future: bool) -> tuple[Index, Index]:
         """Each state's window [first, stop) of positions: those at least `lo` and at most `hi`
-        after it (`future`) or before it."""
+        after it (`future`) or before it (found once a window: a critical atom looks again)."""
+        found = self.windows.get((interval, future))
+        if found is None:
+            found = self.windows[(interval, future)] = self._bounds(interval, future)
+        return found
+
+    def _bounds(self, interval: Interval, future: bool) -> tuple[Index, Index]:
         n = self.n
+        idx = np.arange(n, dtype=np.intp)
         if interval.lo == 0 and interval.hi is None:  # from each state to the end (or start)
-            idx = np.arange(n, dtype=np.intp)
             return (idx, np.full(n, n, np.intp)) if future else (np.zeros(n, np.intp), idx + 1)
         times = self.times
         lo, hi = self.integral(interval)
+        # (times increase strictly: a window from the state itself starts, or ends, there)
         if future:
-            first = np.searchsorted(times, times + lo, "left")
+            first = idx if lo == 0 else np.searchsorted(times, times + lo, "left")
             stop = np.full(n, n) if hi is None else np.searchsorted(times, times + hi, "right")
         else:
             first = np.zeros(n, np.intp) if hi is None else np.searchsorted(times, times - hi)
-            stop = np.searchsorted(times, times - lo, "right")
+            stop = idx + 1 if lo == 0 else np.searchsorted(times, times - lo, "right")
         return first.astype(np.intp), stop.astype(np.intp)
 
     def integral(self, interval: Interval) -> tuple[Any, Any]:
@@ -454,9 +495,10 @@ def margins(f: Formula, trace: Trace | Signals, end: Time | None = None) -> list
     return [None if math.isnan(r) else r for r in out] if np.isnan(rho).any() else out
 
 
-def at_start(f: Formula, trace: Trace, end: Time | None = None) -> Rho:
-    """`f`'s margin at the trace's first state: (float, its Critical or None), None unknown."""
-    run = Signals(trace, end)
+def at_start(f: Formula, trace: Trace | Signals, end: Time | None = None) -> Rho:
+    """`f`'s margin at the trace's first state: (float, its Critical or None), None unknown
+    (formulas over one trace share its `Signals`)."""
+    run = trace if isinstance(trace, Signals) else Signals(trace, end)
     w = float(run.rho(f)[0])
     if math.isnan(w):
         return None
@@ -520,6 +562,7 @@ def _base(k: FeatureKey) -> FeatureKey:
 
 __all__ = [
     "UNKNOWN",
+    "Columns",
     "Critical",
     "Signals",
     "at_start",

@@ -85,6 +85,20 @@ def terms(f: Any) -> set[tuple[str, FeatureKey]]:
     return out
 
 
+def fresh_limits(f: Any) -> set[tuple[FeatureKey, Fraction]]:
+    """Each `fresh(X, d)` a formula reads, as (X, d): the instant X's last sample grows older
+    than d is a deadline, at which whoever makes the states makes one."""
+    out: set[tuple[FeatureKey, Fraction]] = set()
+    todo = [f]
+    while todo:
+        n = todo.pop()
+        if isinstance(n, Fresh):
+            out.add((key(n.arg.feature), n.limit))
+        else:
+            todo += children(n)
+    return out
+
+
 def base_features(f: Any) -> list[FeatureKey]:
     """The features a formula reads, its terms' features in place of the terms."""
     out: dict[FeatureKey, None] = {}

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import bisect
 import heapq
+import math
 import numbers
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sized
@@ -149,6 +150,7 @@ class StreamProcessor:
         texts: frozenset[FeatureKey] = frozenset(),
         terms: Iterable[tuple[str, FeatureKey]] = (),
         moved: Callable[[Move], None] | None = None,
+        limits: Iterable[tuple[FeatureKey, Fraction]] = (),
     ) -> None:
         """`on_state(time, values, fresh)` gets each state: `values` is read during the call
         only (on every change it is the processor's own dict, changed in place for the next
@@ -156,7 +158,9 @@ class StreamProcessor:
         strings (their values are kept as strings; any other feature's value must be a number
         or boolean).  `terms`: the terms over samples (`("rate", Yaw[r1])`) the formulas read,
         each a value of the states (stream.terms).  `moved`: told when a topic declaring a
-        rate is set aside or taken back (quality.py; the caller matches again)."""
+        rate is set aside or taken back (quality.py; the caller matches again).  `limits`:
+        the formulas' `fresh(X, d)`, as (X, d): on every change, a state is made at the
+        instant X's newest sample grows older than d (`deadlines`)."""
         self.texts = texts
         self.policy = policy
         self.source = source
@@ -195,6 +199,12 @@ class StreamProcessor:
         self.expiries: list[tuple[int, int, bool]] = []  # (time, feature, fixed?)
         self.due: list[int] = []
         self.queued: list[bool] = []
+        # `fresh(X, d)`: for each feature, the times after its newest sample at which one
+        # turns false (d, and 1 ns); and when (time, feature, that offset) as a heap, one
+        # entry per feature and offset, rescheduled lazily (`_passed`)
+        self.limits: dict[int, tuple[int, ...]] = {}
+        self.deadlines: list[tuple[int, int, int]] = []
+        self.timed: set[tuple[int, int]] = set()  # the (feature, offset)s in the heap
         self.max_valid = -1
         self.quiet_until: float = float("inf")  # no state is due while times stay at or below
         self.checks = policy.ordered_on_valid_time or policy.unique_valid_time
@@ -216,7 +226,7 @@ class StreamProcessor:
         for f in request.features:
             self._feature(f.feature.key)
         self.terms: dict[FeatureKey, tuple[str, int]] = {}
-        self.want(terms)
+        self.want(terms, limits)
         self.quiet_until = self._next_due()  # with a period and a start: its first state
         self._route(request, source)
 
@@ -228,9 +238,18 @@ class StreamProcessor:
         self.due.append(-1)
         self.queued.append(False)
 
-    def want(self, terms: Iterable[tuple[str, FeatureKey]]) -> None:
-        """The terms over samples the states carry from now on."""
+    def want(
+        self,
+        terms: Iterable[tuple[str, FeatureKey]],
+        limits: Iterable[tuple[FeatureKey, Fraction]] = (),
+    ) -> None:
+        """The terms over samples the states carry from now on, and the `fresh(X, d)` whose
+        deadlines make states."""
         self.terms = {term_key(op, k): (op, self.position[k]) for op, k in terms}
+        offsets: dict[int, set[int]] = {}
+        for k, d in limits:  # older than d: d and 1 ns past the sample, in whole ns
+            offsets.setdefault(self.position[k], set()).add(math.floor(d * NS) + 1)
+        self.limits = {q: tuple(sorted(o)) for q, o in offsets.items()}
 
     def _terms(self, s: int, values: dict[FeatureKey, Any]) -> None:
         """Each term at s, from its feature's newest sample valid by then and the one before
@@ -466,6 +485,7 @@ class StreamProcessor:
             self.strict,
         )
         periodic = self.period is not None
+        limits = self.limits
         max_valid, quiet = self.max_valid, self.quiet_until
         made = self.made
         quality = self.quality
@@ -540,6 +560,9 @@ class StreamProcessor:
                             else:
                                 self._expires(q, valid)
                                 quiet = self.quiet_until
+                        if limits and newest and q in limits:
+                            self._deadline(q, valid)
+                            quiet = self.quiet_until
                 if watch is None:
                     continue
                 n += 1
@@ -639,6 +662,39 @@ class StreamProcessor:
             heapq.heappush(self.expiries, (valid + self.stale_after, q, True))
             self.quiet_until = min(self.quiet_until, valid + self.stale_after + self.delay)
 
+    def _deadline(self, q: int, valid: int) -> None:
+        """Feature q's newest sample is valid at `valid`: each `fresh(X, d)` over it turns
+        false d later (the heap holds one entry per offset: a queued one is moved on when
+        it comes, `_passed`)."""
+        for offset in self.limits[q]:
+            if (q, offset) not in self.timed:
+                self.timed.add((q, offset))
+                heapq.heappush(self.deadlines, (valid + offset, q, offset))
+                self.quiet_until = min(self.quiet_until, valid + offset + self.delay)
+
+    def _passed(self, s: int, final: bool) -> list[FeatureKey]:
+        """The features a `fresh(X, d)` over which turns false at s: the newest sample valid
+        by then is d old (at the end, not past the data).  Each entry taken moves on to when
+        that sample, or the next one, grows too old."""
+        out: list[FeatureKey] = []
+        deadlines = self.deadlines
+        while deadlines and deadlines[0][0] == s:
+            _, q, offset = heapq.heappop(deadlines)
+            if offset not in self.limits.get(q, ()):  # no formula reads it any more
+                self.timed.discard((q, offset))
+                continue
+            hist = self.hist[q]
+            i = bisect.bisect_right(hist, (s, 1)) - 1
+            due = hist[i][0] + offset if i >= 0 else -1
+            if due == s and not (final and s > self.max_valid):
+                out.append(self.keys[q])
+            later = due if due > s else hist[i + 1][0] + offset if i + 1 < len(hist) else None
+            if later is None:
+                self.timed.discard((q, offset))
+            else:
+                heapq.heappush(deadlines, (later, q, offset))
+        return out
+
     def _constrain(self, route: _Route, available: int, valid: int) -> None:
         """The constraints on a sample (`strict`: a policy sets one)."""
         if self.max_delay is not None and available - valid > self.max_delay:
@@ -702,6 +758,8 @@ class StreamProcessor:
             head = late[0][0]
         if expiries and expiries[0][0] < head:
             head = expiries[0][0]
+        if self.deadlines and self.deadlines[0][0] < head:
+            head = self.deadlines[0][0]
         return head + self.delay
 
     def _make_due(self, now: int, final: bool) -> float:
@@ -722,7 +780,12 @@ class StreamProcessor:
                 self.next_state += self.period
             return self._next_due()
         limit = None if final else now - self.delay  # make states strictly before this
-        times, late, expiries = self.times, self.out_of_order, self.expiries
+        times, late, expiries, deadlines = (
+            self.times,
+            self.out_of_order,
+            self.expiries,
+            self.deadlines,
+        )
         current, hists, keys, max_age, redo = (
             self.current,
             self.hist,
@@ -736,6 +799,8 @@ class StreamProcessor:
                 s = late[0][0]
             if expiries and (s is None or expiries[0][0] < s):
                 s = expiries[0][0]
+            if deadlines and (s is None or deadlines[0][0] < s):
+                s = deadlines[0][0]
             if s is None or (limit is not None and s >= limit):
                 return _INF if s is None else s + self.delay
             # everything due at s goes into one state, with the features sampled at s
@@ -748,6 +813,9 @@ class StreamProcessor:
             stale, expired = (
                 self._expired(s, final) if expiries and expiries[0][0] == s else _NO_EXPIRY
             )
+            passed = self._passed(s, final) if deadlines and deadlines[0][0] == s else stale
+            if passed is not stale:  # (the state is its readers' own, as for a stale value)
+                stale = [*stale, *passed]
             opening = s == self.opening
             if not (sampled or stale or opening) or s <= self.made:
                 continue
