@@ -313,6 +313,24 @@ def test_fresh_is_a_deadline_its_verdict_comes_when_the_last_sample_grows_too_ol
     assert (found.verdict, found.t) == (False, 7.000000001)
 
 
+@pytest.mark.parametrize(
+    ("formula", "t"),
+    [
+        ("always (age(Fix[r1]) <= 2)", 7.000000001),
+        ("always (age(Fix[r1]) < 2)", 7),
+        ("always not (2 <= age(Fix[r1]))", 7),
+        ("always (age(Fix[r1]) != 3)", 8),
+    ],
+)
+def test_an_age_compared_with_a_constant_is_a_deadline_too(
+    robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], formula: str, t: float
+) -> None:
+    """The GPS fix never older than 2 s, as engineers write it: decided where the age
+    crosses the bound (at 2 s, or just past it), not at the next sample, without --max-age."""
+    code, (verdict,) = monitor_json(capsys, robot, stopped_fix(tmp_path / "gps.mcap"), formula)
+    assert (code, verdict["verdict"], verdict["t"]) == (1, False, t)
+
+
 def test_a_deadline_past_the_end_of_the_data_makes_no_state(
     robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

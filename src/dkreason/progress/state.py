@@ -38,6 +38,7 @@ from ..parse.formula import (
     unparse,
 )
 from ..stream.terms import term_key
+from ..stream.units import NS
 
 Value = bool | None
 StateFn = Callable[[Mapping[FeatureKey, Any], Any], Value]  # (values, time)
@@ -86,17 +87,41 @@ def terms(f: Any) -> set[tuple[str, FeatureKey]]:
 
 
 def fresh_limits(f: Any) -> set[tuple[FeatureKey, Fraction]]:
-    """Each `fresh(X, d)` a formula reads, as (X, d): the instant X's last sample grows older
-    than d is a deadline, at which whoever makes the states makes one."""
+    """Each age a formula's truth turns at, as (X, d): the instant X's last sample grows older
+    than d is a deadline, at which whoever makes the states makes one.  `fresh(X, d)` turns
+    past d; `age(X) <= c` and `> c` past c, `< c` and `>= c` at c (past c less 1 ns), `==`
+    and `!=` at both."""
     out: set[tuple[FeatureKey, Fraction]] = set()
     todo = [f]
     while todo:
         n = todo.pop()
         if isinstance(n, Fresh):
             out.add((key(n.arg.feature), n.limit))
-        else:
-            todo += children(n)
+            continue
+        if isinstance(n, Compare):
+            out |= _age_limits(n)
+        todo += children(n)
     return out
+
+
+_BEFORE = Fraction(1, NS)  # an age turns at c: past c less 1 ns
+
+
+def _age_limits(c: Compare) -> set[tuple[FeatureKey, Fraction]]:
+    """The ages `age(X) op constant` (either way round) turns at."""
+    for age, bound, op in ((c.left, c.right, c.op), (c.right, c.left, _FLIP[c.op])):
+        if isinstance(age, Sampled) and age.op == "age" and isinstance(bound, Num):
+            limit = Fraction(bound.value)
+            if limit < 0:
+                return set()
+            x = key(age.arg.feature)
+            turns = {"<=": (limit,), ">": (limit,), "<": (limit - _BEFORE,)}
+            turns[">="] = turns["<"]
+            return {(x, t) for t in turns.get(op, (limit, limit - _BEFORE)) if t >= 0}
+    return set()
+
+
+_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
 
 
 def base_features(f: Any) -> list[FeatureKey]:
