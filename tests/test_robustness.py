@@ -204,6 +204,33 @@ def test_unknown_values_give_no_margin_and_say_so() -> None:
     assert v.verdict is False and v.robustness is not None and v.robustness.value == -2
 
 
+@pytest.mark.parametrize(
+    ("formula", "said"),
+    [
+        ("always (hypot(X, Y) < 5)", "violated by 0 at 2: hypot(X, Y) < 5 (X = -4, Y = 3)"),
+        ("always (X != -4)", "violated by 0 at 0: X != -4 (X = -4)"),
+        ("always not (X <= -4)", "violated by 0 at 0: X <= -4 (X = -4)"),
+        ("eventually (X >= -4)", "held by 0 at 0: X >= -4 (X = -4)"),
+    ],
+)
+def test_a_formula_decided_by_nothing_has_a_margin_of_0_beside_unknown_values(
+    formula: str, said: str
+) -> None:
+    """A comparison that fails (or holds) by exactly nothing decides a minimum (a maximum)
+    whatever an unknown part is, as a negative (positive) margin does: 0, not 'no margin'."""
+    p = Progressor(robustness=True)
+    p.add(formula)
+    verdicts = [
+        *p.step(0, {"X": -4, "Y": None}),
+        *p.step(1, {"X": 1, "Y": None}),
+        *p.step(2, {"X": -4, "Y": 3}),
+        *p.finish(),
+    ]
+    (v,) = verdicts
+    assert v.robustness is not None and v.robustness.value == 0
+    assert v.robustness.text() == said
+
+
 def test_progress_gives_the_margin_of_a_state_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

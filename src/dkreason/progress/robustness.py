@@ -67,6 +67,11 @@ Index = NDArray[np.intp]
 Crit = tuple[Formula, int, int]  # (atom, position, sign: the root's margin is sign × the atom's)
 
 UNKNOWN = Margin(None, None)
+# A comparison that fails by nothing (`a < b` with a = b, `a != b` with a = b) is 0 and fails:
+# in the arrays, minus the smallest positive float, so that a minimum takes it as a failure
+# (the formula fails whatever an unknown part is) and `not` makes it hold; said as 0.
+_NOTHING = float(np.nextafter(0.0, 1.0))
+_STRICT = ("<", ">", "!=")
 _FUTURE = ("always", "eventually")
 _LOW = ("always", "historically")  # folds taking the minimum
 
@@ -270,8 +275,10 @@ class Signals:
         n = self.n
         if isinstance(f, Compare) and not is_text(f):
             a, b = self.term(f.left), self.term(f.right)
-            out = _margin(f.op, a, b)
-            return np.broadcast_to(np.asarray(out, dtype=float), (n,))
+            out = np.asarray(_margin(f.op, a, b), dtype=float)
+            if f.op in _STRICT:
+                out = np.where(out == 0, -_NOTHING, out)
+            return np.broadcast_to(out, (n,))
         if isinstance(f, Fresh):
             age = self.column(f)
             return np.where(np.isnan(age), -np.inf, float(f.limit) - age)
@@ -479,6 +486,8 @@ class Signals:
         if isinstance(atom, Compare) and not is_text(atom):
             a, b = number(atom.left, values, t), number(atom.right, values, t)
             value = self.rho(atom)[j] if a is None or b is None else _margin(atom.op, a, b)
+            if value == 0:  # held or failed by nothing: a signed zero says which
+                value = -0.0 if atom.op in _STRICT else 0.0
         elif isinstance(atom, Fresh):
             age = values[read_key(atom)]
             value = -INF if age is None else atom.limit - age
@@ -491,6 +500,7 @@ def margins(f: Formula, trace: Trace | Signals, end: Time | None = None) -> list
     """The margin of `f` at every state of the trace (None: unknown), as rtamt's offline
     evaluator gives them (floats); formulas over one trace share its `Signals`."""
     rho = (trace if isinstance(trace, Signals) else Signals(trace, end)).rho(f)
+    rho = np.where(np.abs(rho) == _NOTHING, 0.0, rho)  # said as 0, as rtamt's
     out: list[Any] = rho.tolist()
     return [None if math.isnan(r) else r for r in out] if np.isnan(rho).any() else out
 

@@ -4,6 +4,7 @@ of their variables, judged on its own)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from decimal import Decimal
 from fractions import Fraction
@@ -39,7 +40,7 @@ class Margin:
         platform3/uastopic5 msg.height as Alt[uas21])`."""
         if self.value is None:
             return "no margin: unknown values cover where it would be decided"
-        said = "held" if self.value > 0 else "violated"
+        said = "held" if self.value > 0 or self.value == 0 and _positive(self.value) else "violated"
         size = _number_text(abs(self.value))
         if self.atom is None:
             return f"{said} by {size}"
@@ -60,6 +61,11 @@ class Margin:
             out["values"] = {k: _json_number(v) for k, v in self.values}
             out["sources"] = dict(self.sources)
         return out
+
+
+def _positive(zero: Any) -> bool:
+    """A zero margin's sign: -0.0 failed by nothing (`a < b` with a = b), 0 held by it."""
+    return not (isinstance(zero, float) and math.copysign(1.0, zero) < 0)
 
 
 def _json_number(v: Any) -> Any:
