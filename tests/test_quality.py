@@ -509,3 +509,71 @@ def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scena
     thesis = KnowledgeManager.from_config(SCENARIOS / "federation.toml")  # declaring nothing
     formula = "always (Altitude[uav1] > Altitude[uav2])"
     assert not any(f.standby for f in thesis.check_formula(formula, best_source=True).features)
+
+
+def topic2_alone(tmp_path: Path) -> Path:
+    """uav1's altitude on topic2 alone, at 10 Hz for 2 s: topic1 is in no recording."""
+    rows: list[Row] = [("topic2", UAV, n * 100 * MS, {"id": 1, "alt": 50.0}) for n in range(1, 21)]
+    path = tmp_path / "alone.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("best_source", "before"),
+    [(True, ("platform1/topic1",)), (False, ("platform1/topic1", "platform1/topic2"))],
+    ids=["best-source", "merged"],
+)
+def test_a_topic_that_never_sends_is_set_aside_counting_from_the_start(
+    scenario: Path, tmp_path: Path, best_source: bool, before: tuple[str, ...]
+) -> None:
+    """topic1 (declared 10 Hz, chosen under --best-source) sends nothing: its silence counts
+    from the start of the recording (0.1 s), so past three periods (at topic2's message of
+    0.5 s) it is set aside, once, and uav1's altitude is read from topic2."""
+    km = KnowledgeManager.from_config(declare(scenario, *TEN_HZ))
+    events = replayed(km, topic2_alone(tmp_path), best_source=best_source)
+    (move,) = [e for e in events if isinstance(e, Rerouted)]
+    assert (move.source, move.aside, move.before, move.after) == (
+        "platform1/topic1",
+        True,
+        before,
+        ("platform1/topic2",),
+    )
+    assert (move.time, move.t) == (0.5, 0.4)
+    assert move.reason == (
+        "no sample since the start (0.4 s, over 3 periods of the declared 10 Hz)"
+    )
+    (verdict,) = [e for e in events if isinstance(e, Verdict)]
+    assert verdict.verdict is True
+
+
+def test_monitor_says_once_that_a_best_topic_never_sent(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config, path = declare(scenario, *TEN_HZ), topic2_alone(tmp_path)
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--best-source"]
+    assert main([*argv, ALTITUDE]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "rerouted" in line]
+    assert len(lines) == 1 and "no sample since the start" in lines[0]
+
+
+def test_at_a_switch_the_topic_standing_by_gives_its_newest_sample_at_once(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """With a 150 ms maximum age topic1's last altitude (1.95 s) is unknown from 2.1 s on;
+    at 2.3 s topic2's message shows topic1 silent for over three periods: that message,
+    read while topic2 stood by, gives the altitude its value at once, at its valid time,
+    and it is known from then on."""
+    km = KnowledgeManager.from_config(declare(scenario, *TEN_HZ))
+    policy = StreamPolicy(best_source=True, max_age=Fraction(3, 20))
+    key = km.check_formula(ALTITUDE).features[0].feature.key
+    with km.monitor(ALTITUDE, [stalled(tmp_path)], policy, keep_states=True) as run:
+        events = list(run)
+    states = run.states
+    (aside, _) = [e for e in events if isinstance(e, Rerouted)]
+    assert aside.time == 2.3
+    switch = int(aside.time * 10**9)
+    after = [(t, values[key]) for t, values in states if t >= switch]
+    assert after[0] == (switch, 50.0)  # the sample that revealed the silence
+    assert all(v is not None for _, v in after)
+
