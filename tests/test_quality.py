@@ -390,7 +390,12 @@ def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only
     moves: list[Move] = []
     watch = QualityWatch(3, moves.append)
     watch.declare(
-        "topic1", FeatureKey("Altitude", ("uav1",)), "platform1", "topic1", Fraction(10), None
+        ("topic1", "/topic1"),  # the names it may be read by: one topic watched
+        FeatureKey("Altitude", ("uav1",)),
+        "platform1",
+        "topic1",
+        Fraction(10),
+        None,
     )
     watch.sample("topic1", 1_000 * MS, 1_000 * MS)
     watch.silent(1_300 * MS)  # three periods: not yet
@@ -398,16 +403,31 @@ def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only
     watch.silent(1_301 * MS)
     watch.silent(1_500 * MS)
     assert [(m.topic, m.aside, m.time) for m in moves] == [("topic1", True, 1_301 * MS)]
-    assert watch.aside() == ["topic1"]
+    assert watch.aside() == ["topic1", "/topic1"]
     watch.sample("topic1", 1_600 * MS, 1_600 * MS)
     assert [(m.aside, m.time, m.reason) for m in moves[1:]] == [
         (False, 1_600 * MS, "a sample came after 0.6 s without one")
     ]
     never = QualityWatch(0, moves.append)
-    never.declare("t", FeatureKey("X", ()), "p", "t", Fraction(10), None)
+    never.declare(("t",), FeatureKey("X", ()), "p", "t", Fraction(10), None)
     never.sample("t", 0, 0)
     never.silent(10**12)
     assert len(moves) == 2 and never.aside() == []
+    # a topic that never sends is silent from the start (`begin`), one matched later from
+    # when it was; each is set aside past three periods
+    mute = QualityWatch(3, moves.append)
+    mute.declare(("a",), FeatureKey("X", ()), "p", "a", Fraction(10), None)
+    mute.begin(1_000 * MS)
+    mute.declare(("b",), FeatureKey("Y", ()), "p", "b", Fraction(10), None, since=2_000 * MS)
+    assert mute.due == 1_300 * MS
+    mute.silent(1_301 * MS)
+    mute.silent(2_301 * MS)
+    assert [(m.topic, m.time, m.reason) for m in moves[2:]] == [
+        ("a", 1_301 * MS, "no sample since the start (0.301 s, over 3 periods of the declared 10 Hz)"),
+        ("b", 2_301 * MS, "no sample since matched (0.301 s, over 3 periods of the declared 10 Hz)"),
+    ]
+    mute.sample("a", 1_500 * MS, 1_500 * MS)
+    assert moves[-1].reason == "a sample came after 0.5 s without one"
 
 
 def test_with_best_source_the_next_ranked_topic_is_read_while_the_best_one_is_set_aside(
@@ -485,15 +505,15 @@ def test_a_batch_run_under_best_source_is_re_routed_as_monitor_does(
     formula, policy = "always (Altitude[uav1] > 10)", StreamPolicy(best_source=True)
     with km.monitor(formula, [path], policy) as run:
         (alone,) = [e for e in run if isinstance(e, Verdict)]
-    # set aside at 2.3 s (topic2's sample then, 0.35 s after topic1's last, shows it); the
-    # next one, at 2.4 s (t+2.3), is the first read from topic2
-    assert (alone.verdict, alone.t) == (False, 2.3)
+    # set aside at 2.3 s (t+2.2) by topic2's sample then, 0.35 s after topic1's last: that
+    # sample, held while topic2 stood by, is the first read from it
+    assert (alone.verdict, alone.t) == (False, 2.2)
     plan = km.plan(formula)
     job = Job(
         plan, km.matcher(policy)(plan), policy, tuple(km.platforms), (), "auto", (), None, None
     )
     ((_, verdict),) = monitor_run(job, Run("low", (str(path),))).verdicts
-    assert verdict is not None and (verdict.verdict, verdict.t) == (False, 2.3)
+    assert verdict is not None and (verdict.verdict, verdict.t) == (False, 2.2)
 
 
 def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scenario: Path) -> None:
