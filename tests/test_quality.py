@@ -422,9 +422,10 @@ def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only
     assert mute.due == 1_300 * MS
     mute.silent(1_301 * MS)
     mute.silent(2_301 * MS)
+    over = "0.301 s, over 3 periods of the declared 10 Hz"
     assert [(m.topic, m.time, m.reason) for m in moves[2:]] == [
-        ("a", 1_301 * MS, "no sample since the start (0.301 s, over 3 periods of the declared 10 Hz)"),
-        ("b", 2_301 * MS, "no sample since matched (0.301 s, over 3 periods of the declared 10 Hz)"),
+        ("a", 1_301 * MS, f"no sample since the start ({over})"),
+        ("b", 2_301 * MS, f"no sample since matched ({over})"),
     ]
     mute.sample("a", 1_500 * MS, 1_500 * MS)
     assert moves[-1].reason == "a sample came after 0.5 s without one"
@@ -597,3 +598,34 @@ def test_at_a_switch_the_topic_standing_by_gives_its_newest_sample_at_once(
     assert after[0] == (switch, 50.0)  # the sample that revealed the silence
     assert all(v is not None for _, v in after)
 
+
+def test_a_held_sample_older_than_the_last_state_feeds_at_the_switch(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """topic2 (1 Hz, standing by) last said 40 m at 2.0 s; car1's speed makes a state every
+    100 ms.  topic1 (10 Hz, chosen) stops after 1.95 s; car1's message at 2.32 s shows it:
+    by then the state at 2.22 s was made, so topic2's 40 m is fed at the switch (2.32 s),
+    not as a late sample at 2.0 s."""
+    km = KnowledgeManager.from_config(
+        declare(scenario, "topic1:UavMsg [rate 10 Hz]", "topic2:UavMsg [rate 1 Hz]")
+    )
+    rows: list[Row] = [
+        ("topic3", CAR, n * 100 * MS + 20 * MS, {"id": 1, "spd": 3.0}) for n in range(1, 40)
+    ]
+    rows += [("topic1", UAV, n * 100 * MS + 50 * MS, {"id": 1, "alt": 50.0}) for n in range(1, 20)]
+    rows += [("topic2", UAV, n * 1000 * MS, {"id": 1, "alt": 40.0}) for n in range(1, 4)]
+    path = tmp_path / "held.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    formula = "always (Altitude[uav1] > 1 and Speed[car1] >= 0)"
+    request = km.check_formula(formula, best_source=True)
+    altitude = next(f.feature.key for f in request.features if f.feature.name == "Altitude")
+    policy = StreamPolicy(best_source=True)
+    with km.monitor(formula, [path], policy, keep_states=True) as run:
+        events = list(run)
+    (aside,) = [e for e in events if isinstance(e, Rerouted)]
+    assert aside.time == 2.32
+    assert not [e for e in events if isinstance(e, Violation) and e.constraint == "late"]
+    assert [(t, v[altitude]) for t, v in run.states if 2_200 * MS < t <= 2_320 * MS] == [
+        (2_220 * MS, 50.0),
+        (2_320 * MS, 40.0),
+    ]
