@@ -502,16 +502,16 @@ class StreamProcessor:
         self,
         messages: Iterable[Message],
         watch: Sized | None,
-        routes: dict[str, list[_Group]] | None = None,
+        feeding: dict[str, list[_Group]] | None = None,
     ) -> Iterator[int]:
         """The replay's hot path, written out in one loop with the processor's state in
         locals between states (`watch` None: make no state).  Each value a message gives a
         feature is a sample; with no constraint set, in valid-time order, a sample costs its
-        history entry, its state time and its expiry.  `routes`: fed instead of the topics'
+        history entry, its state time and its expiry.  `feeding`: fed instead of the topics'
         own (a held message, promoted: neither watched nor held again)."""
         quality = self.quality
-        own = routes is None
-        groups = self.groups if routes is None else routes
+        own = feeding is None
+        groups = self.groups if feeding is None else feeding
         declared = quality.topics if own else {}
         watching = quality.watched if own else {}
         standing = self.standing if own else {}
