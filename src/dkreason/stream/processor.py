@@ -7,7 +7,9 @@ and strings compare alike); its field value becomes a sample ⟨available, valid
 
 Merge (thesis 2.2).  A feature's value at time s comes from its sample with the most recent
 valid time ≤ s, whichever topic it came on; on equal valid times the local platform wins, then
-the order of the stream request, then the later arrival.
+the order of the stream request, then the later arrival.  A topic standing by (--best-source)
+feeds nothing; each of its routes keeps its newest message, which feeds the feature at once
+when the topic takes the chosen one's place (`reroute`), so a switch loses no value it sent.
 
 Synchronise.  States are made at a fixed sample period, or at every sample's valid time ("on
 every change", plus the instant a sample grows older than `max_age`, so a value that went
