@@ -1500,3 +1500,61 @@ def test_a_live_monitor_matches_with_its_max_delay_as_the_knowledge_changes(
                 elif event.topic == "prompt":
                     monitor.stop.set()
     assert subscribed == ["topic1", "prompt"]
+
+
+def test_a_best_topic_that_never_sends_is_set_aside_from_the_start_and_its_standby_feeds_at_once(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """Under --best-source uav1's altitude is read from topic1 (declared 10 Hz), which never
+    sends (its clock goes on); topic2, standing by, does.  Counted from the start of the
+    stream, topic1's silence passes three periods and it is set aside; topic2's newest
+    sample feeds the altitude at once, so stopping right then still judges it (as a replay
+    of the same data does)."""
+    from dkreason.live import wire
+    from dkreason.live.change import Change
+    from dkreason.monitor import Rerouted
+    from dkreason.progress import Verdict
+    from dkreason.stream.policy import StreamPolicy
+
+    from .test_quality import TEN_HZ, declare, replayed, topic2_alone
+
+    declare(scenario, *TEN_HZ)
+    subscribed: set[str] = set()
+    events: list[Any] = []
+    policy = StreamPolicy(best_source=True)
+    with platform1_live(scenario, ["always (Altitude[uav1] > 1)"], policy) as (
+        node,
+        monitor,
+        sessions,
+    ):
+        for event in monitor.run(duration=30):
+            events.append(event)
+            if isinstance(event, Change) and event.event == "subscribed":
+                subscribed.add(event.topic)
+                if subscribed == {"topic1", "topic2"}:
+                    for topic in sorted(subscribed):
+                        key = wire.key("platform1", "topic", topic)
+                        heard(sessions[1].declare_publisher(key)).undeclare()
+                    for n in range(1, 11):
+                        t = n * 10**8
+                        node.publish("topic2", {"id": 1, "alt": 50.0}, t, t)
+                        sessions[1].put(
+                            wire.key("platform1", "topic", "topic1"), wire.encode({"clock": t})
+                        )
+            elif isinstance(event, Rerouted):
+                monitor.stop.set()
+    (move,) = [e for e in events if isinstance(e, Rerouted)]
+    assert (move.source, move.aside, move.before, move.after) == (
+        "platform1/topic1",
+        True,
+        ONE,
+        TWO,
+    )
+    assert move.reason.startswith("no sample since the start (")
+    assert 0.4 < move.time <= 1.0  # (when the stream clock passed three periods)
+    (verdict,) = [e for e in events if isinstance(e, Verdict)]
+    assert verdict.verdict is True
+    offline = KnowledgeManager.from_config(scenario / "single.toml")
+    again = replayed(offline, topic2_alone(tmp_path), best_source=True)
+    assert [e.verdict for e in again if isinstance(e, Verdict)] == [True]
+    assert [(e.before, e.after) for e in again if isinstance(e, Rerouted)] == [(ONE, TWO)]

@@ -390,7 +390,12 @@ def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only
     moves: list[Move] = []
     watch = QualityWatch(3, moves.append)
     watch.declare(
-        "topic1", FeatureKey("Altitude", ("uav1",)), "platform1", "topic1", Fraction(10), None
+        ("topic1", "/topic1"),  # the names it may be read by: one topic watched
+        FeatureKey("Altitude", ("uav1",)),
+        "platform1",
+        "topic1",
+        Fraction(10),
+        None,
     )
     watch.sample("topic1", 1_000 * MS, 1_000 * MS)
     watch.silent(1_300 * MS)  # three periods: not yet
@@ -398,16 +403,32 @@ def test_a_source_is_set_aside_past_n_declared_periods_without_a_sample_and_only
     watch.silent(1_301 * MS)
     watch.silent(1_500 * MS)
     assert [(m.topic, m.aside, m.time) for m in moves] == [("topic1", True, 1_301 * MS)]
-    assert watch.aside() == ["topic1"]
+    assert watch.aside() == ["topic1", "/topic1"]
     watch.sample("topic1", 1_600 * MS, 1_600 * MS)
     assert [(m.aside, m.time, m.reason) for m in moves[1:]] == [
         (False, 1_600 * MS, "a sample came after 0.6 s without one")
     ]
     never = QualityWatch(0, moves.append)
-    never.declare("t", FeatureKey("X", ()), "p", "t", Fraction(10), None)
+    never.declare(("t",), FeatureKey("X", ()), "p", "t", Fraction(10), None)
     never.sample("t", 0, 0)
     never.silent(10**12)
     assert len(moves) == 2 and never.aside() == []
+    # a topic that never sends is silent from the start (`begin`), one matched later from
+    # when it was; each is set aside past three periods
+    mute = QualityWatch(3, moves.append)
+    mute.declare(("a",), FeatureKey("X", ()), "p", "a", Fraction(10), None)
+    mute.begin(1_000 * MS)
+    mute.declare(("b",), FeatureKey("Y", ()), "p", "b", Fraction(10), None, since=2_000 * MS)
+    assert mute.due == 1_300 * MS
+    mute.silent(1_301 * MS)
+    mute.silent(2_301 * MS)
+    over = "0.301 s, over 3 periods of the declared 10 Hz"
+    assert [(m.topic, m.time, m.reason) for m in moves[2:]] == [
+        ("a", 1_301 * MS, f"no sample since the start ({over})"),
+        ("b", 2_301 * MS, f"no sample since matched ({over})"),
+    ]
+    mute.sample("a", 1_500 * MS, 1_500 * MS)
+    assert moves[-1].reason == "a sample came after 0.5 s without one"
 
 
 def test_with_best_source_the_next_ranked_topic_is_read_while_the_best_one_is_set_aside(
@@ -485,15 +506,15 @@ def test_a_batch_run_under_best_source_is_re_routed_as_monitor_does(
     formula, policy = "always (Altitude[uav1] > 10)", StreamPolicy(best_source=True)
     with km.monitor(formula, [path], policy) as run:
         (alone,) = [e for e in run if isinstance(e, Verdict)]
-    # set aside at 2.3 s (topic2's sample then, 0.35 s after topic1's last, shows it); the
-    # next one, at 2.4 s (t+2.3), is the first read from topic2
-    assert (alone.verdict, alone.t) == (False, 2.3)
+    # set aside at 2.3 s (t+2.2) by topic2's sample then, 0.35 s after topic1's last: that
+    # sample, held while topic2 stood by, is the first read from it
+    assert (alone.verdict, alone.t) == (False, 2.2)
     plan = km.plan(formula)
     job = Job(
         plan, km.matcher(policy)(plan), policy, tuple(km.platforms), (), "auto", (), None, None
     )
     ((_, verdict),) = monitor_run(job, Run("low", (str(path),))).verdicts
-    assert verdict is not None and (verdict.verdict, verdict.t) == (False, 2.3)
+    assert verdict is not None and (verdict.verdict, verdict.t) == (False, 2.2)
 
 
 def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scenario: Path) -> None:
@@ -509,3 +530,102 @@ def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scena
     thesis = KnowledgeManager.from_config(SCENARIOS / "federation.toml")  # declaring nothing
     formula = "always (Altitude[uav1] > Altitude[uav2])"
     assert not any(f.standby for f in thesis.check_formula(formula, best_source=True).features)
+
+
+def topic2_alone(tmp_path: Path) -> Path:
+    """uav1's altitude on topic2 alone, at 10 Hz for 2 s: topic1 is in no recording."""
+    rows: list[Row] = [("topic2", UAV, n * 100 * MS, {"id": 1, "alt": 50.0}) for n in range(1, 21)]
+    path = tmp_path / "alone.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("best_source", "before"),
+    [(True, ("platform1/topic1",)), (False, ("platform1/topic1", "platform1/topic2"))],
+    ids=["best-source", "merged"],
+)
+def test_a_topic_that_never_sends_is_set_aside_counting_from_the_start(
+    scenario: Path, tmp_path: Path, best_source: bool, before: tuple[str, ...]
+) -> None:
+    """topic1 (declared 10 Hz, chosen under --best-source) sends nothing: its silence counts
+    from the start of the recording (0.1 s), so past three periods (at topic2's message of
+    0.5 s) it is set aside, once, and uav1's altitude is read from topic2."""
+    km = KnowledgeManager.from_config(declare(scenario, *TEN_HZ))
+    events = replayed(km, topic2_alone(tmp_path), best_source=best_source)
+    (move,) = [e for e in events if isinstance(e, Rerouted)]
+    assert (move.source, move.aside, move.before, move.after) == (
+        "platform1/topic1",
+        True,
+        before,
+        ("platform1/topic2",),
+    )
+    assert (move.time, move.t) == (0.5, 0.4)
+    assert move.reason == (
+        "no sample since the start (0.4 s, over 3 periods of the declared 10 Hz)"
+    )
+    (verdict,) = [e for e in events if isinstance(e, Verdict)]
+    assert verdict.verdict is True
+
+
+def test_monitor_says_once_that_a_best_topic_never_sent(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config, path = declare(scenario, *TEN_HZ), topic2_alone(tmp_path)
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--best-source"]
+    assert main([*argv, ALTITUDE]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "rerouted" in line]
+    assert len(lines) == 1 and "no sample since the start" in lines[0]
+
+
+def test_at_a_switch_the_topic_standing_by_gives_its_newest_sample_at_once(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """With a 150 ms maximum age topic1's last altitude (1.95 s) is unknown from 2.1 s on;
+    at 2.3 s topic2's message shows topic1 silent for over three periods: that message,
+    read while topic2 stood by, gives the altitude its value at once, at its valid time,
+    and it is known from then on."""
+    km = KnowledgeManager.from_config(declare(scenario, *TEN_HZ))
+    policy = StreamPolicy(best_source=True, max_age=Fraction(3, 20))
+    key = km.check_formula(ALTITUDE).features[0].feature.key
+    with km.monitor(ALTITUDE, [stalled(tmp_path)], policy, keep_states=True) as run:
+        events = list(run)
+    states = run.states
+    (aside, _) = [e for e in events if isinstance(e, Rerouted)]
+    assert aside.time == 2.3
+    switch = int(aside.time * 10**9)
+    after = [(t, values[key]) for t, values in states if t >= switch]
+    assert after[0] == (switch, 50.0)  # the sample that revealed the silence
+    assert all(v is not None for _, v in after)
+
+
+def test_a_held_sample_older_than_the_last_state_feeds_at_the_switch(
+    scenario: Path, tmp_path: Path
+) -> None:
+    """topic2 (1 Hz, standing by) last said 40 m at 2.0 s; car1's speed makes a state every
+    100 ms.  topic1 (10 Hz, chosen) stops after 1.95 s; car1's message at 2.32 s shows it:
+    by then the state at 2.22 s was made, so topic2's 40 m is fed at the switch (2.32 s),
+    not as a late sample at 2.0 s."""
+    km = KnowledgeManager.from_config(
+        declare(scenario, "topic1:UavMsg [rate 10 Hz]", "topic2:UavMsg [rate 1 Hz]")
+    )
+    rows: list[Row] = [
+        ("topic3", CAR, n * 100 * MS + 20 * MS, {"id": 1, "spd": 3.0}) for n in range(1, 40)
+    ]
+    rows += [("topic1", UAV, n * 100 * MS + 50 * MS, {"id": 1, "alt": 50.0}) for n in range(1, 20)]
+    rows += [("topic2", UAV, n * 1000 * MS, {"id": 1, "alt": 40.0}) for n in range(1, 4)]
+    path = tmp_path / "held.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    formula = "always (Altitude[uav1] > 1 and Speed[car1] >= 0)"
+    request = km.check_formula(formula, best_source=True)
+    altitude = next(f.feature.key for f in request.features if f.feature.name == "Altitude")
+    policy = StreamPolicy(best_source=True)
+    with km.monitor(formula, [path], policy, keep_states=True) as run:
+        events = list(run)
+    (aside,) = [e for e in events if isinstance(e, Rerouted)]
+    assert aside.time == 2.32
+    assert not [e for e in events if isinstance(e, Violation) and e.constraint == "late"]
+    assert [(t, v[altitude]) for t, v in run.states if 2_200 * MS < t <= 2_320 * MS] == [
+        (2_220 * MS, 50.0),
+        (2_320 * MS, 40.0),
+    ]

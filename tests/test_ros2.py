@@ -1228,9 +1228,9 @@ def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
     """X[r1] from both robots' poses, each declared 1 Hz: robot 1's poses stop after 3 s
     while /clock goes on, so X[r1] is read from robot 2's alone until robot 1 sends again
     at 9 s (its topic stays subscribed).  With --best-source robot 1's alone is read at
-    first, robot 2's subscribed beside it (ranked next; its poses before the switch, which
-    may come at 7 or 8 s as the loop takes its batches, feed nothing: the maximum age
-    bridges them)."""
+    first, robot 2's subscribed beside it (ranked next; of its poses before the switch,
+    which may come at 7 or 8 s as the loop takes its batches, the newest feeds X[r1] then:
+    the maximum age bridges robot 1's silence before it)."""
     from dkreason.monitor import Rerouted
 
     (tmp_path / "pair.ttl").write_text(FLEET_TTL)
@@ -1293,3 +1293,41 @@ def test_a_ros2_monitor_matches_with_its_max_delay(
     run.matched(robots[1])
     assert [c.topic for c in run.changes("subscribed")] == ["/robot1/pose"]
     run.finish()
+
+
+def test_a_best_pose_that_never_comes_is_set_aside_from_the_clocks_start_on_ros2(
+    tmp_path: Path, live: Callable[..., Live]
+) -> None:
+    """Under --best-source X[r1] is read from robot 1's pose (declared 1 Hz), which robot 1
+    never publishes; robot 2's, standing by, comes each second.  Robot 1's pose is set aside
+    three periods after the first /clock tick (when the stream clock started), and robot
+    2's newest pose feeds X[r1] at once: the formula is judged."""
+    from dkreason.monitor import Rerouted
+
+    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
+    (tmp_path / "pair.sslt").write_text(
+        "".join(
+            f"topic /robot{n}/pose:{POSE} [rate 1 Hz] contains X(r1) = msg.pose.position.x\n"
+            for n in (1, 2)
+        )
+    )
+    (tmp_path / "pair.toml").write_text(
+        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
+    )
+    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    policy = StreamPolicy(best_source=True)
+    run = live(km, ["always (X[r1] < 15)"], sim_time=True, policy=policy)
+    sim = SimRobots(run)
+
+    def moves() -> list[Rerouted]:
+        return [e for e in run.events if isinstance(e, Rerouted)]
+
+    for n in range(1, 7):
+        sim.second(n, r2=2.0)
+    run.until(lambda: len(moves()) == 1, "robot 1's pose set aside")
+    run.finish()
+    (move,) = moves()
+    assert (move.aside, move.before, move.after) == (True, POSE1, POSE2)
+    assert move.reason.startswith("no sample since the start (")
+    assert 4 < move.time <= 6  # (when the clock passed three periods after its first tick)
+    assert [v.verdict for v in run.verdicts()] == [True]

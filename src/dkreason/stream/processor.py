@@ -7,7 +7,9 @@ and strings compare alike); its field value becomes a sample ⟨available, valid
 
 Merge (thesis 2.2).  A feature's value at time s comes from its sample with the most recent
 valid time ≤ s, whichever topic it came on; on equal valid times the local platform wins, then
-the order of the stream request, then the later arrival.
+the order of the stream request, then the later arrival.  A topic standing by (--best-source)
+feeds nothing; each of its routes keeps its newest message, which feeds the feature at once
+when the topic takes the chosen one's place (`reroute`), so a switch loses no value it sent.
 
 Synchronise.  States are made at a fixed sample period, or at every sample's valid time ("on
 every change", plus the instant a sample grows older than `max_age`, so a value that went
@@ -93,9 +95,10 @@ def _ns_given(value: Fraction) -> int:
 
 class _Route:
     """One topic entry of one feature: a source stream, with its latest valid time (kept when
-    a constraint needs it)."""
+    a constraint needs it); standing by (--best-source), the newest message it would have fed
+    the feature (`held`), which it feeds at once if it takes the chosen topic's place."""
 
-    __slots__ = ("q", "get", "rank", "stream", "last", "text")
+    __slots__ = ("q", "get", "rank", "stream", "last", "text", "held")
 
     def __init__(
         self, q: int, get: Callable[[Any], Any], prio: int, stream: str, text: bool
@@ -103,6 +106,7 @@ class _Route:
         self.q, self.get, self.stream, self.text = q, get, stream, text
         self.rank = -prio  # a feature's history is ordered by (valid, rank)
         self.last: int | None = None
+        self.held: Message | None = None
 
 
 class _Group:
@@ -113,6 +117,9 @@ class _Group:
         # a message's ids in one C call: the value itself for one id field, else a tuple
         self.key: Callable[[Any], Any] = itemgetter(*positions) if positions else (lambda _: ())
         self.index: dict[Any, list[_Route]] = {}
+
+    def all(self) -> Iterator[_Route]:
+        return iter(dict.fromkeys(r for routes in self.index.values() for r in routes))
 
     def add(self, ids: tuple[Any, ...], route: _Route) -> None:
         for key in dict.fromkeys((ids, tuple(str(v) for v in ids))):  # once if alike
@@ -187,6 +194,9 @@ class StreamProcessor:
         self.current: dict[FeatureKey, Any] = {}  # the last state's values (on every change)
         self.hist: list[list[tuple[int, int, Any]]] = []  # per feature: (valid, -prio, value)
         self.groups: dict[str, list[_Group]] = {}
+        # --best-source: the routes of the topics standing by, which only hold each route's
+        # newest message (a topic that feeds nothing has no routes in `groups`)
+        self.standing: dict[str, list[_Group]] = {}
         self.absent: dict[str, list[str]] = {}  # spec topic in no recording → its features
         # feature → (recording topic, field, kind, ROS type) of each topic that feeds it
         self.kinds: dict[FeatureKey, list[tuple[str, str, str, str]]] = {}
@@ -229,6 +239,9 @@ class StreamProcessor:
         self.want(terms, limits)
         self.quiet_until = self._next_due()  # with a period and a start: its first state
         self._route(request, source)
+        origin = source.first_record()
+        if origin is not None:  # a recording: topics that send nothing are silent from it
+            self.quality.begin(origin)
 
     def _feature(self, key: FeatureKey) -> None:
         self.position[key] = len(self.keys)
@@ -298,24 +311,55 @@ class StreamProcessor:
             if key not in self.position:
                 self._feature(key)
         before = {topic: fields_ for topic, fields_ in self.wanted.items()}
+        held = {
+            (name, r.q, r.stream): r.held
+            for name, groups in self.standing.items()
+            for g in groups
+            for r in g.all()
+            if r.held is not None
+        }
         self.groups.clear()
+        self.standing.clear()
         self.wanted.clear()
         self.source = source
-        self._route(request, source, before)
+        promoted = self._route(request, source, before, held)
         for topic in self.quality.aside():
             if topic in before:
                 self.wanted.setdefault(topic, before[topic])
                 self.groups.setdefault(topic, [])
+        for route, message in promoted:
+            self._promote(route, message)
+
+    def _promote(self, route: _Route, message: Message) -> None:
+        """A topic that stood by feeds its feature now (the chosen one was set aside): the
+        newest message it held gives the feature its value at once, at its valid time unless
+        a state was made since, else now (the switch), so no value it sent is lost to it."""
+        topic, available, valid, values = message
+        if valid <= self.made:
+            assert self.last_seen is not None  # a state was made: time has been seen
+            valid = self.last_seen
+        group = _Group((), ())
+        group.add((), route)
+        fed: Iterable[Message] = ((topic, available, valid, values),)
+        for _ in self._take(self._windowed(fed) if self.windowed else fed, None, {topic: [group]}):
+            pass
 
     # ---- set-up: which recording topic feeds which feature, checked before replay -------
 
     def _route(
-        self, request: StreamRequest, source: Source, before: dict[str, list[str]] | None = None
-    ) -> None:
-        """`before`: each topic's fields as read so far, kept in their places."""
+        self,
+        request: StreamRequest,
+        source: Source,
+        before: dict[str, list[str]] | None = None,
+        held: dict[tuple[str, int, str], Message] | None = None,
+    ) -> list[tuple[_Route, Message]]:
+        """`before`: each topic's fields as read so far, kept in their places; `held`: the
+        newest message of each route that stood by, by (topic, feature, stream).  Returns
+        the routes that stood by and feed now, with their held messages."""
         from .binding import message_type_fits, recording_names
 
-        before = before or {}
+        before, held = before or {}, held or {}
+        promoted = []
 
         types = source.types()
         namespaces = dict(request.namespaces)
@@ -351,15 +395,13 @@ class StreamProcessor:
                         )
                 stream = f"{m.platform}/{m.topic}"
                 ids = tuple(k for k, _ in m.filter)
-                for name in present[:1] if types else present:
+                names = present[:1] if types else present
+                self.quality.declare(
+                    names, f.feature.key, m.platform, m.topic, m.rate, m.delay, self.last_seen
+                )
+                for name in names:
                     if name in before and name not in self.wanted:
                         self.wanted[name] = list(before[name])
-                    self.quality.declare(name, f.feature.key, m.platform, m.topic, m.rate, m.delay)
-                    if standby:  # read and watched, feeding nothing: its fields get places
-                        for field in (m.field, *ids):
-                            self._position(name, field)
-                        self.groups.setdefault(name, [])
-                        continue
                     route = _Route(
                         q,
                         itemgetter(self._position(name, m.field)),
@@ -367,12 +409,19 @@ class StreamProcessor:
                         stream,
                         f.feature.key in self.texts,
                     )
-                    groups = self.groups.setdefault(name, [])
+                    kept = held.get((name, q, stream))
+                    if standby:  # read and watched, feeding nothing: its newest message held
+                        route.held = kept
+                        self.groups.setdefault(name, [])
+                    elif kept is not None:
+                        promoted.append((route, kept))
+                    groups = (self.standing if standby else self.groups).setdefault(name, [])
                     group = next((g for g in groups if g.id_fields == ids), None)
                     if group is None:
                         group = _Group(ids, tuple(self._position(name, f) for f in ids))
                         groups.append(group)
                     group.add(tuple(v for _, v in m.filter), route)
+        return promoted
 
     def _position(self, topic: str, field: str) -> int:
         """Where `field` stands in the values a message of `topic` gives."""
@@ -387,12 +436,26 @@ class StreamProcessor:
         """Messages in recording order (each with the values `wanted` names): their samples,
         and the states they make due.  Yields the count of messages so far after one that
         left `watch` (the caller's pending events) not empty, and after every 4096th."""
+        if self.quality.start is None and self.quality.watched:
+            messages = self._begun(messages)
         return self._take(self._windowed(messages) if self.windowed else messages, watch)
+
+    def _begun(self, messages: Iterable[Message]) -> Iterator[Message]:
+        """A source whose start is known only once read: the watched topics are silent
+        from its first message."""
+        it = iter(messages)
+        head = next(it, None)
+        if head is None:
+            return it
+        origin = self.origin
+        self.quality.begin(head[1] if origin is None else origin)
+        return chain((head,), it)
 
     def put(self, topic: str, available: int, valid: int, values: tuple[Any, ...]) -> None:
         """A message, without making states: a live source says when time has passed."""
         if self.first_taken is None:
             self.first_taken = available
+            self.quality.begin(available)  # unless the stream clock started before
         message: Iterable[Message] = ((topic, available, valid, values),)
         for _ in self._take(self._windowed(message) if self.windowed else message, None):
             pass
@@ -465,13 +528,24 @@ class StreamProcessor:
             self._open(self.start)
         self.quiet_until = self._next_due()
 
-    def _take(self, messages: Iterable[Message], watch: Sized | None) -> Iterator[int]:
+    def _take(
+        self,
+        messages: Iterable[Message],
+        watch: Sized | None,
+        feeding: dict[str, list[_Group]] | None = None,
+    ) -> Iterator[int]:
         """The replay's hot path, written out in one loop with the processor's state in
         locals between states (`watch` None: make no state).  Each value a message gives a
         feature is a sample; with no constraint set, in valid-time order, a sample costs its
-        history entry, its state time and its expiry."""
-        groups, hists, times, at, due, queued = (
-            self.groups,
+        history entry, its state time and its expiry.  `feeding`: fed instead of the topics'
+        own (a held message, promoted: neither watched nor held again)."""
+        quality = self.quality
+        own = feeding is None
+        groups = self.groups if feeding is None else feeding
+        declared = quality.topics if own else {}
+        watching = quality.watched if own else {}
+        standing = self.standing if own else {}
+        hists, times, at, due, queued = (
             self.hist,
             self.times,
             self.at,
@@ -488,13 +562,13 @@ class StreamProcessor:
         limits = self.limits
         max_valid, quiet = self.max_valid, self.quiet_until
         made = self.made
-        quality = self.quality
-        declared = quality.topics
         n, seen = 0, None
         try:
             for topic, available, valid, values in messages:
                 if declared and topic in declared:
                     self._report(quality.sample(topic, available, valid))
+                if standing and topic in standing:
+                    self._hold(standing[topic], (topic, available, valid, values))
                 for group in groups[topic]:
                     try:  # `_Group.routes`, its common case inline: a hashable id, found
                         routes = group.index.get(group.key(values))
@@ -570,16 +644,27 @@ class StreamProcessor:
                 if available > quiet:
                     self._emit(available, final=False)
                     quiet, made = self.quiet_until, self.made
-                elif declared and available > quality.due:
+                elif watching and available > quality.due:
                     # a topic declaring a rate went silent: seen at a message of any topic
                     # read, whether or not it makes a state (one standing by makes none)
                     self._report(quality.silent(available))
                 if watch or not n & 4095:
+                    self.last_seen = seen  # where a switch the caller makes now happens
                     yield n
+                    # the caller may have fed the processor meanwhile (`_promote`)
+                    max_valid, quiet, made = self.max_valid, self.quiet_until, self.made
         finally:
             self.read += n
             if seen is not None:
                 self.last_seen = seen
+
+    @staticmethod
+    def _hold(groups: list[_Group], message: Message) -> None:
+        """A message of a topic standing by: each route it would feed keeps it if newest."""
+        for group in groups:
+            for route in group.routes(message[3]):
+                if route.held is None or message[2] >= route.held[2]:
+                    route.held = message
 
     def _odd(
         self, route: _Route, valid: int, value: Any, wanted: str = "a number or boolean"
@@ -600,6 +685,8 @@ class StreamProcessor:
     def advance(self, available: int) -> None:
         """Every source has passed `available`: make the states due by then (and set aside
         the topics silent too long by then)."""
+        if self.quality.start is None:  # the stream clock starts: silence counts from it
+            self.quality.begin(available)
         if available <= self.quiet_until and available <= self.quality.due:
             self.last_seen = available
             return  # nothing is due yet
@@ -740,7 +827,7 @@ class StreamProcessor:
 
     def _emit(self, now: int, final: bool) -> None:
         self.last_seen = now
-        if self.quality.topics and now > self.quality.due:
+        if self.quality.watched and now > self.quality.due:
             self._report(self.quality.silent(now))
         try:
             self.quiet_until = self._make_due(now, final)

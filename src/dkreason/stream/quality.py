@@ -11,7 +11,9 @@ a stream-constraint violation like those of thesis listing 5.2.
 Each kind is said at most once per REPORT_EVERY of record time and topic, so a degraded source
 is a line now and then, not one per message.  A topic with a declared rate that sends nothing
 for more than `set_aside_after` declared periods is set aside (a `Move` told to the monitor,
-which matches its features again without it) and taken back at its next sample.  `observe`
+which matches its features again without it) and taken back at its next sample; one that
+never sends is silent from the start of the stream (or from when it was matched, if later),
+so a topic absent from a recording, or never published live, is set aside alike.  `observe`
 measures what a recording's topic runs at, for `dkreason info --timing`.
 """
 
@@ -19,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -60,6 +62,7 @@ class _Watched:
     first: int | None = None
     quiet: dict[str, int] = field(default_factory=dict)  # kind → said again from then on
     aside: bool = False
+    since: int | None = None  # ns: its silence counts from here before its first sample
 
 
 class QualityWatch:
@@ -71,7 +74,10 @@ class QualityWatch:
     ) -> None:
         """`set_aside_after`: declared periods without a sample before a topic is set aside
         (0: never)."""
+        # recording topic → the spec topic watched (the names it may be read by share one)
         self.topics: dict[str, _Watched] = {}
+        self.watched: dict[tuple[str, str], _Watched] = {}  # (platform, spec topic) → it
+        self.start: int | None = None  # ns: the start of the stream, once known (`begin`)
         self.set_aside_after, self.moved = set_aside_after, moved
         # the record time (ns) after which `silent` may have something to say: a replay asks
         # it at the first message past it, of any topic, whether or not a state is due then
@@ -79,21 +85,44 @@ class QualityWatch:
 
     def declare(
         self,
-        topic: str,
+        names: Iterable[str],
         feature: FeatureKey,
         platform: str,
         spec_topic: str,
         rate: Fraction | None,
         delay: Fraction | None,
+        since: int | None = None,
     ) -> None:
-        """Watch recording topic `topic` (once, however many features it feeds; it stays
-        watched when it is set aside, so its return is seen)."""
-        if topic in self.topics or (rate is None and delay is None):
+        """Watch `platform/spec_topic`, read as any of the recording topics `names` (none: in
+        no recording), once however many features it feeds (it stays watched when it is set
+        aside, so its return is seen).  Silent until its first sample from `since` (ns;
+        None: from the start of the stream, `begin`)."""
+        if rate is None and delay is None:
             return
-        window = round(RATE_WINDOW * NS / rate) if rate else 0
-        ns = None if delay is None else round(delay * NS)
-        stream = f"{platform}/{spec_topic}"
-        self.topics[topic] = _Watched(feature, platform, spec_topic, stream, rate, ns, window)
+        w = self.watched.get((platform, spec_topic))
+        if w is None:
+            window = round(RATE_WINDOW * NS / rate) if rate else 0
+            ns = None if delay is None else round(delay * NS)
+            stream = f"{platform}/{spec_topic}"
+            w = _Watched(feature, platform, spec_topic, stream, rate, ns, window)
+            w.since = self.start if since is None else since
+            self.watched[(platform, spec_topic)] = w
+            if rate and w.since is not None:
+                self.due = min(self.due, self._due(w))
+        for name in names:
+            self.topics.setdefault(name, w)
+
+    def begin(self, at: int) -> None:
+        """The stream starts at `at` (ns; once): the topics that have sent nothing are silent
+        from there."""
+        if self.start is not None:
+            return
+        self.start = at
+        for w in self.watched.values():
+            if w.since is None:
+                w.since = at
+            if w.rate:
+                self.due = min(self.due, self._due(w))
 
     def aside(self) -> list[str]:
         """The recording topics set aside now."""
@@ -106,7 +135,9 @@ class QualityWatch:
         out = []
         if w.aside:
             w.aside = False
-            gap = seconds_text(available - w.arrivals[-1])
+            last = w.arrivals[-1] if w.arrivals else w.since
+            assert last is not None  # set aside: it had been silent since then
+            gap = seconds_text(available - last)
             self._move(w, False, available, f"a sample came after {gap} s without one")
         if w.delay is not None and available - valid > w.delay:
             lag = seconds_text(available - valid)
@@ -138,20 +169,24 @@ class QualityWatch:
         out = []
         after = self.set_aside_after
         self.due = math.inf
-        for w in self.topics.values():
-            if w.rate is None or not w.arrivals:
+        for w in self.watched.values():
+            last = w.arrivals[-1] if w.arrivals else w.since
+            if w.rate is None or last is None:
                 continue
-            quiet = now - w.arrivals[-1]
+            quiet = now - last
             if after and not w.aside and quiet * w.rate > after * NS:
                 w.aside = True
+                over = f"over {after} periods of the declared {decimal(w.rate)} Hz"
                 self._move(
                     w,
                     True,
                     now,
-                    f"no sample for {seconds_text(quiet)} s, over {after} periods of the "
-                    f"declared {decimal(w.rate)} Hz",
+                    f"no sample for {seconds_text(quiet)} s, {over}"
+                    if w.arrivals
+                    else f"no sample since {'the start' if last == self.start else 'matched'} "
+                    f"({seconds_text(quiet)} s, {over})",
                 )
-            if quiet > w.window:
+            if w.arrivals and quiet > w.window:
                 out += self._say(
                     w,
                     "declared_rate",
@@ -164,11 +199,15 @@ class QualityWatch:
 
     def _due(self, w: _Watched) -> float:
         """When `silent` next has something to say of `w` (a topic with a declared rate and
-        a sample): past its window without a sample (once it may be said again), or past
-        `set_aside_after` periods (unless it is aside)."""
+        a sample, or a start to be silent from): past its window without a sample (once it
+        may be said again; not before its first), or past `set_aside_after` periods (unless
+        it is aside)."""
         assert w.rate is not None
-        last = w.arrivals[-1]
-        due = max(last + w.window, w.quiet.get("declared_rate", 0) - 1)
+        last = w.arrivals[-1] if w.arrivals else w.since
+        assert last is not None
+        due: float = math.inf
+        if w.arrivals:
+            due = max(last + w.window, w.quiet.get("declared_rate", 0) - 1)
         if self.set_aside_after and not w.aside:
             due = min(due, math.floor(last + self.set_aside_after * NS / w.rate))
         return due
