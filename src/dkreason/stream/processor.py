@@ -137,13 +137,14 @@ class _Group:
         return found
 
 
-def _read_from(hist: list[Any], i: int) -> int:
-    """The oldest sample of a history still read once sample i is the newest valid: the
-    newest of an earlier time (what `prev` reads, however many samples share i's time)."""
-    j = i - 1
-    while j > 0 and hist[j][0] == hist[i][0]:
-        j -= 1
-    return j
+def _prune(hist: list[Any], i: int) -> None:
+    """Drop the samples of a history never read again once sample i is the newest valid: all
+    before it but the newest of an earlier time (what `prev` reads), however many share i's
+    time (a flood stamped alike: found by bisection, not by walking back)."""
+    j = bisect.bisect_left(hist, (hist[i][0],)) - 1
+    del hist[j + 1 : i]
+    if j > 0:
+        del hist[:j]
 
 
 class StreamProcessor:
@@ -923,7 +924,7 @@ class StreamProcessor:
                         if max_age is None or s - valid <= max_age:
                             value = v
                         if i > 32:
-                            del hist[: _read_from(hist, i)]
+                            _prune(hist, i)
                     current[keys[q]] = value
                 redo.clear()
                 values = current
@@ -1002,6 +1003,6 @@ class StreamProcessor:
                 elif s - valid <= deviation:
                     value = v
                 if i > 32:
-                    del hist[: _read_from(hist, i)]
+                    _prune(hist, i)
             values[key] = value
         return values, None if fresh is None else tuple(fresh)
