@@ -56,7 +56,7 @@ def test_the_thesis_scenarios_declare_nothing_and_match_as_before(scenario: Path
         == plain.to_json()
     )
     assert not any(
-        line.startswith("rank")
+        line.startswith(("rank", "age"))
         for f in km.explain(ALTITUDE).features
         for w in f.why
         for line in w.summary
@@ -119,9 +119,10 @@ def test_explanations_cite_declared_properties_and_what_ranks_a_topic(scenario: 
     km = KnowledgeManager.from_config(declare(scenario, SLOW, LAGGING))
     why = {w.topic: w.summary for w in km.explain(ALTITUDE).features[0].why}
     assert "declared: rate 1 Hz, delay 20ms [" in "\n".join(why["topic1"])
-    (ranked,) = [line for line in why["topic1"] if line.startswith("rank")]
-    assert ranked.startswith("rank 1020000000: ") and "topic1 declares age 1.02s" in ranked
-    (ranked,) = [line for line in why["topic2"] if line.startswith("rank")]
+    # the shipped rank is the declared age in nanoseconds: said as an age
+    (ranked,) = [line for line in why["topic1"] if line.startswith("age")]
+    assert ranked.startswith("age 1.02s: ") and "topic1 declares age 1.02s" in ranked
+    (ranked,) = [line for line in why["topic2"] if line.startswith("age 220ms: ")]
     assert "topic2 declares age 220ms" in ranked
 
 
@@ -213,6 +214,44 @@ def test_a_window_finer_than_every_topics_period_is_one_warning_before_reading(
     assert not km.check_formula("always eventually[0, 50ms] Altitude[uav1] > 1").warnings
     assert main(["match", "--config", str(config), fine]) == 0
     assert "Warning: " + warning in capsys.readouterr().out
+    # with --json too, before the verdicts, as every other warning of the request
+    path = scenario / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, [("topic1", UAV, MS, {"id": 1, "spd": 2.0})])
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--json", fine]
+    assert main(argv) == 3  # undecided: the data ends inside the window
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert lines[0] == {"warning": warning}
+
+
+def test_a_feature_whose_topics_the_policy_excluded_is_one_warning_naming_them_and_why(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Left with no topic by --max-delay or by a rule file, a feature is not 'never seen' for
+    lack of data: the request says which topics were excluded and by what."""
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    (warning,) = km.check_formula(ALTITUDE, max_delay="10ms").warnings
+    assert warning.startswith("Altitude[uav1]: every topic of it is excluded by the policy: ")
+    assert "platform1/topic1 (excluded_topic(platform1, topic1) holds [rules/quality.dl:" in warning
+    assert "the monitor's --max-delay is 10ms, topic1 declares delay 20ms (platform1))" in warning
+    assert "; platform1/topic2 (excluded_topic(platform1, topic2) holds [" in warning
+    assert "\n" not in warning
+    assert not km.check_formula(ALTITUDE, max_delay="100ms").warnings  # topic1 is left
+    ruled = own_rules(scenario, "excluded_topic(R, T) <= topic(R, T, 'UavMsg')\n")
+    (warning,) = ruled.check_formula(ALTITUDE).warnings
+    assert "platform1/topic2 (excluded_topic(platform1, topic2) holds [own.dl:1])" in warning
+    argv = ["match", "--config", str(config), "--max-delay", "10ms", ALTITUDE]
+    assert main(argv) == 0
+    assert "Warning: Altitude[uav1]: every topic of it is excluded" in capsys.readouterr().out
+    assert main([*argv[:-1], "--json", ALTITUDE]) == 0
+    (said,) = json.loads(capsys.readouterr().out)["warnings"]
+    assert said.startswith("Altitude[uav1]: every topic of it is excluded")
+    path = scenario / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, [("topic1", UAV, MS, {"id": 1, "alt": 2.0})])
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--max-delay", "10ms"]
+    assert main([*argv, "--json", ALTITUDE]) == 3  # never seen
+    first = json.loads(capsys.readouterr().out.splitlines()[0])
+    assert first["warning"].startswith("Altitude[uav1]: every topic of it is excluded")
 
 
 # ---- measured against declared ------------------------------------------------------------

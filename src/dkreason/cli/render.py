@@ -177,8 +177,8 @@ def _topic(t: TopicMatch, local: str, namespaces: dict[str, str]) -> str:
 
 
 def formula_warnings(found: Sequence[str], as_json: bool) -> None:
-    """What formulas probably do not mean (`X != X`): JSON lines `{"warning": …}` before the
-    verdicts, or lines on stderr."""
+    """Warnings (what formulas probably do not mean, `X != X`; with a request, all of its):
+    JSON lines `{"warning": …}` before the verdicts, or lines on stderr."""
     for w in found:
         if as_json:
             print(json.dumps({"warning": w}, ensure_ascii=False), flush=True)

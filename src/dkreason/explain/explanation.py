@@ -9,13 +9,13 @@ from fractions import Fraction
 
 from ..errors import DkError
 from ..kb import KnowledgeBase
-from ..match import Match, given_rows
+from ..match import Aside, Match, given_rows
 from ..model import FeatureRequest, GroundFeature, TopicMatch
 from ..parse.formula import feature_key
 from .provenance import Reader
 from .replay import Replayer
 from .why import TopicWhy, topic_why
-from .whynot import TopicWhyNot, topic_why_not
+from .whynot import TopicWhyNot, excluded_topics, topic_why_not
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +86,29 @@ def explain(
                 )
             features.append(FeatureExplanation(str(ground[q].key), why, why_not))
     return Explanation(formula, tuple(features))
+
+
+def exclusions(
+    kb: KnowledgeBase,
+    ground: list[GroundFeature],
+    empty: Sequence[int],
+    max_delay: Fraction | None = None,
+    degraded: Aside = frozenset(),
+) -> list[str]:
+    """Per ground feature left with no topic (`empty`: their indices) whose topics the policy
+    excluded, one warning naming them and why, so that a monitor's `never seen` is not read as
+    missing data.  Asked after matching and only for those features: a request that finds its
+    topics pays nothing."""
+    replay = Replayer(kb, Reader(kb, ground))
+    kb.set_max_delay(max_delay)
+    out = []
+    with kb.engine.given(given_rows(ground, degraded)):
+        for q in empty:
+            lost = excluded_topics(kb, replay, q)
+            if lost:
+                said = "; ".join(lost)
+                out.append(f"{ground[q].key}: every topic of it is excluded by the policy: {said}")
+    return out
 
 
 def _best(

@@ -85,7 +85,9 @@ class Reader:
             return "_"
         if value == "":
             return "–"
-        return local_name(value) if isinstance(value, str) and "/" in value else str(value)
+        if isinstance(value, str) and "/" in value and not value.startswith("/"):
+            return local_name(value)  # an IRI; a ROS name (`/gps/fix`) stands as written
+        return str(value)
 
     def columns(self, fact: Pattern | Row) -> dict[str, Any]:
         """The fact's values by the column names its relation is declared with; none if it is

@@ -13,7 +13,7 @@ from ..kb import KnowledgeBase
 from ..match import Match, padded
 from ..policy.syntax import Row, Value
 from ..request import topic_match
-from .provenance import BRIDGE, Reader, declared
+from .provenance import BRIDGE, Reader, declared, nanoseconds
 from .replay import MAX_DEPTH, Proof, Replayer
 
 
@@ -58,9 +58,16 @@ def _ranked(replay: Replayer, m: Match) -> tuple[str, ...]:
     )
     where = f" [{proof.rule.span}]" if proof is not None and proof.rule else ""
     text = proof.text if proof is not None else f"rank {m.rank}"
-    steps = proof.find("topic_property") if proof else iter(())
+    steps = list(proof.find("topic_property")) if proof else []
     by = dict.fromkeys(p.text for p in steps if p.fact[1:3] == (m.platform, m.topic))
-    return (f"rank {m.rank}: {text}{where}" + "".join(f", by {b}" for b in by),)
+    # the shipped quality rank is the topic's declared age in nanoseconds: say it as an age
+    aged = (
+        proof is not None
+        and not replay.reader.own(proof.rule)
+        and any(p.fact[1:5] == (m.platform, m.topic, "age", m.rank) for p in steps)
+    )
+    rank = f"age {nanoseconds(m.rank)}" if aged else f"rank {m.rank}"
+    return (f"{rank}: {text}{where}" + "".join(f", by {b}" for b in by),)
 
 
 # A match no clause replays (a derivation deeper than a replay goes, say) is shown as the

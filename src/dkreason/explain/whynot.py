@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..kb import KnowledgeBase
+from ..model import stream_name
 from ..policy.syntax import Row
 from .provenance import Pattern
 from .replay import Failure, Proof, Replayer
@@ -60,6 +61,25 @@ def topic_why_not(
             )
         out.append(TopicWhyNot(platform, topic, reason, failure))
     return out
+
+
+def excluded_topics(kb: KnowledgeBase, replay: Replayer, q: int) -> list[str]:
+    """The topics carrying wanted feature `q`'s candidates that the policy excluded (an
+    excluded_topic, a veto, a source set aside), each as `platform:topic (why)`: what a feature
+    left with no topic lost to the policy, not to missing data."""
+    reader = replay.reader
+    out: dict[str, None] = {}
+    for context in replay.rows(("context", kb.local, None)):
+        platform = str(reader.columns(context)["Remote"])
+        for candidate in replay.rows(("candidate", q, platform, None, None, None, None, None)):
+            carrying = replay.rows(("topic_feature", platform, None, None, candidate[4], None))
+            for topic in dict.fromkeys(str(row[2]) for row in carrying):
+                for w in topic_why_not(kb, replay, q, platform, topic):
+                    if w.trace.negated:
+                        out[f"{stream_name(platform, topic)} ({_reason(kb, replay, w.trace)})"] = (
+                            None
+                        )
+    return list(out)
 
 
 def _unmatched(replay: Replayer, sound: Row, topic: str | None) -> Failure:
