@@ -275,6 +275,11 @@ def _syntax_error(exc: UnexpectedInput, file: str) -> ParseError:
             + (f", expected {wanted}" if wanted else ""),
             span,
         )
+    last = (getattr(getattr(exc, "state", None), "value_stack", None) or [None])[-1]
+    if "RSQB" in expected and isinstance(last, Token) and last.type == "QUALITY_VALUE":
+        # the bracket of stream properties left open: where its `]` belongs
+        where = Span(file, last.line or 0, (last.column or 0) + len(last.rstrip()))
+        return ParseError("missing ']' after the stream properties", where)
     token = getattr(exc, "token", None)
     return ParseError(f"syntax error: unexpected {str(token)!r}, expected {wanted}", span)
 
