@@ -10,7 +10,7 @@ from fractions import Fraction
 from ..errors import DkError
 from ..kb import KnowledgeBase
 from ..match import Aside, Match, given_rows
-from ..model import FeatureRequest, GroundFeature, TopicMatch
+from ..model import FeatureRequest, GroundFeature, TopicMatch, stream_name
 from ..parse.formula import feature_key
 from .provenance import Reader
 from .replay import Replayer
@@ -129,7 +129,7 @@ def _best(
                 if m.rank != top
                 else "the same rank, after it in the order of platforms and specs"
             )
-            after = f"ranked after {first.platform}/{first.topic} ({order})"
+            after = f"ranked after {stream_name(first.platform, first.topic)} ({order})"
             line = (
                 f"standing by (--best-source): {after}; read, and re-routed to if that one "
                 "is set aside"

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..model import TopicMatch
+from ..model import TopicMatch, stream_name
 from .binding import (
     Recording,
     Recordings,
@@ -238,7 +238,7 @@ def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> s
             lines += [f"      {f.path:<{across}}  {f.ros_type}" for f in t.fields]
         lines += [f"  damaged: {d}" for d in info.damage]
     for b in binds or ():
-        where = f"{b.platform}/{b.topic} ({b.msgtype})"
+        where = f"{stream_name(b.platform, b.topic)} ({b.msgtype})"
         if b.bound is None:
             lines.append(f"{where}: in no recording")
         elif b.recorded_type is not None and not message_type_fits(b.recorded_type, b.msgtype):
