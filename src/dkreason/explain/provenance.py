@@ -184,13 +184,16 @@ class Reader:
             spec = kb.platforms[str(c["Platform"])].specs.get(str(c["Topic"]))
             if spec is None:
                 return "topic specification"
-            if pred in ("topic_feature", "topic_filter") or (
-                pred == "topic_arg" and c["Entity"] == ""
-            ):
-                return str(spec.features[int(c["K"]) - 1].span)
-            if pred == "topic_arg":
-                return str(spec.features[int(c["K"]) - 1].args[int(c["Position"]) - 1].span)
-            return str(spec.span)
+            if pred not in ("topic_feature", "topic_filter", "topic_arg"):
+                return str(spec.span)
+            feature = spec.features[int(c["K"]) - 1]
+            position = int(c["Position"]) if pred == "topic_arg" and c["Entity"] != "" else 0
+            # `observations of imu1` names no argument: the entry says the object
+            return str(
+                feature.args[position - 1].span
+                if 0 < position <= len(feature.args)
+                else feature.span
+            )
         if pred == "max_delay":
             return "--max-delay"
         if pred == "wanted":
