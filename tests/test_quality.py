@@ -300,6 +300,41 @@ def test_info_reports_each_topics_observed_rate_and_delay(
     assert "delay 0.03 s (p95 0.03)" in shown_text and "40  rate 4 Hz (p5 4)" in shown_text
 
 
+def test_info_says_each_topics_longest_gap_and_with_a_config_what_it_declares(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A dropout the median rate hides: 20 Hz for 1 s, nothing for 5 s, 20 Hz again."""
+    specs = scenario / "specs" / "platform2.sslt"
+    specs.write_text(
+        specs.read_text().replace(
+            "carstopic2:AutomobileMsg contains",
+            "carstopic2:AutomobileMsg [rate 20 Hz, delay 50ms] contains",
+        )
+    )
+    rows = [car11(n * 50 * MS, 10 * MS) for n in range(1, 21)]
+    rows += [car11(6_050 * MS + n * 50 * MS, 10 * MS) for n in range(20)]
+    path = tmp_path / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    (info,) = KnowledgeManager.describe([path], timing=True)
+    (topic,) = info.topics
+    assert (
+        topic.gap is not None and topic.gap.length == 5_050 * MS and topic.gap.start == 1_000 * MS
+    )
+    config = str(scenario / "federation.toml")
+    assert main(["info", "--timing", "--config", config, str(path)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "carstopic2  " in x)
+    assert line.endswith(
+        "rate 20 Hz (p5 20), delay 0.01 s (p95 0.01), longest gap 5.05 s at 0.95 s; "
+        "declared rate 20 Hz, delay 50ms (platform2/carstopic2)"
+    )
+    assert main(["info", "--timing", "--json", "--config", config, str(path)]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    (recorded,) = shown["recordings"][0]["topics"]
+    assert recorded["longest_gap"] == {"seconds": 5.05, "from": 1.0}  # record time
+    (bound,) = [b for b in shown["specs"] if b["topic"] == "carstopic2"]
+    assert bound["rate"] == 20 and bound["delay"] == 0.05
+
+
 def test_monitor_reports_a_topic_below_its_declared_rate_or_over_its_delay(
     scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

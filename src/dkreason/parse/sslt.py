@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 from fractions import Fraction
 from functools import cache
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 from xml.sax.saxutils import quoteattr
 
 from lark import Lark, Token, Transformer
@@ -239,7 +239,16 @@ def quality_of(items: list[tuple[str, Fraction, Span]]) -> tuple[Fraction | None
     return tuple(found.get(q) for q in QUALITIES)
 
 
-def format_quality(spec: TopicSpec) -> list[tuple[str, str]]:
+class Declares(Protocol):
+    """What declares a stream's quality: a spec, or what carries a spec's (info's bindings)."""
+
+    @property
+    def rate(self) -> Fraction | None: ...
+    @property
+    def delay(self) -> Fraction | None: ...
+
+
+def format_quality(spec: Declares) -> list[tuple[str, str]]:
     """The declared properties as SSL_T and XML write them: (name, value text)."""
     out = []
     if spec.rate is not None:
