@@ -85,7 +85,9 @@ def test_topics_are_ranked_by_declared_quality_and_best_source_takes_the_best(
     assert [t["topic"] for t in feature["topics"]] == ["topic2"]
     assert [t["topic"] for t in feature["standby"]] == ["topic1"]  # read, feeding nothing
     assert main(["match", "--config", str(config), "--best-source", ALTITUDE]) == 0
-    assert "Standing by:\n  Topic: topic1, Message type: UavMsg" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "Standing by:\n  Topic: topic1, Message type: UavMsg" in out
+    assert "Read from:\n  Topic: topic2, " in out and "Topics to merge" not in out
     assert "standby" not in km.check_formula(ALTITUDE).to_json()["features"][0]
 
 

@@ -307,6 +307,7 @@ class StreamRequest:
     # spec topic names (without a leading slash) that several platforms' specs use: such a
     # name is never read bare (`T`, `/T`) for a remote platform (stream/binding.py)
     shared_names: frozenset[str] = frozenset()
+    best_source: bool = False  # each feature read from its first topic, not their merge
 
     def without(self, aside: frozenset[tuple[str, str]]) -> StreamRequest:
         """The request with the (platform, topic)s a monitor set aside dropped, as the shipped
