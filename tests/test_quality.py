@@ -239,6 +239,9 @@ def test_a_feature_whose_topics_the_policy_excluded_is_one_warning_naming_them_a
     assert "; platform1/topic2 (excluded_topic(platform1, topic2) holds [" in warning
     assert "\n" not in warning
     assert not km.check_formula(ALTITUDE, max_delay="100ms").warnings  # topic1 is left
+    aside = frozenset({("platform1", "topic1"), ("platform1", "topic2")})
+    (warning,) = km.request(km.plan(ALTITUDE), degraded=aside).warnings
+    assert "platform1/topic1 (the monitor set topic1 aside on platform1: its samples" in warning
     ruled = own_rules(scenario, "excluded_topic(R, T) <= topic(R, T, 'UavMsg')\n")
     (warning,) = ruled.check_formula(ALTITUDE).warnings
     assert "platform1/topic2 (excluded_topic(platform1, topic2) holds [own.dl:1])" in warning

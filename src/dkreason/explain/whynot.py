@@ -125,6 +125,8 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
     if failure.negated:
         if pred == "excluded" and c:
             return f"an incompat bridge rule excludes {name(c['Feature'])} here"
+        if pred == "degraded" and c:
+            return f"the monitor set {c['Topic']} aside on {c['Platform']}: its samples stopped"
         because = failure.because
         rule = because.rule if isinstance(because, Proof) else None
         rests = _told(because) if isinstance(because, Proof) else ""
