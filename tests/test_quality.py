@@ -528,8 +528,8 @@ def test_explain_under_best_source_says_which_topic_is_chosen_and_why_another_st
     why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
     assert why["topic2"][-1] == "chosen (--best-source): ranked first"
     assert why["topic1"][-1] == (
-        "standing by (--best-source): ranked after platform1/topic2 (rank 1020000000 > "
-        "220000000); read, and re-routed to if that one is set aside"
+        "standing by (--best-source): ranked after platform1/topic2 (age 1.02s > age "
+        "220ms); read, and re-routed to if that one is set aside"
     )
     assert not any(
         "best-source" in line for w in km.explain(ALTITUDE).features[0].why for line in w.summary
@@ -582,8 +582,7 @@ def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scena
     assert [t.topic for t in feature.topics] == ["topic2"] and not feature.standby
     why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
     assert why["topic1"][-1] == (
-        "not chosen (--best-source): ranked after platform1/topic2 (rank "
-        "4611686018427387904 > 10000000)"
+        "not chosen (--best-source): ranked after platform1/topic2 (no declared age > age 10ms)"
     )
     thesis = KnowledgeManager.from_config(SCENARIOS / "federation.toml")  # declaring nothing
     formula = "always (Altitude[uav1] > Altitude[uav2])"

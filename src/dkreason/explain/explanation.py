@@ -14,7 +14,7 @@ from ..model import FeatureRequest, GroundFeature, TopicMatch, stream_name
 from ..parse.formula import feature_key
 from .provenance import Reader
 from .replay import Replayer
-from .why import TopicWhy, topic_why
+from .why import TopicWhy, rank_words, topic_why
 from .whynot import TopicWhyNot, excluded_topics, topic_why_not
 
 
@@ -70,7 +70,8 @@ def explain(
             mine = [m for m in matches if m.query == q and topic in (None, m.topic)]
             why = tuple(topic_why(kb, replay, m) for m in mine)
             if chosen is not None and chosen[q].topics:
-                why = _best(why, mine, chosen[q].topics[0], [m for m in matches if m.query == q])
+                feature_matches = [m for m in matches if m.query == q]
+                why = _best(replay, why, mine, chosen[q].topics[0], feature_matches)
             why_not: tuple[TopicWhyNot, ...] = ()
             if not mine:
                 platforms = (
@@ -112,21 +113,25 @@ def exclusions(
 
 
 def _best(
-    why: tuple[TopicWhy, ...], mine: list[Match], first: TopicMatch, feature: list[Match]
+    replay: Replayer,
+    why: tuple[TopicWhy, ...],
+    mine: list[Match],
+    first: TopicMatch,
+    feature: list[Match],
 ) -> tuple[TopicWhy, ...]:
     """Each topic's last line under --best-source: the one chosen, or what ranks another
     after it (a smaller rank first; on the same rank, the local platform, then the order of
     platforms and of the specs).  `feature`: every match of the feature, `mine` those shown."""
     best = (first.platform, first.topic)
-    top = min(m.rank for m in feature if (m.platform, m.topic) == best)
+    top = min((m for m in feature if (m.platform, m.topic) == best), key=lambda m: m.rank)
     out = []
     for w, m in zip(why, mine, strict=True):
         if (m.platform, m.topic) == best:
             line = "chosen (--best-source): ranked first"
         else:
             order = (
-                f"rank {m.rank} > {top}"
-                if m.rank != top
+                f"{rank_words(replay, m)} > {rank_words(replay, top)}"
+                if m.rank != top.rank
                 else "the same rank, after it in the order of platforms and specs"
             )
             after = f"ranked after {stream_name(first.platform, first.topic)} ({order})"
