@@ -117,6 +117,27 @@ def test_a_delay_over_max_delay_excludes_the_topic_with_an_explanation(
     assert [t["topic"] for t in feature["topics"]] == ["topic1"]
 
 
+def test_an_absolute_topic_name_is_written_whole_beside_its_platform(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ROS absolute name is not cut like an IRI (`fix` for `/gps/fix`) nor joined to its
+    platform as `platform1//gps/fix`."""
+    specs = scenario / "specs" / "platform1.sslt"
+    specs.write_text(specs.read_text().replace("topic topic2:", "topic /gps/fix:"))
+    km = own_rules(scenario, "excluded_topic(R, '/gps/fix') <= platform(R)\n")
+    (why_not,) = km.explain(ALTITUDE, topic="/gps/fix").features[0].why_not
+    assert why_not.reason.startswith("excluded_topic(platform1, /gps/fix) holds [own.dl:1]")
+    plain = KnowledgeManager.from_config(scenario / "single.toml")
+    why = {w.topic: w.summary for w in plain.explain(ALTITUDE).features[0].why}
+    assert any(line.startswith("topic: /gps/fix carries Altitude") for line in why["/gps/fix"])
+    path = scenario / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, [("topic1", UAV, MS, {"id": 1, "alt": 2.0})])
+    assert main(["info", "--config", str(scenario / "single.toml"), str(path)]) == 0
+    assert "platform1:/gps/fix (UavMsg): in no recording" in capsys.readouterr().out
+    assert stream_name("platform1", "/gps/fix") == "platform1:/gps/fix"
+    assert stream_name("platform1", "gps/fix") == "platform1/gps/fix"
+
+
 def test_explanations_cite_declared_properties_and_what_ranks_a_topic(scenario: Path) -> None:
     km = KnowledgeManager.from_config(declare(scenario, SLOW, LAGGING))
     why = {w.topic: w.summary for w in km.explain(ALTITUDE).features[0].why}
@@ -587,24 +608,3 @@ def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scena
     thesis = KnowledgeManager.from_config(SCENARIOS / "federation.toml")  # declaring nothing
     formula = "always (Altitude[uav1] > Altitude[uav2])"
     assert not any(f.standby for f in thesis.check_formula(formula, best_source=True).features)
-
-
-def test_an_absolute_topic_name_is_written_whole_beside_its_platform(
-    scenario: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """A ROS absolute name is not cut like an IRI (`fix` for `/gps/fix`) nor joined to its
-    platform as `platform1//gps/fix`."""
-    specs = scenario / "specs" / "platform1.sslt"
-    specs.write_text(specs.read_text().replace("topic topic2:", "topic /gps/fix:"))
-    km = own_rules(scenario, "excluded_topic(R, '/gps/fix') <= platform(R)\n")
-    (why_not,) = km.explain(ALTITUDE, topic="/gps/fix").features[0].why_not
-    assert why_not.reason.startswith("excluded_topic(platform1, /gps/fix) holds [own.dl:1]")
-    plain = KnowledgeManager.from_config(scenario / "single.toml")
-    why = {w.topic: w.summary for w in plain.explain(ALTITUDE).features[0].why}
-    assert any(line.startswith("topic: /gps/fix carries Altitude") for line in why["/gps/fix"])
-    path = scenario / "run.mcap"
-    write_recording(path, "bare-mcap", TYPES, [("topic1", UAV, MS, {"id": 1, "alt": 2.0})])
-    assert main(["info", "--config", str(scenario / "single.toml"), str(path)]) == 0
-    assert "platform1:/gps/fix (UavMsg): in no recording" in capsys.readouterr().out
-    assert stream_name("platform1", "/gps/fix") == "platform1:/gps/fix"
-    assert stream_name("platform1", "gps/fix") == "platform1/gps/fix"
