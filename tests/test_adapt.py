@@ -4,6 +4,7 @@ through rule files (rules/adapters/), chosen per platform by `adapters = [...]`.
 from __future__ import annotations
 
 import json
+import shutil
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -11,6 +12,7 @@ from typing import Any
 import pytest
 
 from dkreason import KnowledgeManager
+from dkreason.adapt import origin
 from dkreason.cli import main
 from dkreason.errors import DkError
 from dkreason.explain import to_text
@@ -320,6 +322,30 @@ def test_a_topic_named_by_its_sensor_carries_what_the_sensor_observes(
     assert topics(rooms, "always (Temperature[room2] < 30)") == {
         "Temperature[room2]": {("/rooms", "msg.temperature")}
     }
+
+
+def test_an_explanation_cites_an_is_property_of_triple_as_told_not_reversed(
+    tmp_path: Path,
+) -> None:
+    shutil.copytree(SOSA, tmp_path / "sosa")
+    ttl = tmp_path / "sosa" / "rooms.ttl"
+    told = ":room2_noise a owl:NamedIndividual, :Noise ; ssn:isPropertyOf :room2 .\n"
+    ttl.write_text(ttl.read_text(encoding="utf-8") + told, encoding="utf-8")
+    km = KnowledgeManager.from_config(tmp_path / "sosa" / "rooms.toml")
+    said = origin(km.kb.platforms["building"].ontology, ROOMS + "Noise")
+    assert "room2_noise ssn:isPropertyOf room2" in said
+    assert "room2 ssn:isPropertyOf room2_noise" not in said
+    assert "room1 ssn:hasProperty room1_noise" in said
+    assert "room1 ssn:hasProperty room1_noise" in to_text(km.explain("always Noise[room1] < 3"))
+
+
+def test_a_spec_of_a_sensors_observations_is_listed_as_written(
+    rooms: KnowledgeManager, capsys: pytest.CaptureFixture[str]
+) -> None:
+    written = "topic /th1:RoomTemp contains observations of thermo1 = msg.temperature"
+    assert main(["specs", "list", "--config", str(SOSA / "rooms.toml")]) == 0
+    assert f"building: {written}\n" in capsys.readouterr().out
+    assert rooms.get_topic_specification("/th1").features[0].observations
 
 
 def test_untied_classes_and_untyped_property_individuals_are_one_warning_each(

@@ -482,6 +482,11 @@ def test_a_recording_without_the_features_leaves_every_verdict_unknown(
     )
     assert code == 3
     assert [(v["verdict"], v["time"]) for v in lines if "verdict" in v] == [(None, None)]
+    argv = ["monitor", "--config", str(REPO / "examples" / "single.toml"), "--source", str(source)]
+    assert main([*argv, "always (Speed[car1] < 100)"]) == 3
+    out = capsys.readouterr().out.splitlines()
+    (row,) = [x for x in out if x.startswith("│ always (Speed[car1]")]
+    assert row.split("│")[3].strip() == "–"  # the summary's t (s): never decided, no time
 
 
 # ---- one plan per formula, one monitor loop for every caller --------------------------------

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from dkreason.errors import ParseError
 from dkreason.model import FeatureRef
 from dkreason.parse.formula import (
+    CALLS,
     Arith,
     Atom,
     Compare,
@@ -109,6 +110,58 @@ def test_syntax_errors_point_into_the_formula(text: str, column: int, says: str)
     with pytest.raises(ParseError) as err:
         parse_formula(text)
     assert err.value.span.column == column and says in str(err.value)
+
+
+KNOWN = (
+    "(functions: abs, min, max, sqrt, hypot; terms: prev, delta, rate, age; atoms: observed, fresh)"
+)
+
+
+@pytest.mark.parametrize(
+    ("text", "says"),
+    [
+        ("hypot(X[a]) > 1", "hypot takes 2 arguments, got 1"),
+        ("min(X[a], 1, 2) > 1", "min takes 2 arguments, got 3"),
+        ("sqrt(X[a], 2) > 1", "sqrt takes 1 argument, got 2"),
+        ("abs() > 1", "abs takes 1 argument, got 0"),
+        ("prev(X[a], 2) > 1", "prev takes 1 argument, got 2"),
+        ("observed(X[a], 1s)", "observed takes 1 argument, got 2"),
+        ("hypot(abs(X[a])) > 1", "hypot takes 2 arguments, got 1"),
+        ("fresh(X[a])", "fresh(X, d) needs a duration"),
+        ("fresh(X[a], Y[a])", "fresh(X, d) needs a duration"),
+        ("avg(X[a]) > 1", f"unknown function avg {KNOWN}"),
+        ("Höhe(1) > 1", f"unknown function Höhe {KNOWN}"),
+    ],
+)
+def test_a_call_to_no_function_or_with_other_arguments_is_one_line_at_its_name(
+    text: str, says: str
+) -> None:
+    with pytest.raises(ParseError) as err:
+        parse_formula(f"always ({text})")
+    assert str(err.value) == f"<formula>:1:9: {says}"
+
+
+@given(
+    st.sampled_from(sorted(n for group in CALLS.values() for n in group)),
+    st.integers(0, 4),
+    st.sampled_from(["X[a]", "3", "Y"]),
+)
+@settings(max_examples=200, deadline=None)
+def test_every_call_parses_with_its_arity_and_names_itself_with_another(
+    name: str, count: int, arg: str
+) -> None:
+    wanted = next(group[name] for group in CALLS.values() if name in group)
+    args = [arg] * count if name != "fresh" or count != 2 else ["X[a]", "5s"]
+    text = f"{name}({', '.join(args)})" + ("" if name in CALLS["atoms"] else " > 1")
+    if count == wanted:
+        if name in CALLS["functions"] or arg != "3":  # terms and atoms read a feature
+            parse_formula(text)
+        return
+    with pytest.raises(ParseError) as err:
+        parse_formula(text)
+    assert str(err.value).startswith("<formula>:1:1: ") and str(err.value).count("\n") == 0
+    said = "fresh(X, d) needs a duration" if name == "fresh" else f"{name} takes {wanted}"
+    assert said in str(err.value)
 
 
 # ---- formulas as text: what a witness quotes parses back to the same tree ---------------------

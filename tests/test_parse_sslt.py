@@ -273,6 +273,18 @@ def test_a_bad_declared_property_is_one_line_naming_file_line_column(
     assert "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize(
+    ("bracket", "column"),
+    [("[rate 20 Hz, delay 50ms", 34), ("[rate 20 Hz", 22), ("[delay 50ms\n ", 22)],
+)
+def test_a_bracket_of_stream_properties_left_open_says_where_its_bracket_belongs(
+    bracket: str, column: int
+) -> None:
+    with pytest.raises(ParseError) as err:
+        parse_text(f"topic t:M {bracket} contains Speed(uav1) = msg.s", "q.sslt")
+    assert str(err.value) == f"q.sslt:1:{column}: missing ']' after the stream properties"
+
+
 def test_a_bad_declared_property_in_xml_names_its_line() -> None:
     xml = b"<Topic_specs>\n<Topic name='a' msgtype='M' rate='-1 Hz'><object name='x' value='f'/>"
     with pytest.raises(ParseError, match=r"^s\.xml:2:.*rate '-1 Hz' must be positive"):

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -11,6 +13,8 @@ from dkreason.cli import main
 from dkreason.parse.formula import parse_formula
 from dkreason.plot import concerned, thresholds
 from dkreason.progress import Verdict
+from dkreason.stream.policy import StreamPolicy
+from dkreason.stream.processor import Violation
 from dkreason.stream.recording import write_recording
 
 from .test_init import TYPES, rows
@@ -92,3 +96,28 @@ def test_robustness_gets_its_own_panel(tmp_path: Path, monkeypatch: pytest.Monke
         assert main([*args, *flags, "--plot", str(out), SLOW]) == 0
         drawn = out.read_text()
         assert "Speed[car2]" in drawn and ("#1 robustness" in drawn) is robust
+
+
+def test_stream_constraint_violations_are_ticks_on_the_panels_edge_not_new_y_values(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Every sample of car1 comes a second after the one before, twice the period asked for:
+    the violations are drawn along the bottom edge of Speed[car1]'s panel, whose y range stays
+    its values' and the threshold's (50 to 100), however many there are."""
+    import dkreason.plot
+
+    source = tmp_path / "run.mcap"
+    write_recording(source, "bare-mcap", CAR_TYPES, car_rows(20))
+    km = KnowledgeManager.from_config(REPO / "examples" / "single.toml")
+    policy = StreamPolicy(sample_period=Fraction(1, 2), sample_period_deviation=Fraction(1, 10))
+    formula = "always (Speed[car1] < 100)"
+    with km.monitor(formula, source, policy, keep_states=True) as run:
+        events = list(run)
+        assert sum(isinstance(e, Violation) for e in events) > 10
+        figures: list[Any] = []
+        monkeypatch.setattr(dkreason.plot, "_save", lambda fig, _: figures.append(fig))
+        dkreason.plot.plot(run, events, tmp_path / "run.png")
+    (fig,) = figures
+    (ax,) = [ax for ax in fig.axes if ax.get_ylabel() == "Speed[car1]"]
+    low, high = ax.get_ylim()
+    assert 40 <= low < 50 and 100 < high < 120  # the values and the threshold, nothing below

@@ -15,7 +15,7 @@ import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
-from dkreason.model import FeatureRequest
+from dkreason.model import FeatureRequest, stream_name
 from dkreason.monitor import Rerouted
 from dkreason.progress import Verdict
 from dkreason.stream.policy import StreamPolicy
@@ -56,7 +56,7 @@ def test_the_thesis_scenarios_declare_nothing_and_match_as_before(scenario: Path
         == plain.to_json()
     )
     assert not any(
-        line.startswith("rank")
+        line.startswith(("rank", "age"))
         for f in km.explain(ALTITUDE).features
         for w in f.why
         for line in w.summary
@@ -85,7 +85,9 @@ def test_topics_are_ranked_by_declared_quality_and_best_source_takes_the_best(
     assert [t["topic"] for t in feature["topics"]] == ["topic2"]
     assert [t["topic"] for t in feature["standby"]] == ["topic1"]  # read, feeding nothing
     assert main(["match", "--config", str(config), "--best-source", ALTITUDE]) == 0
-    assert "Standing by:\n  Topic: topic1, Message type: UavMsg" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "Standing by:\n  Topic: topic1, Message type: UavMsg" in out
+    assert "Read from:\n  Topic: topic2, " in out and "Topics to merge" not in out
     assert "standby" not in km.check_formula(ALTITUDE).to_json()["features"][0]
 
 
@@ -115,13 +117,35 @@ def test_a_delay_over_max_delay_excludes_the_topic_with_an_explanation(
     assert [t["topic"] for t in feature["topics"]] == ["topic1"]
 
 
+def test_an_absolute_topic_name_is_written_whole_beside_its_platform(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ROS absolute name is not cut like an IRI (`fix` for `/gps/fix`) nor joined to its
+    platform as `platform1//gps/fix`."""
+    specs = scenario / "specs" / "platform1.sslt"
+    specs.write_text(specs.read_text().replace("topic topic2:", "topic /gps/fix:"))
+    km = own_rules(scenario, "excluded_topic(R, '/gps/fix') <= platform(R)\n")
+    (why_not,) = km.explain(ALTITUDE, topic="/gps/fix").features[0].why_not
+    assert why_not.reason.startswith("excluded_topic(platform1, /gps/fix) holds [own.dl:1]")
+    plain = KnowledgeManager.from_config(scenario / "single.toml")
+    why = {w.topic: w.summary for w in plain.explain(ALTITUDE).features[0].why}
+    assert any(line.startswith("topic: /gps/fix carries Altitude") for line in why["/gps/fix"])
+    path = scenario / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, [("topic1", UAV, MS, {"id": 1, "alt": 2.0})])
+    assert main(["info", "--config", str(scenario / "single.toml"), str(path)]) == 0
+    assert "platform1:/gps/fix (UavMsg): in no recording" in capsys.readouterr().out
+    assert stream_name("platform1", "/gps/fix") == "platform1:/gps/fix"
+    assert stream_name("platform1", "gps/fix") == "platform1/gps/fix"
+
+
 def test_explanations_cite_declared_properties_and_what_ranks_a_topic(scenario: Path) -> None:
     km = KnowledgeManager.from_config(declare(scenario, SLOW, LAGGING))
     why = {w.topic: w.summary for w in km.explain(ALTITUDE).features[0].why}
     assert "declared: rate 1 Hz, delay 20ms [" in "\n".join(why["topic1"])
-    (ranked,) = [line for line in why["topic1"] if line.startswith("rank")]
-    assert ranked.startswith("rank 1020000000: ") and "topic1 declares age 1.02s" in ranked
-    (ranked,) = [line for line in why["topic2"] if line.startswith("rank")]
+    # the shipped rank is the declared age in nanoseconds: said as an age
+    (ranked,) = [line for line in why["topic1"] if line.startswith("age")]
+    assert ranked.startswith("age 1.02s: ") and "topic1 declares age 1.02s" in ranked
+    (ranked,) = [line for line in why["topic2"] if line.startswith("age 220ms: ")]
     assert "topic2 declares age 220ms" in ranked
 
 
@@ -213,6 +237,47 @@ def test_a_window_finer_than_every_topics_period_is_one_warning_before_reading(
     assert not km.check_formula("always eventually[0, 50ms] Altitude[uav1] > 1").warnings
     assert main(["match", "--config", str(config), fine]) == 0
     assert "Warning: " + warning in capsys.readouterr().out
+    # with --json too, before the verdicts, as every other warning of the request
+    path = scenario / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, [("topic1", UAV, MS, {"id": 1, "spd": 2.0})])
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--json", fine]
+    assert main(argv) == 3  # undecided: the data ends inside the window
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert lines[0] == {"warning": warning}
+
+
+def test_a_feature_whose_topics_the_policy_excluded_is_one_warning_naming_them_and_why(
+    scenario: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Left with no topic by --max-delay or by a rule file, a feature is not 'never seen' for
+    lack of data: the request says which topics were excluded and by what."""
+    config = declare(scenario, SLOW, LAGGING)
+    km = KnowledgeManager.from_config(config)
+    (warning,) = km.check_formula(ALTITUDE, max_delay="10ms").warnings
+    assert warning.startswith("Altitude[uav1]: every topic of it is excluded by the policy: ")
+    assert "platform1/topic1 (excluded_topic(platform1, topic1) holds [rules/quality.dl:" in warning
+    assert "the monitor's --max-delay is 10ms, topic1 declares delay 20ms (platform1))" in warning
+    assert "; platform1/topic2 (excluded_topic(platform1, topic2) holds [" in warning
+    assert "\n" not in warning
+    assert not km.check_formula(ALTITUDE, max_delay="100ms").warnings  # topic1 is left
+    aside = frozenset({("platform1", "topic1"), ("platform1", "topic2")})
+    (warning,) = km.request(km.plan(ALTITUDE), degraded=aside).warnings
+    assert "platform1/topic1 (the monitor set topic1 aside on platform1: its samples" in warning
+    ruled = own_rules(scenario, "excluded_topic(R, T) <= topic(R, T, 'UavMsg')\n")
+    (warning,) = ruled.check_formula(ALTITUDE).warnings
+    assert "platform1/topic2 (excluded_topic(platform1, topic2) holds [own.dl:1])" in warning
+    argv = ["match", "--config", str(config), "--max-delay", "10ms", ALTITUDE]
+    assert main(argv) == 0
+    assert "Warning: Altitude[uav1]: every topic of it is excluded" in capsys.readouterr().out
+    assert main([*argv[:-1], "--json", ALTITUDE]) == 0
+    (said,) = json.loads(capsys.readouterr().out)["warnings"]
+    assert said.startswith("Altitude[uav1]: every topic of it is excluded")
+    path = scenario / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, [("topic1", UAV, MS, {"id": 1, "alt": 2.0})])
+    argv = ["monitor", "--config", str(config), "--source", str(path), "--max-delay", "10ms"]
+    assert main([*argv, "--json", ALTITUDE]) == 3  # never seen
+    first = json.loads(capsys.readouterr().out.splitlines()[0])
+    assert first["warning"].startswith("Altitude[uav1]: every topic of it is excluded")
 
 
 # ---- measured against declared ------------------------------------------------------------
@@ -259,6 +324,41 @@ def test_info_reports_each_topics_observed_rate_and_delay(
     assert main(["info", "--timing", str(path)]) == 0
     shown_text = capsys.readouterr().out
     assert "delay 0.03 s (p95 0.03)" in shown_text and "40  rate 4 Hz (p5 4)" in shown_text
+
+
+def test_info_says_each_topics_longest_gap_and_with_a_config_what_it_declares(
+    scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A dropout the median rate hides: 20 Hz for 1 s, nothing for 5 s, 20 Hz again."""
+    specs = scenario / "specs" / "platform2.sslt"
+    specs.write_text(
+        specs.read_text().replace(
+            "carstopic2:AutomobileMsg contains",
+            "carstopic2:AutomobileMsg [rate 20 Hz, delay 50ms] contains",
+        )
+    )
+    rows = [car11(n * 50 * MS, 10 * MS) for n in range(1, 21)]
+    rows += [car11(6_050 * MS + n * 50 * MS, 10 * MS) for n in range(20)]
+    path = tmp_path / "run.mcap"
+    write_recording(path, "bare-mcap", TYPES, rows)
+    (info,) = KnowledgeManager.describe([path], timing=True)
+    (topic,) = info.topics
+    assert (
+        topic.gap is not None and topic.gap.length == 5_050 * MS and topic.gap.start == 1_000 * MS
+    )
+    config = str(scenario / "federation.toml")
+    assert main(["info", "--timing", "--config", config, str(path)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "carstopic2  " in x)
+    assert line.endswith(
+        "rate 20 Hz (p5 20), delay 0.01 s (p95 0.01), longest gap 5.05 s at 0.95 s; "
+        "declared rate 20 Hz, delay 50ms (platform2/carstopic2)"
+    )
+    assert main(["info", "--timing", "--json", "--config", config, str(path)]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    (recorded,) = shown["recordings"][0]["topics"]
+    assert recorded["longest_gap"] == {"seconds": 5.05, "from": 1.0}  # record time
+    (bound,) = [b for b in shown["specs"] if b["topic"] == "carstopic2"]
+    assert bound["rate"] == 20 and bound["delay"] == 0.05
 
 
 def test_monitor_reports_a_topic_below_its_declared_rate_or_over_its_delay(
@@ -470,8 +570,8 @@ def test_explain_under_best_source_says_which_topic_is_chosen_and_why_another_st
     why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
     assert why["topic2"][-1] == "chosen (--best-source): ranked first"
     assert why["topic1"][-1] == (
-        "standing by (--best-source): ranked after platform1/topic2 (rank 1020000000 > "
-        "220000000); read, and re-routed to if that one is set aside"
+        "standing by (--best-source): ranked after platform1/topic2 (age 1.02s > age "
+        "220ms); read, and re-routed to if that one is set aside"
     )
     assert not any(
         "best-source" in line for w in km.explain(ALTITUDE).features[0].why for line in w.summary
@@ -524,8 +624,7 @@ def test_under_best_source_nothing_stands_by_a_topic_that_declares_no_rate(scena
     assert [t.topic for t in feature.topics] == ["topic2"] and not feature.standby
     why = {w.topic: w.summary for w in km.explain(ALTITUDE, best_source=True).features[0].why}
     assert why["topic1"][-1] == (
-        "not chosen (--best-source): ranked after platform1/topic2 (rank "
-        "4611686018427387904 > 10000000)"
+        "not chosen (--best-source): ranked after platform1/topic2 (no declared age > age 10ms)"
     )
     thesis = KnowledgeManager.from_config(SCENARIOS / "federation.toml")  # declaring nothing
     formula = "always (Altitude[uav1] > Altitude[uav2])"

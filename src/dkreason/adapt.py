@@ -96,7 +96,12 @@ def adapt(
         sorts[str(f)][int(i)].append(str(s))
     axioms: dict[str, list[tuple[str, str, str]]] = defaultdict(list)
     for _, f, s, pred, o in rows("adapted_axiom", 5):
-        axioms[str(f)].append((str(s), str(pred), str(o)))
+        # an object and its property individual, tied whichever way the told triple points
+        # (ssn:hasProperty from the object, ssn:isPropertyOf to it): shown as told
+        ahead = bool(engine.query("triple", p, s, pred, o)) or not engine.query(
+            "triple", p, o, pred, s
+        )
+        axioms[str(f)].append((str(s), str(pred), str(o)) if ahead else (str(o), str(pred), str(s)))
     makers = [r for f in files for r in f.rules if r.head.predicate == "adapted_feature"]
     features = dict(ont.features)
     adapted = dict(ont.adapted)

@@ -290,7 +290,6 @@ class KnowledgeBase:
         p = self.platform(platform)
         if spec.name in p.specs:
             raise DkError(f"topic {spec.name} already exists on {platform}")
-        spec = with_observations(p, spec)
         resolved = resolve_spec(p, spec)
         self._change(spec_facts(platform, resolved), self.engine.assert_rows)
         p.put(spec, resolved)
@@ -529,7 +528,7 @@ class KnowledgeBase:
             )
         }
         for name in names:
-            spec, resolved = p.specs[name], p.resolved[name]
+            spec, resolved = with_observations(p, p.specs[name]), p.resolved[name]
             for feature, rfeature in zip(spec.features, resolved.features, strict=True):
                 for i, (arg, rarg) in enumerate(zip(feature.args, rfeature.args, strict=True), 1):
                     if (p.name, rfeature.iri, i, rarg.kind, rarg.iri) not in fitting:
@@ -655,8 +654,7 @@ def make_platform(
 ) -> Platform:
     """A platform's knowledge, each spec's names resolved (a bad one raises, naming it)."""
     platform = Platform(ontology, _name_index(ontology), specs_path=specs_path)
-    for spec in specs:
-        spec = with_observations(platform, spec)
+    for spec in specs:  # kept as written (`observations of imu1`), resolved as it reads
         platform.put(spec, resolve_spec(platform, spec))
     return platform
 

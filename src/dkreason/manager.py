@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import replace
 from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -105,13 +106,15 @@ class KnowledgeManager:
         declared delay makes it irrelevant; `best_source`: each feature's best-ranked topic
         only, not the merge of them all; `degraded`: the (platform, topic)s a monitor set
         aside, their samples having stopped (the policy vetoes them)."""
-        return request(
-            self.kb,
-            plan,
-            max_delay=_seconds(max_delay, "max_delay"),
-            best_source=best_source,
-            degraded=degraded,
-        )
+        limit = _seconds(max_delay, "max_delay")
+        made = request(self.kb, plan, max_delay=limit, best_source=best_source, degraded=degraded)
+        empty = [q for q, f in enumerate(made.features) if not f.topics]
+        if not empty:
+            return made
+        from .explain import exclusions  # only for a feature left with no topic
+
+        excluded = exclusions(self.kb, list(plan.ground), empty, limit, degraded)
+        return replace(made, warnings=(*made.warnings, *excluded)) if excluded else made
 
     def matcher(self, policy: StreamPolicy) -> Callable[..., StreamRequest]:
         """How a monitor under `policy` matches (a `Monitor`'s `match`, every caller's: the

@@ -247,6 +247,12 @@ def ros_name(topic: str, namespace: str | None) -> str:
     return topic if topic.startswith("/") else (namespace or "/").rstrip("/") + "/" + topic
 
 
+def stream_name(platform: str, topic: str) -> str:
+    """A platform's topic as a person reads it: `bot/odom` for a relative name, `bot:/odom` for
+    an absolute one (not `bot//odom`).  The one place that joins them."""
+    return f"{platform}:{topic}" if topic.startswith("/") else f"{platform}/{topic}"
+
+
 @dataclass(frozen=True, slots=True)
 class TopicMatch:
     """A topic to merge for a feature: where to read the value, which messages to keep."""
@@ -301,6 +307,7 @@ class StreamRequest:
     # spec topic names (without a leading slash) that several platforms' specs use: such a
     # name is never read bare (`T`, `/T`) for a remote platform (stream/binding.py)
     shared_names: frozenset[str] = frozenset()
+    best_source: bool = False  # each feature read from its first topic, not their merge
 
     def without(self, aside: frozenset[tuple[str, str]]) -> StreamRequest:
         """The request with the (platform, topic)s a monitor set aside dropped, as the shipped

@@ -94,17 +94,25 @@ def plot(run: MonitorRun, events: list[Event], path: Path) -> None:
                     va="top",
                     bbox={"fc": "white", "ec": "none", "alpha": 0.7, "pad": 1},
                 )
+    violated: dict[FeatureKey, list[float]] = {}
     for v in events:
         if isinstance(v, Violation) and v.t is not None and v.feature in panel:
-            ax = panel[v.feature]
-            ax.plot(
-                [float(v.t)],
-                [ax.get_ylim()[0]],
-                "|",
-                color="tab:orange",
-                ms=10,
-                label="stream constraint violated",
-            )
+            violated.setdefault(v.feature, []).append(float(v.t))
+    for k, times in violated.items():
+        # ticks along the panel's bottom edge (y in axes coordinates): the feature's y range
+        # stays its values'
+        panel[k].plot(
+            times,
+            [0.0] * len(times),
+            ls="",
+            marker=2,  # a tick rising from the edge
+            transform=panel[k].get_xaxis_transform(),
+            clip_on=False,
+            color="tab:orange",
+            ms=10,
+            mew=1.5,
+            label="stream constraint violated",
+        )
     if robust:
         _robustness(run, axes[-1], [(n, f) for n, f in enumerate(formulas) if f.text in robust])
     for ax in axes:

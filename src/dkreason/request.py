@@ -132,6 +132,7 @@ def build_request(
         tuple(dict.fromkeys(warnings)),
         namespaces,
         kb.shared_names(),
+        best_source,
     )
 
 

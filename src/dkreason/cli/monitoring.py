@@ -86,8 +86,8 @@ def _monitored(args: argparse.Namespace, run: Any) -> int:
         print(f"note: {note}", file=sys.stderr)
     if not args.json:
         print(render.request(run.request), flush=True)
-    if args.json:  # (the request said them otherwise)
-        render.formula_warnings(run.warnings, args.json)
+    if args.json:  # every warning of the request (its text said them otherwise)
+        render.formula_warnings(run.request.warnings, args.json)
     if run.watcher is not None:
         print(
             f"serving Foxglove on {run.watcher.url}: the replay starts when it subscribes to "

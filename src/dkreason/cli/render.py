@@ -121,7 +121,8 @@ def summary(verdicts: list[Verdict], violations: Counter[str]) -> None:
     for v in verdicts:
         if v.update:  # the same verdict, said again
             continue
-        table.add_row(escape(v.formula), WORDS[v.verdict], str(v.t), "yes" if v.at_end else "no")
+        t = "–" if v.t is None else str(v.t)  # never decided: no time
+        table.add_row(escape(v.formula), WORDS[v.verdict], t, "yes" if v.at_end else "no")
     console = Console(width=120)
     console.print(table)
     console.print(constraint_counts(violations))
@@ -150,11 +151,12 @@ def request(request: StreamRequest) -> str:
     """Thesis listings 6.2–6.4 and 6.8–6.10, plus where remote topics come from; a topic of a
     platform with a namespace by the ROS name it resolves to (`/turtle1/pose`)."""
     namespaces = dict(request.namespaces)
+    heading = "Read from:" if request.best_source else "Topics to merge:"
     lines = []
     for f in request.features:
         lines += [
             f"Feature: {f.feature.key}",
-            "Topics to merge:" if f.topics else "Topics to merge: none",
+            heading if f.topics else f"{heading} none",
         ]
         lines += [_topic(t, request.local, namespaces) for t in f.topics]
         if f.standby:  # --best-source: read too, to re-route to when the first one stops
@@ -177,8 +179,8 @@ def _topic(t: TopicMatch, local: str, namespaces: dict[str, str]) -> str:
 
 
 def formula_warnings(found: Sequence[str], as_json: bool) -> None:
-    """What formulas probably do not mean (`X != X`): JSON lines `{"warning": …}` before the
-    verdicts, or lines on stderr."""
+    """Warnings (what formulas probably do not mean, `X != X`; with a request, all of its):
+    JSON lines `{"warning": …}` before the verdicts, or lines on stderr."""
     for w in found:
         if as_json:
             print(json.dumps({"warning": w}, ensure_ascii=False), flush=True)

@@ -13,7 +13,7 @@ So any policy that loads is explained: a proof that cannot be replayed is shown 
 policy's answer itself.
 """
 
-from .explanation import Explanation, FeatureExplanation, explain
+from .explanation import Explanation, FeatureExplanation, exclusions, explain
 from .render import render, to_dot, to_json, to_text
 from .replay import Failure, Proof
 from .why import TopicWhy
@@ -26,6 +26,7 @@ __all__ = [
     "Proof",
     "TopicWhy",
     "TopicWhyNot",
+    "exclusions",
     "explain",
     "render",
     "to_dot",

@@ -9,13 +9,13 @@ from fractions import Fraction
 
 from ..errors import DkError
 from ..kb import KnowledgeBase
-from ..match import Match, given_rows
-from ..model import FeatureRequest, GroundFeature, TopicMatch
+from ..match import Aside, Match, given_rows
+from ..model import FeatureRequest, GroundFeature, TopicMatch, stream_name
 from ..parse.formula import feature_key
 from .provenance import Reader
 from .replay import Replayer
-from .why import TopicWhy, topic_why
-from .whynot import TopicWhyNot, topic_why_not
+from .why import TopicWhy, rank_words, topic_why
+from .whynot import TopicWhyNot, excluded_topics, topic_why_not
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,7 +70,8 @@ def explain(
             mine = [m for m in matches if m.query == q and topic in (None, m.topic)]
             why = tuple(topic_why(kb, replay, m) for m in mine)
             if chosen is not None and chosen[q].topics:
-                why = _best(why, mine, chosen[q].topics[0], [m for m in matches if m.query == q])
+                feature_matches = [m for m in matches if m.query == q]
+                why = _best(replay, why, mine, chosen[q].topics[0], feature_matches)
             why_not: tuple[TopicWhyNot, ...] = ()
             if not mine:
                 platforms = (
@@ -88,25 +89,52 @@ def explain(
     return Explanation(formula, tuple(features))
 
 
+def exclusions(
+    kb: KnowledgeBase,
+    ground: list[GroundFeature],
+    empty: Sequence[int],
+    max_delay: Fraction | None = None,
+    degraded: Aside = frozenset(),
+) -> list[str]:
+    """Per ground feature left with no topic (`empty`: their indices) whose topics the policy
+    excluded, one warning naming them and why, so that a monitor's `never seen` is not read as
+    missing data.  Asked after matching and only for those features: a request that finds its
+    topics pays nothing."""
+    replay = Replayer(kb, Reader(kb, ground))
+    kb.set_max_delay(max_delay)
+    out = []
+    with kb.engine.given(given_rows(ground, degraded)):
+        for q in empty:
+            lost = excluded_topics(kb, replay, q)
+            if lost:
+                said = "; ".join(lost)
+                out.append(f"{ground[q].key}: every topic of it is excluded by the policy: {said}")
+    return out
+
+
 def _best(
-    why: tuple[TopicWhy, ...], mine: list[Match], first: TopicMatch, feature: list[Match]
+    replay: Replayer,
+    why: tuple[TopicWhy, ...],
+    mine: list[Match],
+    first: TopicMatch,
+    feature: list[Match],
 ) -> tuple[TopicWhy, ...]:
     """Each topic's last line under --best-source: the one chosen, or what ranks another
     after it (a smaller rank first; on the same rank, the local platform, then the order of
     platforms and of the specs).  `feature`: every match of the feature, `mine` those shown."""
     best = (first.platform, first.topic)
-    top = min(m.rank for m in feature if (m.platform, m.topic) == best)
+    top = min((m for m in feature if (m.platform, m.topic) == best), key=lambda m: m.rank)
     out = []
     for w, m in zip(why, mine, strict=True):
         if (m.platform, m.topic) == best:
             line = "chosen (--best-source): ranked first"
         else:
             order = (
-                f"rank {m.rank} > {top}"
-                if m.rank != top
+                f"{rank_words(replay, m)} > {rank_words(replay, top)}"
+                if m.rank != top.rank
                 else "the same rank, after it in the order of platforms and specs"
             )
-            after = f"ranked after {first.platform}/{first.topic} ({order})"
+            after = f"ranked after {stream_name(first.platform, first.topic)} ({order})"
             line = (
                 f"standing by (--best-source): {after}; read, and re-routed to if that one "
                 "is set aside"

@@ -85,7 +85,9 @@ class Reader:
             return "_"
         if value == "":
             return "–"
-        return local_name(value) if isinstance(value, str) and "/" in value else str(value)
+        if isinstance(value, str) and "/" in value and not value.startswith("/"):
+            return local_name(value)  # an IRI; a ROS name (`/gps/fix`) stands as written
+        return str(value)
 
     def columns(self, fact: Pattern | Row) -> dict[str, Any]:
         """The fact's values by the column names its relation is declared with; none if it is
@@ -182,13 +184,16 @@ class Reader:
             spec = kb.platforms[str(c["Platform"])].specs.get(str(c["Topic"]))
             if spec is None:
                 return "topic specification"
-            if pred in ("topic_feature", "topic_filter") or (
-                pred == "topic_arg" and c["Entity"] == ""
-            ):
-                return str(spec.features[int(c["K"]) - 1].span)
-            if pred == "topic_arg":
-                return str(spec.features[int(c["K"]) - 1].args[int(c["Position"]) - 1].span)
-            return str(spec.span)
+            if pred not in ("topic_feature", "topic_filter", "topic_arg"):
+                return str(spec.span)
+            feature = spec.features[int(c["K"]) - 1]
+            position = int(c["Position"]) if pred == "topic_arg" and c["Entity"] != "" else 0
+            # `observations of imu1` names no argument: the entry says the object
+            return str(
+                feature.args[position - 1].span
+                if 0 < position <= len(feature.args)
+                else feature.span
+            )
         if pred == "max_delay":
             return "--max-delay"
         if pred == "wanted":

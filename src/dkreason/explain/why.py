@@ -13,7 +13,7 @@ from ..kb import KnowledgeBase
 from ..match import Match, padded
 from ..policy.syntax import Row, Value
 from ..request import topic_match
-from .provenance import BRIDGE, Reader, declared
+from .provenance import BRIDGE, Reader, declared, nanoseconds
 from .replay import MAX_DEPTH, Proof, Replayer
 
 
@@ -43,24 +43,39 @@ def _declared(kb: KnowledgeBase, m: Match) -> tuple[str, ...]:
 
 
 def _ranked(replay: Replayer, m: Match) -> tuple[str, ...]:
-    """The policy's rank of a topic it ranks (its rank hook's match_result 'rank' row, else
-    its topic_rank row), the rule that ranks it and the declared properties it ranks by."""
+    """The policy's rank of a topic it ranks, the rule that ranks it and the declared
+    properties it ranks by."""
     if not m.rank:
         return ()
-    answer = replay.prove(
-        ("match_result", m.query, "rank", m.platform, m.topic, m.rank, *("",) * 6)
-    )
-    # the step that ranks it (rank), not the answer's routing
-    proof = (
-        next((c for c in answer.children if c.fact[0] != "relevant_topic"), answer)
-        if answer
-        else replay.prove(("topic_rank", m.platform, m.topic, m.rank))
-    )
+    proof = _rank_proof(replay, m)
     where = f" [{proof.rule.span}]" if proof is not None and proof.rule else ""
     text = proof.text if proof is not None else f"rank {m.rank}"
     steps = proof.find("topic_property") if proof else iter(())
     by = dict.fromkeys(p.text for p in steps if p.fact[1:3] == (m.platform, m.topic))
-    return (f"rank {m.rank}: {text}{where}" + "".join(f", by {b}" for b in by),)
+    return (f"{rank_words(replay, m)}: {text}{where}" + "".join(f", by {b}" for b in by),)
+
+
+def rank_words(replay: Replayer, m: Match) -> str:
+    """A topic's rank as a person reads it: the shipped quality rank as `age 350ms` (the
+    declared age in nanoseconds), or `no declared age` (ranked after every topic declaring
+    one); any other as `rank N`."""
+    proof = _rank_proof(replay, m) if m.rank else None
+    if proof is None or proof.rule is None or replay.reader.own(proof.rule):
+        return f"rank {m.rank}"
+    if any(p.fact[1:5] == (m.platform, m.topic, "age", m.rank) for p in proof.steps()):
+        return f"age {nanoseconds(m.rank)}"
+    return "no declared age" if proof.fact[0] == "topic_rank" else f"rank {m.rank}"
+
+
+def _rank_proof(replay: Replayer, m: Match) -> Proof | None:
+    """The step that ranks a topic (its rank hook's match_result 'rank' row, else its
+    topic_rank row), not the answer's routing."""
+    answer = replay.prove(
+        ("match_result", m.query, "rank", m.platform, m.topic, m.rank, *("",) * 6)
+    )
+    if answer:
+        return next((c for c in answer.children if c.fact[0] != "relevant_topic"), answer)
+    return replay.prove(("topic_rank", m.platform, m.topic, m.rank))
 
 
 # A match no clause replays (a derivation deeper than a replay goes, say) is shown as the

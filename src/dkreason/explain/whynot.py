@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..kb import KnowledgeBase
+from ..model import stream_name
 from ..policy.syntax import Row
 from .provenance import Pattern
 from .replay import Failure, Proof, Replayer
@@ -62,6 +63,25 @@ def topic_why_not(
     return out
 
 
+def excluded_topics(kb: KnowledgeBase, replay: Replayer, q: int) -> list[str]:
+    """The topics carrying wanted feature `q`'s candidates that the policy excluded (an
+    excluded_topic, a veto, a source set aside), each as `platform:topic (why)`: what a feature
+    left with no topic lost to the policy, not to missing data."""
+    reader = replay.reader
+    out: dict[str, None] = {}
+    for context in replay.rows(("context", kb.local, None)):
+        platform = str(reader.columns(context)["Remote"])
+        for candidate in replay.rows(("candidate", q, platform, None, None, None, None, None)):
+            carrying = replay.rows(("topic_feature", platform, None, None, candidate[4], None))
+            for topic in dict.fromkeys(str(row[2]) for row in carrying):
+                for w in topic_why_not(kb, replay, q, platform, topic):
+                    if w.trace.negated:
+                        out[f"{stream_name(platform, topic)} ({_reason(kb, replay, w.trace)})"] = (
+                            None
+                        )
+    return list(out)
+
+
 def _unmatched(replay: Replayer, sound: Row, topic: str | None) -> Failure:
     """The first step after a sound candidate that does not hold for it: a topic matched to
     it (one whose K-th feature is the candidate's, as the schema says matched_topic's K is),
@@ -105,6 +125,8 @@ def _reason(kb: KnowledgeBase, replay: Replayer, failure: Failure) -> str:
     if failure.negated:
         if pred == "excluded" and c:
             return f"an incompat bridge rule excludes {name(c['Feature'])} here"
+        if pred == "degraded" and c:
+            return f"the monitor set {c['Topic']} aside on {c['Platform']}: its samples stopped"
         because = failure.because
         rule = because.rule if isinstance(because, Proof) else None
         rests = _told(because) if isinstance(because, Proof) else ""

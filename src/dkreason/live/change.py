@@ -8,6 +8,7 @@ import datetime
 from dataclasses import dataclass
 from typing import Any
 
+from ..model import stream_name
 from ..monitor import Rerouted
 from ..progress import Verdict
 from ..stream.processor import Violation
@@ -42,11 +43,12 @@ class Change:
 
     def __str__(self) -> str:
         when = "before start" if self.time is None else f"at {_shown(self.time)}"
+        stream = stream_name(self.platform, self.topic)
         what = {
             "joined": f"platform {self.platform} joined",
             "left": f"platform {self.platform} left",
-            "subscribed": f"subscribed to {self.platform}/{self.topic} for {self.feature}",
-            "unsubscribed": f"unsubscribed from {self.platform}/{self.topic}",
+            "subscribed": f"subscribed to {stream} for {self.feature}",
+            "unsubscribed": f"unsubscribed from {stream}",
             "source_lost": f"source lost: {self.feature} has no topic left",
             "instance": f"instance {self.feature} judged from now",
             "clock_reset": "/clock reset",

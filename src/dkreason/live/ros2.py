@@ -37,7 +37,7 @@ from typing import Any
 
 from ..errors import DkError, WireError
 from ..manager import KnowledgeManager
-from ..model import FeatureKey, TopicMatch
+from ..model import FeatureKey, TopicMatch, stream_name
 from ..monitor import Monitor, Watch
 from ..plan import Parsed
 from ..stream import fields
@@ -358,7 +358,8 @@ class Ros2Monitor:
             for f in (m.field, *(k for k, _ in m.filter)):
                 why = why or fields.check(self.store.fielddefs, pub.msgtype, f)
             if why is not None:
-                self._warn(f"{pub.topic} for {key} ({m.platform}/{m.topic}): {why}; skipped")
+                stream = stream_name(m.platform, m.topic)
+                self._warn(f"{pub.topic} for {key} ({stream}): {why}; skipped")
             else:
                 fits.append(key)
         return self._subscribe(pub, name, list(dict.fromkeys(fits))) if fits else []

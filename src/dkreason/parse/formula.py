@@ -349,7 +349,7 @@ def parse_formula(text: str) -> Formula:
     try:
         return _balanced(_formula(_PARSER.parse(text)), 0)  # type: ignore[no-any-return]
     except UnexpectedInput as exc:
-        raise _syntax_error(exc, text) from None
+        raise _misapplied(exc, text) or _syntax_error(exc, text) from None
 
 
 MAX_DEPTH = 100  # nesting levels of a formula as written (and/or chains count once)
@@ -394,6 +394,70 @@ def _balanced(node: Any, depth: int) -> Any:
     if isinstance(node, Quant):
         return replace(node, body=_balanced(node.body, depth + 1))
     return node
+
+
+# What a call takes, as mtl.lark spells them, in the order an unknown name's error lists them.
+CALLS = {
+    "functions": {"abs": 1, "min": 2, "max": 2, "sqrt": 1, "hypot": 2},
+    "terms": {"prev": 1, "delta": 1, "rate": 1, "age": 1},
+    "atoms": {"observed": 1, "fresh": 2},
+}
+_ARITY = {name: n for group in CALLS.values() for name, n in group.items()}
+_KNOWN = "; ".join(f"{group}: {', '.join(names)}" for group, names in CALLS.items())
+_DURATION = re.compile(r"[0-9]+(\.[0-9]+)?(ms|s|min|h)?")
+
+
+def _misapplied(exc: UnexpectedInput, text: str) -> ParseError | None:
+    """A call the parse failed at that names no function (failing at its `(`), or failed inside
+    and is given other arguments than it takes: said at its name, in place of the grammar's
+    expected tokens (the innermost such call; one with the arguments it takes says nothing)."""
+    at = getattr(getattr(exc, "token", None), "start_pos", None)
+    if at is None:
+        return None
+    try:
+        tokens = list(_PARSER.lex(text))
+    except UnexpectedInput:
+        return None
+    for i in range(len(tokens) - 2, -1, -1):  # the innermost call first
+        name, paren = tokens[i], tokens[i + 1]
+        if paren.type != "LPAR" or (name.type != "NAME" and str(name) not in _ARITY):
+            continue  # `always (`, `not (`: no call
+        span = Span(FILE, name.line or 1, name.column or 1)
+        if name.type == "NAME":
+            if paren.start_pos == at:
+                return ParseError(f"unknown function {name} ({_KNOWN})", span)
+            continue
+        args, end = _arguments(tokens, i + 2, text)
+        if not (paren.start_pos or 0) < at <= end:
+            continue
+        if name == "fresh" and not (len(args) == 2 and _DURATION.fullmatch(args[1])):
+            return ParseError("fresh(X, d) needs a duration", span)
+        wanted = _ARITY[str(name)]
+        if len(args) != wanted:
+            plural = "s" if wanted > 1 else ""
+            return ParseError(f"{name} takes {wanted} argument{plural}, got {len(args)}", span)
+        return None
+    return None
+
+
+def _arguments(tokens: list[Token], start: int, text: str) -> tuple[list[str], int]:
+    """The arguments of a call whose `(` precedes tokens[start], as written, and the offset of
+    its `)` (the end of the text, if none closes it)."""
+    depth, begin, args = 0, None, []
+    for tok in tokens[start:]:
+        pos = tok.start_pos or 0
+        begin = pos if begin is None else begin
+        if tok.type in ("LPAR", "LSQB"):
+            depth += 1
+        elif tok.type in ("RPAR", "RSQB") and depth:
+            depth -= 1
+        elif tok.type in ("COMMA", "RPAR") and not depth:
+            if pos > begin or tok.type == "COMMA":
+                args.append(text[begin:pos].strip())
+            if tok.type == "RPAR":
+                return args, pos
+            begin = None
+    return args, len(text)
 
 
 def _syntax_error(exc: UnexpectedInput, text: str) -> ParseError:

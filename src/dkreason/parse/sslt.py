@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 from fractions import Fraction
 from functools import cache
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 from xml.sax.saxutils import quoteattr
 
 from lark import Lark, Token, Transformer
@@ -239,7 +239,16 @@ def quality_of(items: list[tuple[str, Fraction, Span]]) -> tuple[Fraction | None
     return tuple(found.get(q) for q in QUALITIES)
 
 
-def format_quality(spec: TopicSpec) -> list[tuple[str, str]]:
+class Declares(Protocol):
+    """What declares a stream's quality: a spec, or what carries a spec's (info's bindings)."""
+
+    @property
+    def rate(self) -> Fraction | None: ...
+    @property
+    def delay(self) -> Fraction | None: ...
+
+
+def format_quality(spec: Declares) -> list[tuple[str, str]]:
     """The declared properties as SSL_T and XML write them: (name, value text)."""
     out = []
     if spec.rate is not None:
@@ -275,6 +284,11 @@ def _syntax_error(exc: UnexpectedInput, file: str) -> ParseError:
             + (f", expected {wanted}" if wanted else ""),
             span,
         )
+    last = (getattr(getattr(exc, "state", None), "value_stack", None) or [None])[-1]
+    if "RSQB" in expected and isinstance(last, Token) and last.type == "QUALITY_VALUE":
+        # the bracket of stream properties left open: where its `]` belongs
+        where = Span(file, last.line or 0, (last.column or 0) + len(last.rstrip()))
+        return ParseError("missing ']' after the stream properties", where)
     token = getattr(exc, "token", None)
     return ParseError(f"syntax error: unexpected {str(token)!r}, expected {wanted}", span)
 

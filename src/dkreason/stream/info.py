@@ -14,10 +14,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from ..model import TopicMatch
+from ..model import TopicMatch, stream_name
+from ..parse.sslt import format_quality
 from .binding import (
     Recording,
     Recordings,
@@ -33,16 +35,30 @@ from .units import NS, seconds_text
 
 
 @dataclass(frozen=True, slots=True)
+class Gap:
+    """A topic's longest time without a message (a dropout the median rate hides): its length
+    and the record time it starts at (ns)."""
+
+    length: int  # ns
+    start: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"seconds": round(self.length / NS, 9), "from": round(self.start / NS, 9)}
+
+
+@dataclass(frozen=True, slots=True)
 class TopicInfo:
     name: str
     msgtype: str
     count: int | None
     fields: tuple[FieldPath, ...] = ()  # when asked for, and the definition is known
     timing: Timing | None = None  # observed rate and delay, when asked for
+    gap: Gap | None = None  # with the timing, of two messages or more
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"topic": self.name, "type": self.msgtype, "count": self.count}
         out |= {"fields": [f.to_json() for f in self.fields]} if self.fields else {}
+        out |= {"longest_gap": self.gap.to_json()} if self.gap else {}
         return out | (self.timing.to_json() if self.timing else {})
 
 
@@ -73,15 +89,19 @@ class Binding:
     msgtype: str
     bound: str | None  # the recording topic, None when no recording holds it
     recorded_type: str | None
+    rate: Fraction | None = None  # as the spec declares them (Hz, s)
+    delay: Fraction | None = None
 
     def to_json(self) -> dict[str, Any]:
-        return {
+        out: dict[str, Any] = {
             "platform": self.platform,
             "topic": self.topic,
             "msgtype": self.msgtype,
             "recording_topic": self.bound,
             "recorded_type": self.recorded_type,
         }
+        declared = {"rate": self.rate, "delay": self.delay}
+        return out | {k: float(v) for k, v in declared.items() if v is not None}
 
 
 def inspect(
@@ -139,7 +159,7 @@ def describe(recording: Recording, fields: bool = False, timing: bool = False) -
         types = types or found
     clock = Recordings([recording], clock="auto")
     fielddefs = getattr(getattr(source, "store", None), "fielddefs", {}) if fields else {}
-    timings = _timings(source, clock.clock == "header") if timing and not damage else {}
+    timings, gaps = _timings(source, clock.clock == "header") if timing and not damage else ({}, {})
     return RecordingInfo(
         source.name,
         tuple(
@@ -149,6 +169,7 @@ def describe(recording: Recording, fields: bool = False, timing: bool = False) -
                 counts.get(t, 0),
                 tuple(paths(fielddefs, types[t])),
                 timings.get(t),
+                gaps.get(t),
             )
             for t in sorted(types)
         ),
@@ -159,18 +180,28 @@ def describe(recording: Recording, fields: bool = False, timing: bool = False) -
     )
 
 
-def _timings(source: Any, stamped: bool) -> dict[str, Timing]:
+def _timings(source: Any, stamped: bool) -> tuple[dict[str, Timing], dict[str, Gap]]:
     """Each topic's observed rate, and its delay where its header stamps are on the record
-    clock (`stamped`) and a message's stamp differs from its record time."""
+    clock (`stamped`) and a message's stamp differs from its record time; its longest gap."""
     arrivals: dict[str, list[int]] = {}
     lags: dict[str, list[int]] = {}
     for topic, available, valid, _ in source.messages({t: [] for t in source.types()}):
         arrivals.setdefault(topic, []).append(available)
         lags.setdefault(topic, []).append(available - valid)
-    return {
+    timings = {
         t: observe(times, lags[t] if stamped and any(lags[t]) else None)
         for t, times in arrivals.items()
     }
+    gaps = {
+        t: max((Gap(b - a, a) for a, b in zip(times, times[1:], strict=False)), key=_length)
+        for t, times in arrivals.items()
+        if len(times) > 1
+    }
+    return timings, gaps
+
+
+def _length(gap: Gap) -> int:
+    return gap.length
 
 
 def _every(source: Any) -> Any:
@@ -189,16 +220,16 @@ def bindings(kb: Any, recordings: Recordings) -> list[Binding]:
             m = TopicMatch(name, spec.name, spec.msgtype, "", (), "", ())
             names = recording_names(m, kb.local, namespaces.get(name), shared)
             found = next((n for n in names if n in types), None)
+            recorded = None if found is None else types[found]
             out.append(
-                Binding(
-                    name, spec.name, spec.msgtype, found, None if found is None else types[found]
-                )
+                Binding(name, spec.name, spec.msgtype, found, recorded, spec.rate, spec.delay)
             )
     return out
 
 
-def _timing_text(t: Timing) -> str:
-    """Observed rate and delay, as `info --timing` prints them beside the count."""
+def _timing_text(t: Timing, gap: Gap | None, start: int | None) -> str:
+    """Observed rate and delay, and the longest gap (from the recording's `start`), as
+    `info --timing` prints them beside the count."""
     rate = (
         f"  rate {t.rate_median:.4g} Hz (p5 {t.rate_p5:.4g})"
         if t.rate_median is not None and t.rate_p5 is not None
@@ -209,11 +240,27 @@ def _timing_text(t: Timing) -> str:
         if t.delay_median is not None and t.delay_p95 is not None
         else ""
     )
-    return rate + delay
+    longest = (
+        f", longest gap {seconds_text(gap.length)} s at {seconds_text(gap.start - (start or 0))} s"
+        if gap is not None
+        else ""
+    )
+    return rate + delay + longest
+
+
+def _declared(binds: Sequence[Binding]) -> dict[str, str]:
+    """Per recording topic, the quality the spec topics it binds declare, in SSL_T's words."""
+    out: dict[str, list[str]] = {}
+    for b in binds:
+        said = ", ".join(f"{name} {value}" for name, value in format_quality(b))
+        if b.bound is not None and said:
+            out.setdefault(b.bound, []).append(f"{said} ({stream_name(b.platform, b.topic)})")
+    return {topic: "; declared " + "; ".join(said) for topic, said in out.items()}
 
 
 def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> str:
     lines = []
+    declared = _declared(binds or ())
     for info in infos:
         span = (
             ""
@@ -232,13 +279,17 @@ def render(infos: Sequence[RecordingInfo], binds: Sequence[Binding] | None) -> s
         for t in info.topics:
             lines.append(
                 f"  {t.name:<{width}}  {t.msgtype}  {t.count if t.count is not None else '?'}"
-                + (_timing_text(t.timing) if t.timing else "")
+                + (
+                    _timing_text(t.timing, t.gap, info.start) + declared.get(t.name, "")
+                    if t.timing
+                    else ""
+                )
             )
             across = max((len(f.path) for f in t.fields), default=0)
             lines += [f"      {f.path:<{across}}  {f.ros_type}" for f in t.fields]
         lines += [f"  damaged: {d}" for d in info.damage]
     for b in binds or ():
-        where = f"{b.platform}/{b.topic} ({b.msgtype})"
+        where = f"{stream_name(b.platform, b.topic)} ({b.msgtype})"
         if b.bound is None:
             lines.append(f"{where}: in no recording")
         elif b.recorded_type is not None and not message_type_fits(b.recorded_type, b.msgtype):
