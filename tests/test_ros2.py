@@ -1213,9 +1213,9 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
 
 
 BOTH_POSES, POSE1, POSE2 = (
-    ("fleet//robot1/pose", "fleet//robot2/pose"),
-    ("fleet//robot1/pose",),
-    ("fleet//robot2/pose",),
+    ("fleet:/robot1/pose", "fleet:/robot2/pose"),
+    ("fleet:/robot1/pose",),
+    ("fleet:/robot2/pose",),
 )
 
 
@@ -1292,6 +1292,29 @@ def test_a_ros2_monitor_matches_with_its_max_delay(
     run.until(lambda: bool(run.changes("subscribed")), "robot 1's pose subscribed")
     run.matched(robots[1])
     assert [c.topic for c in run.changes("subscribed")] == ["/robot1/pose"]
+    run.finish()
+
+
+def test_a_ros2_monitor_says_once_that_every_topic_of_a_feature_is_excluded(
+    tmp_path: Path, live: Callable[..., Live], caplog: pytest.LogCaptureFixture
+) -> None:
+    """With --max-delay 10ms neither pose is relevant: said in one line naming the topics and
+    why, as the offline monitor says it, not left to read as missing data."""
+    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
+    (tmp_path / "pair.sslt").write_text(
+        "".join(
+            f"topic /robot{n}/pose:{POSE} [delay {delay}] contains X(r1) = msg.pose.position.x\n"
+            for n, delay in ((1, "20ms"), (2, "200ms"))
+        )
+    )
+    (tmp_path / "pair.toml").write_text(
+        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
+    )
+    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    run = live(km, ["always (X[r1] < 15)"], policy=StreamPolicy(max_delay=Fraction(1, 100)))
+    (said,) = [r.message for r in caplog.records if "excluded by the policy" in r.message]
+    assert said.startswith("X[r1]: every topic of it is excluded by the policy: fleet:/robot1/pose")
+    assert "--max-delay is 10ms" in said
     run.finish()
 
 

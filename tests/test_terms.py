@@ -14,6 +14,7 @@ import pytest
 
 from dkreason import KnowledgeManager
 from dkreason.cli import main
+from dkreason.errors import DkError
 from dkreason.live.loop import LiveSource
 from dkreason.monitor import Monitor
 from dkreason.parse.formula import parse_formula, unparse
@@ -361,6 +362,25 @@ def test_a_live_monitor_decides_at_the_deadline_as_time_passes(robot: Path) -> N
     (verdict,) = monitor.events()
     assert isinstance(verdict, Verdict)
     assert (verdict.verdict, verdict.t) == (False, 7.000000001)
+
+
+def test_an_undefined_value_says_so_where_no_feature_was_unknown() -> None:
+    p = Progressor()
+    p.add("always (sqrt(X) >= 0)")
+    p.step(0, {"X": -4})
+    (v,) = p.finish()
+    assert v.verdict is None and v.witness is not None
+    assert v.witness.endswith(
+        "a value it computes is undefined where it would be decided "
+        "(the square root of a negative, a division by 0)"
+    )
+
+
+def test_a_state_file_leaving_a_feature_out_says_how_to_write_an_unknown() -> None:
+    p = Progressor()
+    p.add("always (Y < 5)")
+    with pytest.raises(DkError, match=r'no value for Y \(write "Y": null for a value not known'):
+        p.step(0, {"X": 1})
 
 
 def test_orb_slam_publishes_within_5_s_from_the_api(robot: Path, tmp_path: Path) -> None:

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from .errors import DkError
 from .expand import Instance
 from .judge import Judged, span_seconds, spans
-from .model import FeatureKey, StreamRequest
+from .model import FeatureKey, StreamRequest, stream_name
 from .parse.formula import deadlines
 from .plan import FormulaPlan, Plan
 from .progress import Progressor, Verdict
@@ -169,6 +169,7 @@ class Monitor:
         self.begun: dict[str, _Group] = {}
         self._sources: dict[FeatureKey, str] | None = None
         self.request = match(plan)
+        self.said: set[str] = set()  # the request's warnings `unsaid` gave
         self.judged = [Judged(f) for f in plan.formulas]
         self.groups: dict[frozenset[FeatureKey], _Group] = {}
         # A state is a group's own when one of its features was sampled or went stale at it
@@ -451,7 +452,7 @@ class Monitor:
             for f in self.request.features:
                 k = f.feature.key
                 self._sources[k] = " or ".join(
-                    f"{t.platform}/{t.topic} {t.field}"
+                    f"{stream_name(t.platform, t.topic)} {t.field}"
                     + (
                         ""
                         if (t.as_feature, t.as_args) == (k.name, k.args)
@@ -521,7 +522,7 @@ class Monitor:
             Rerouted(
                 seconds(event.time),
                 key,
-                f"{event.platform}/{event.topic}",
+                stream_name(event.platform, event.topic),
                 event.aside,
                 before.get(key, ()),
                 topics,
@@ -564,6 +565,13 @@ class Monitor:
         self.plan = Plan(tuple(formulas))
         self.steps.clear()
         return started
+
+    def unsaid(self) -> list[str]:
+        """The current request's warnings not given before: what a live monitor, matching
+        again as its federation changes, says once (an exclusion, a window too fine)."""
+        new = [w for w in self.request.warnings if w not in self.said]
+        self.said.update(new)
+        return new
 
     def rematch(self, source: Source) -> StreamRequest:
         """The plan's features matched again (the knowledge changed); the streams follow."""
@@ -736,9 +744,9 @@ class MonitorRun:
 
 
 def _streams(request: StreamRequest) -> dict[FeatureKey, tuple[str, ...]]:
-    """Each feature's topics, as `platform/topic`."""
+    """Each feature's topics, as people read them (`platform/topic`, `platform:/topic`)."""
     return {
-        f.feature.key: tuple(dict.fromkeys(f"{t.platform}/{t.topic}" for t in f.topics))
+        f.feature.key: tuple(dict.fromkeys(stream_name(t.platform, t.topic) for t in f.topics))
         for f in request.features
     }
 

@@ -234,6 +234,8 @@ class LiveMonitor:
             self.km.plan(self.formulas), self.km.matcher(self.policy), self.policy, watch=self.watch
         )
         processor = self.processor = monitor.start(self.source)
+        for said in monitor.unsaid():
+            log.warning("%s", said)
         monitor.follow = self._follow
         self.read = dict_reader(self.source.name, processor.wanted)
         yield from self._subscribe(monitor.request, None, "")
@@ -431,6 +433,8 @@ class LiveMonitor:
             log.warning("after %s, the formulas keep their objects: %s", why, exc)
             started = []
         request = self.monitor.rematch(self.source)
+        for said in self.monitor.unsaid():
+            log.warning("%s", said)
         self.read = dict_reader(self.source.name, self.processor.wanted)
         now = self.watermark()
         return [

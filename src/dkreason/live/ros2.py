@@ -136,6 +136,8 @@ class Ros2Monitor:
             km.plan(formulas), km.matcher(policy), policy, keep_states=keep_states, watch=watch
         )
         self.processor = self.monitor.start(loop.LiveSource())
+        for said in self.monitor.unsaid():
+            log.warning("%s", said)
         request = self.monitor.request
         namespaces = dict(request.namespaces)
         # recording name → the features it feeds, or stands by for (--best-source: ranked

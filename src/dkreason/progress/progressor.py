@@ -126,7 +126,10 @@ def _spelling(
     spelled = {k if isinstance(k, FeatureKey) else feature_key(k): k for k in values}
     missing = sorted(keys - spelled.keys())
     if missing:
-        raise DkError(f"the state at time {time} has no value for {missing[0]}")
+        raise DkError(
+            f"the state at time {time} has no value for {missing[0]} "
+            f'(write "{missing[0]}": null for a value not known then)'
+        )
     return [(k, spelled[k]) for k in keys]
 
 

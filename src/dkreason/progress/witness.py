@@ -194,7 +194,14 @@ def undecided(
         said[SHOWN:] = [f"and {len(said) - SHOWN} more"]
     if pending is not None:
         said.append(pending)
-    return UNDECIDED + ("; ".join(said) if said else "no state was seen" if not started else "")
+    if said:
+        return UNDECIDED + "; ".join(said)
+    return UNDECIDED + (
+        "a value it computes is undefined where it would be decided (the square root of a "
+        "negative, a division by 0)"
+        if started
+        else "no state was seen"
+    )
 
 
 def _unknown(span: UnknownSpan, clock: Clock) -> str:

@@ -50,7 +50,7 @@ from typing import Any
 
 from ..errors import DkError
 from ..inputs.numbers import datum
-from ..model import FeatureKey, StreamRequest
+from ..model import FeatureKey, StreamRequest, stream_name
 from .policy import StreamPolicy
 from .quality import Found, Move, QualityWatch
 from .sources import Message, Source
@@ -374,7 +374,9 @@ class StreamProcessor:
                 present = [n for n in names if n in types] if types else names
                 standby = prio >= len(feeding)
                 if types and not present and not standby:
-                    self.absent.setdefault(f"{m.platform}/{m.topic}", []).append(str(f.feature.key))
+                    self.absent.setdefault(stream_name(m.platform, m.topic), []).append(
+                        str(f.feature.key)
+                    )
                 if types and present:
                     msgtype = types[present[0]]
                     if not message_type_fits(msgtype, m.msgtype):
@@ -394,7 +396,7 @@ class StreamProcessor:
                         self.kinds.setdefault(f.feature.key, []).append(
                             (present[0], m.field, *kind)
                         )
-                stream = f"{m.platform}/{m.topic}"
+                stream = stream_name(m.platform, m.topic)
                 ids = tuple(k for k, _ in m.filter)
                 names = present[:1] if types else present
                 self.quality.declare(

@@ -27,7 +27,7 @@ from fractions import Fraction
 from typing import Any
 
 from ..inputs.numbers import decimal
-from ..model import FeatureKey
+from ..model import FeatureKey, stream_name
 from .units import NS, seconds_text
 
 RATE_WINDOW = 10  # declared periods a topic's rate is judged over
@@ -103,7 +103,7 @@ class QualityWatch:
         if w is None:
             window = round(RATE_WINDOW * NS / rate) if rate else 0
             ns = None if delay is None else round(delay * NS)
-            stream = f"{platform}/{spec_topic}"
+            stream = stream_name(platform, spec_topic)
             w = _Watched(feature, platform, spec_topic, stream, rate, ns, window)
             w.since = self.start if since is None else since
             self.watched[(platform, spec_topic)] = w
