@@ -1267,11 +1267,8 @@ def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
     assert [v.verdict for v in run.verdicts()] == [True]
 
 
-def test_a_ros2_monitor_matches_with_its_max_delay(
-    tmp_path: Path, live: Callable[..., Live]
-) -> None:
-    """With --max-delay 100ms, robot 2's pose (declaring a 200 ms delay) is not relevant: it
-    is not subscribed though it publishes, announced before robot 1's."""
+def delayed_pair(tmp_path: Path) -> KnowledgeManager:
+    """X[r1] from two robots' poses, robot 1's declaring a 20 ms delay, robot 2's 200 ms."""
     (tmp_path / "pair.ttl").write_text(FLEET_TTL)
     (tmp_path / "pair.sslt").write_text(
         "".join(
@@ -1282,7 +1279,15 @@ def test_a_ros2_monitor_matches_with_its_max_delay(
     (tmp_path / "pair.toml").write_text(
         '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
     )
-    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    return KnowledgeManager.from_config(tmp_path / "pair.toml")
+
+
+def test_a_ros2_monitor_matches_with_its_max_delay(
+    tmp_path: Path, live: Callable[..., Live]
+) -> None:
+    """With --max-delay 100ms, robot 2's pose (declaring a 200 ms delay) is not relevant: it
+    is not subscribed though it publishes, announced before robot 1's."""
+    km = delayed_pair(tmp_path)
     run = live(km, ["always (X[r1] < 15)"], policy=StreamPolicy(max_delay=Fraction(1, 10)))
     assert not [name for name in run.monitor.wants if "robot2" in name]
     robots = [
@@ -1300,17 +1305,7 @@ def test_a_ros2_monitor_says_once_that_every_topic_of_a_feature_is_excluded(
 ) -> None:
     """With --max-delay 10ms neither pose is relevant: said in one line naming the topics and
     why, as the offline monitor says it, not left to read as missing data."""
-    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
-    (tmp_path / "pair.sslt").write_text(
-        "".join(
-            f"topic /robot{n}/pose:{POSE} [delay {delay}] contains X(r1) = msg.pose.position.x\n"
-            for n, delay in ((1, "20ms"), (2, "200ms"))
-        )
-    )
-    (tmp_path / "pair.toml").write_text(
-        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
-    )
-    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    km = delayed_pair(tmp_path)
     run = live(km, ["always (X[r1] < 15)"], policy=StreamPolicy(max_delay=Fraction(1, 100)))
     (said,) = [r.message for r in caplog.records if "excluded by the policy" in r.message]
     assert said.startswith("X[r1]: every topic of it is excluded by the policy: fleet:/robot1/pose")
