@@ -332,6 +332,28 @@ def test_an_age_compared_with_a_constant_is_a_deadline_too(
     assert (code, verdict["verdict"], verdict["t"]) == (1, False, t)
 
 
+def test_events_come_in_the_order_of_their_times(
+    robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A fix stamped 0.3 s before it is recorded, declaring at most 0.1 s: the deadline's
+    verdict (its state made as the sample after the gap comes) is said before that sample's
+    own delay violation, as their times are, not after it."""
+    specs = robot.parent / "robot.sslt"
+    specs.write_text(
+        specs.read_text().replace("gps:NavSatFix", "gps:StampedFix [rate 1 Hz, delay 100ms]")
+    )
+    s = 10**9
+    types = {**TYPES, "test_msgs/msg/StampedFix": "std_msgs/Header header\nfloat64 latitude\n"}
+    rows = [
+        ("/gps", "test_msgs/msg/StampedFix", t * s + 3 * s // 10, {"header": {"stamp": t}})
+        for t in (*range(6), 9, 10)
+    ]
+    write_recording(tmp_path / "late.mcap", "bare-mcap", types, rows)
+    code, events = monitor_json(capsys, robot, tmp_path / "late.mcap", "always (age(Fix[r1]) <= 2)")
+    times = [e["time"] for e in events if "time" in e]
+    assert times == sorted(times) and any(e.get("verdict") is False for e in events)
+
+
 def test_a_deadline_past_the_end_of_the_data_makes_no_state(
     robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

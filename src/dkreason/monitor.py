@@ -497,6 +497,10 @@ class Monitor:
         if self.moved:
             self.moved = False
             out = [e for event in out for e in self._rerouted(event)]
+        if len(out) > 1 and all(e.time is not None for e in out):
+            # in the order of their times: a message's checks come before the states it lets
+            # the stream make, which may be earlier (a deadline's, a late sample's)
+            out.sort(key=_time)
         return out
 
     def _moved(self, move: Move) -> None:
@@ -741,6 +745,10 @@ class MonitorRun:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _time(event: Event) -> Any:
+    return event.time
 
 
 def _streams(request: StreamRequest) -> dict[FeatureKey, tuple[str, ...]]:
