@@ -354,6 +354,30 @@ def test_events_come_in_the_order_of_their_times(
     assert times == sorted(times) and any(e.get("verdict") is False for e in events)
 
 
+def test_a_late_sample_is_read_by_its_formulas_beside_others(
+    robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The fix stamped 0.3 s before it is recorded comes after the yaw's states past its
+    time (late, said): the next state made reads it, and is its formula's own, so the fix's
+    formula is violated beside the yaw's as it is alone (it stayed unknown there)."""
+    specs = robot.parent / "robot.sslt"
+    specs.write_text(specs.read_text().replace("gps:NavSatFix", "gps:StampedFix"))
+    s = 10**9
+    types = {**TYPES, "test_msgs/msg/StampedFix": "std_msgs/Header header\nfloat64 latitude\n"}
+    rows: list[tuple[str, str, int, dict[str, Any]]] = [
+        ("/gps", "test_msgs/msg/StampedFix", t * s + 3 * s // 10, {"header": {"stamp": t}})
+        for t in range(1, 4)
+    ]
+    rows += [("/imu", "test_msgs/msg/Imu", n * s // 10, {"yaw": 0.0}) for n in range(41)]
+    for n, row in enumerate(rows[:3]):
+        row[3]["latitude"] = 48.0 + n
+    write_recording(tmp_path / "late.mcap", "bare-mcap", types, rows)
+    for formulas in (["always (Fix[r1] < 10)"], ["always (Fix[r1] < 10)", "always (Yaw[r1] < 1)"]):
+        code, events = monitor_json(capsys, robot, tmp_path / "late.mcap", *formulas)
+        (fix,) = [e for e in events if e.get("formula") == formulas[0]]
+        assert fix["verdict"] is False and 1 <= fix["time"] < 1.5, formulas
+
+
 def test_a_deadline_past_the_end_of_the_data_makes_no_state(
     robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

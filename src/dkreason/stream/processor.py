@@ -928,8 +928,11 @@ class StreamProcessor:
                         if i > 32:
                             _prune(hist, i)
                     current[keys[q]] = value
-                redo.clear()
                 values = current
+            if redo:  # a late sample is new to its readers: the state is theirs too
+                if fresh is not None:
+                    fresh = (*fresh, *map(keys.__getitem__, redo))
+                redo.clear()
             self.made = s
             if opening:  # the start: every formula's state
                 self.opening = fresh = None
