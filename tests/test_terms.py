@@ -482,6 +482,26 @@ def test_a_term_compared_with_itself_is_one_warning_from_the_api(robot: Path) ->
     assert km.plan(MOVES).warnings == ()
 
 
+@pytest.mark.parametrize(
+    ("formula", "warned"),
+    [
+        ("always (age(Fix[r1]) <= 2)", False),
+        ("always (2 >= age(Fix[r1]))", False),
+        ("always fresh(Fix[r1], 2s)", False),
+        ("always (age(Fix[r1]) - 2 <= 0)", True),
+        ("always (abs(age(Fix[r1])) <= 2)", True),
+        ("always (age(Fix[r1]) <= age(Yaw[r1]))", True),
+    ],
+)
+def test_an_age_that_makes_no_deadline_is_one_warning(
+    robot: Path, formula: str, warned: bool
+) -> None:
+    """Written so that the monitor can make no deadline of it, an age is read only at the
+    states other samples make: a stopped sample is caught late, or not at all; it says so."""
+    said = KnowledgeManager.from_config(robot).plan(formula).warnings
+    assert any("makes no deadline" in w and "fresh(" in w for w in said) is warned
+
+
 def test_a_term_compared_with_itself_is_a_warning_from_match_monitor_and_progress(
     robot: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

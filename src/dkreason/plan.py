@@ -13,7 +13,7 @@ from .check import check_formula
 from .expand import Binder, Instance, expand, union
 from .kb import KnowledgeBase
 from .model import FeatureKey, GroundFeature
-from .parse.formula import BoolConst, Formula, chain, parse_formula, self_comparisons
+from .parse.formula import BoolConst, Formula, chain, formula_warnings, parse_formula
 
 T = TypeVar("T")
 Bindings = tuple[tuple[str, str], ...]
@@ -105,6 +105,6 @@ def plan(kb: KnowledgeBase, formulas: Sequence[str | Parsed]) -> Plan:
     out = []
     for f in parse(formulas):
         expansion = expand(kb, f.tree, check_formula(kb, f.tree))
-        warnings = tuple(self_comparisons(f.tree))
+        warnings = tuple(formula_warnings(f.tree))
         out.append(FormulaPlan(f.text, expansion.prefix, expansion.instances, warnings))
     return Plan(tuple(out))

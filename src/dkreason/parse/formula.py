@@ -561,6 +561,36 @@ def self_comparisons(formula: Formula) -> list[str]:
     return out
 
 
+def formula_warnings(formula: Formula) -> list[str]:
+    """What a formula says that its author likely did not mean: comparisons of a term with
+    itself, and ages that make no deadline."""
+    return self_comparisons(formula) + undated_ages(formula)
+
+
+def undated_ages(formula: Formula) -> list[str]:
+    """One warning line per `age(X)` the monitor cannot make a deadline of (inside arithmetic,
+    a function, or compared with another term): it is read only at the states other samples
+    make, so a sample that stops is not caught when it grows too old."""
+    out: list[str] = []
+    timed: set[int] = set()  # the ages compared with a number: deadlines
+    todo: list[Any] = [formula]
+    while todo:
+        n = todo.pop()
+        if isinstance(n, Compare):
+            for age, bound in ((n.left, n.right), (n.right, n.left)):
+                if isinstance(age, Sampled) and isinstance(bound, Num):
+                    timed.add(id(age))
+        if isinstance(n, Sampled) and n.op == "age" and id(n) not in timed:
+            x = feature_text(n.arg.feature)
+            out.append(
+                f"{n.arg.feature.span}: age({x}) here makes no deadline (it is read only at "
+                f"states other samples make): compare age({x}) with a number, "
+                f"age({x}) <= 2, or write fresh({x}, 2s), and a state is made where it crosses"
+            )
+        todo += reversed(children(n))
+    return out
+
+
 def quantifiers(formula: Formula) -> Iterator[Quant]:
     if isinstance(formula, Quant):
         yield formula

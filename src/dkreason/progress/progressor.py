@@ -37,9 +37,9 @@ from ..parse.formula import (
     Connective,
     Formula,
     feature_key,
+    formula_warnings,
     parse_formula,
     quantifiers,
-    self_comparisons,
 )
 from ..stream.policy import END_OF_DATA
 from ..stream.terms import Samples
@@ -207,7 +207,7 @@ class Progressor:
                 raise DkError(
                     f"{q.span}: quantifier over {q.sort} needs a knowledge base (give --config)"
                 )
-            self.warnings += self_comparisons(tree)
+            self.warnings += formula_warnings(tree)
         parsed = scaled(tree, Fraction(1) / self.unit)
         self._general()  # the general step while this one is new
         judged = _Formula(formula, features(parsed), self.decided)
