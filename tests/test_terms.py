@@ -422,6 +422,13 @@ def test_an_undefined_value_says_so_where_no_feature_was_unknown() -> None:
     )
 
 
+def test_a_witness_says_a_value_not_known_as_unknown() -> None:
+    p = Progressor()
+    p.add("always fresh(X, 1s)")
+    (v,) = p.step(0, {"X": None})
+    assert v.witness == "violated at 0: fresh(X, 1s) was false at 0 (age(X) = unknown)"
+
+
 def test_a_state_file_leaving_a_feature_out_says_how_to_write_an_unknown() -> None:
     p = Progressor()
     p.add("always (Y < 5)")

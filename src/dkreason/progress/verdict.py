@@ -17,7 +17,10 @@ INF = float("inf")
 
 
 def value_text(value: Any) -> str:
-    """A value as a witness shows it: an exact one as a decimal (`2.000000001`, an age)."""
+    """A value as a witness shows it: an exact one as a decimal (`2.000000001`, an age), none
+    as unknown."""
+    if value is None:
+        return "unknown"
     return decimal(value) if type(value) is Fraction else str(value)
 
 
