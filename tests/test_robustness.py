@@ -229,6 +229,7 @@ def test_a_formula_decided_by_nothing_has_a_margin_of_0_beside_unknown_values(
     (v,) = verdicts
     assert v.robustness is not None and v.robustness.value == 0
     assert v.robustness.text() == said
+    assert json.dumps(v.robustness.to_json()["value"]) == "0.0"
 
 
 def test_progress_gives_the_margin_of_a_state_file(

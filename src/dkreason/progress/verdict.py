@@ -74,8 +74,8 @@ def _positive(zero: Any) -> bool:
 def _json_number(v: Any) -> Any:
     if isinstance(v, bool) or v is None or isinstance(v, str):
         return v
-    if isinstance(v, float):
-        return v if v not in (INF, -INF) else str(v)
+    if isinstance(v, float):  # (a zero's sign is the verdict's business: 0, not -0.0)
+        return v + 0.0 if v not in (INF, -INF) else str(v)
     return int(v) if v == int(v) else float(v)
 
 
