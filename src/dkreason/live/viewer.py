@@ -129,6 +129,10 @@ class Viewer:
         self.events.log(_json(event.to_json()), log_time=at)
 
     def close(self) -> None:
+        """Stop serving once the clients have left, or LINGER s after the run: foxglove-sdk
+        sends on its own threads, and stopping at once reset connections before the last
+        messages — the verdicts — reached them."""
+        self.subscriptions.left(LINGER)
         self.server.stop()
 
 
@@ -141,30 +145,44 @@ def _plain(value: Any) -> Any:
     return float(value)
 
 
+LINGER = 5.0  # s a server waits at the end for its clients to take the last messages and go
+
+
 class Subscriptions:
-    """How many channel subscriptions the server has taken, to wait on."""
+    """How many channel subscriptions the server has taken, and how many are held now (a
+    client leaving drops its own), to wait on."""
 
     def __init__(self) -> None:
         self.count = 0
+        self.held = 0
         self.changed = threading.Condition()
 
-    def add(self) -> None:
+    def add(self, n: int) -> None:
         with self.changed:
-            self.count += 1
+            self.count += max(n, 0)
+            self.held += n
             self.changed.notify_all()
 
     def wait(self, count: int, timeout: float | None) -> bool:
         with self.changed:
             return self.changed.wait_for(lambda: self.count >= count, timeout)
 
+    def left(self, timeout: float) -> bool:
+        """Whether every subscription was dropped within `timeout` s."""
+        with self.changed:
+            return self.changed.wait_for(lambda: self.held <= 0, timeout)
+
 
 def _listener(subscriptions: Subscriptions) -> ServerListener:
     """foxglove-sdk's ServerListener (its other callbacks do nothing): each subscription is
-    counted."""
+    counted, and each dropped (a client leaving drops its own)."""
     from foxglove.websocket import ServerListener
 
     class Listener(ServerListener):
         def on_subscribe(self, client: Client, channel: ChannelView) -> None:
-            subscriptions.add()
+            subscriptions.add(1)
+
+        def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
+            subscriptions.add(-1)
 
     return Listener()
