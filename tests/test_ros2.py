@@ -1212,6 +1212,21 @@ def test_a_monitor_that_falls_behind_holds_the_link_back_then_drops_and_says_so(
         publishing.close()
 
 
+def pose_pair(tmp_path: Path, *declared: str) -> KnowledgeManager:
+    """X[r1] from two robots' poses, each topic declaring the quality given for it."""
+    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
+    (tmp_path / "pair.sslt").write_text(
+        "".join(
+            f"topic /robot{n}/pose:{POSE} {said} contains X(r1) = msg.pose.position.x\n"
+            for n, said in enumerate(declared, 1)
+        )
+    )
+    (tmp_path / "pair.toml").write_text(
+        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
+    )
+    return KnowledgeManager.from_config(tmp_path / "pair.toml")
+
+
 BOTH_POSES, POSE1, POSE2 = (
     ("fleet:/robot1/pose", "fleet:/robot2/pose"),
     ("fleet:/robot1/pose",),
@@ -1233,17 +1248,7 @@ def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
     the maximum age bridges robot 1's silence before it)."""
     from dkreason.monitor import Rerouted
 
-    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
-    (tmp_path / "pair.sslt").write_text(
-        "".join(
-            f"topic /robot{n}/pose:{POSE} [rate 1 Hz] contains X(r1) = msg.pose.position.x\n"
-            for n in (1, 2)
-        )
-    )
-    (tmp_path / "pair.toml").write_text(
-        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
-    )
-    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    km = pose_pair(tmp_path, "[rate 1 Hz]", "[rate 1 Hz]")
     policy = StreamPolicy(max_age=10, best_source=best_source)
     run = live(km, ["always (X[r1] < 15)"], sim_time=True, policy=policy)
     sim = SimRobots(run)
@@ -1267,27 +1272,12 @@ def test_a_robots_topic_that_stops_is_set_aside_and_taken_back_on_ros2(
     assert [v.verdict for v in run.verdicts()] == [True]
 
 
-def delayed_pair(tmp_path: Path) -> KnowledgeManager:
-    """X[r1] from two robots' poses, robot 1's declaring a 20 ms delay, robot 2's 200 ms."""
-    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
-    (tmp_path / "pair.sslt").write_text(
-        "".join(
-            f"topic /robot{n}/pose:{POSE} [delay {delay}] contains X(r1) = msg.pose.position.x\n"
-            for n, delay in ((1, "20ms"), (2, "200ms"))
-        )
-    )
-    (tmp_path / "pair.toml").write_text(
-        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
-    )
-    return KnowledgeManager.from_config(tmp_path / "pair.toml")
-
-
 def test_a_ros2_monitor_matches_with_its_max_delay(
     tmp_path: Path, live: Callable[..., Live]
 ) -> None:
     """With --max-delay 100ms, robot 2's pose (declaring a 200 ms delay) is not relevant: it
     is not subscribed though it publishes, announced before robot 1's."""
-    km = delayed_pair(tmp_path)
+    km = pose_pair(tmp_path, "[delay 20ms]", "[delay 200ms]")
     run = live(km, ["always (X[r1] < 15)"], policy=StreamPolicy(max_delay=Fraction(1, 10)))
     assert not [name for name in run.monitor.wants if "robot2" in name]
     robots = [
@@ -1305,7 +1295,7 @@ def test_a_ros2_monitor_says_once_that_every_topic_of_a_feature_is_excluded(
 ) -> None:
     """With --max-delay 10ms neither pose is relevant: said in one line naming the topics and
     why, as the offline monitor says it, not left to read as missing data."""
-    km = delayed_pair(tmp_path)
+    km = pose_pair(tmp_path, "[delay 20ms]", "[delay 200ms]")
     run = live(km, ["always (X[r1] < 15)"], policy=StreamPolicy(max_delay=Fraction(1, 100)))
     (said,) = [r.message for r in caplog.records if "excluded by the policy" in r.message]
     assert said.startswith("X[r1]: every topic of it is excluded by the policy: fleet:/robot1/pose")
@@ -1322,17 +1312,7 @@ def test_a_best_pose_that_never_comes_is_set_aside_from_the_clocks_start_on_ros2
     2's newest pose feeds X[r1] at once: the formula is judged."""
     from dkreason.monitor import Rerouted
 
-    (tmp_path / "pair.ttl").write_text(FLEET_TTL)
-    (tmp_path / "pair.sslt").write_text(
-        "".join(
-            f"topic /robot{n}/pose:{POSE} [rate 1 Hz] contains X(r1) = msg.pose.position.x\n"
-            for n in (1, 2)
-        )
-    )
-    (tmp_path / "pair.toml").write_text(
-        '[platforms.fleet]\nontology = "pair.ttl"\nspecs = "pair.sslt"\n'
-    )
-    km = KnowledgeManager.from_config(tmp_path / "pair.toml")
+    km = pose_pair(tmp_path, "[rate 1 Hz]", "[rate 1 Hz]")
     policy = StreamPolicy(best_source=True)
     run = live(km, ["always (X[r1] < 15)"], sim_time=True, policy=policy)
     sim = SimRobots(run)
