@@ -288,6 +288,17 @@ AUTO, CAR = "dkreason_msgs/msg/AutomobileMsg", "dkreason_msgs/msg/CarMsg"
 MS = 10**6
 
 
+def declare_carstopic2(scenario: Path) -> None:
+    """Platform 2's carstopic2 (car11's speed) declares 20 Hz and at most 50 ms of delay."""
+    specs = scenario / "specs" / "platform2.sslt"
+    specs.write_text(
+        specs.read_text().replace(
+            "carstopic2:AutomobileMsg contains",
+            "carstopic2:AutomobileMsg [rate 20 Hz, delay 50ms] contains",
+        )
+    )
+
+
 def car11(t_ns: int, lag_ns: int) -> Row:
     """car11 on platform 2's carstopic2, recorded at t_ns, stamped lag_ns earlier."""
     stamp = Fraction(t_ns - lag_ns, 10**9)
@@ -330,13 +341,7 @@ def test_info_says_each_topics_longest_gap_and_with_a_config_what_it_declares(
     scenario: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """A dropout the median rate hides: 20 Hz for 1 s, nothing for 5 s, 20 Hz again."""
-    specs = scenario / "specs" / "platform2.sslt"
-    specs.write_text(
-        specs.read_text().replace(
-            "carstopic2:AutomobileMsg contains",
-            "carstopic2:AutomobileMsg [rate 20 Hz, delay 50ms] contains",
-        )
-    )
+    declare_carstopic2(scenario)
     rows = [car11(n * 50 * MS, 10 * MS) for n in range(1, 21)]
     rows += [car11(6_050 * MS + n * 50 * MS, 10 * MS) for n in range(20)]
     path = tmp_path / "run.mcap"
@@ -366,13 +371,7 @@ def test_monitor_reports_a_topic_below_its_declared_rate_or_over_its_delay(
 ) -> None:
     """carstopic2 declares 20 Hz and 50 ms; it runs at 20 Hz for 5 s, at 2 Hz for 5 s, and
     lags 80 ms over its last second.  Each kind is said at most once a second."""
-    specs = scenario / "specs" / "platform2.sslt"
-    specs.write_text(
-        specs.read_text().replace(
-            "carstopic2:AutomobileMsg contains",
-            "carstopic2:AutomobileMsg [rate 20 Hz, delay 50ms] contains",
-        )
-    )
+    declare_carstopic2(scenario)
     rows = [car11(n * 50 * MS, 10 * MS) for n in range(1, 101)]
     rows += [car11(5_000 * MS + n * 500 * MS, (80 if n > 8 else 10) * MS) for n in range(1, 11)]
     path = tmp_path / "run.mcap"
