@@ -1410,6 +1410,29 @@ def test_a_live_monitor_has_every_attribute_from_construction(scenario: Path) ->
 ONE, TWO = ("platform1/topic1",), ("platform1/topic2",)
 
 
+def heard_all(session: Any, topics: set[str]) -> None:
+    """Platform 1's `topics` each heard by the monitor's subscriber before anything is sent."""
+    from dkreason.live import wire
+
+    for topic in sorted(topics):
+        heard(session.declare_publisher(wire.key("platform1", "topic", topic))).undeclare()
+
+
+def send(
+    node: Any, session: Any, topics: tuple[str, ...], tick: tuple[str, ...], tenths: range
+) -> None:
+    """uav1's altitude on platform 1's `topics` at each tenth of a second; the `tick` topics
+    send only their clock (it goes on: nothing of them before t is missing)."""
+    from dkreason.live import wire
+
+    for n in tenths:
+        t = n * 10**8
+        for topic in topics:
+            node.publish(topic, {"id": 1, "alt": 50.0}, t, t)
+        for topic in tick:
+            session.put(wire.key("platform1", "topic", topic), wire.encode({"clock": t}))
+
+
 @pytest.mark.parametrize(
     ("best_source", "read", "aside"),
     [(False, (*ONE, *TWO), TWO), (True, ONE, TWO)],
@@ -1423,7 +1446,6 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
     subscribed, and reads topic1 again once it sends.  With --best-source topic1 alone is
     read at first, topic2 subscribed beside it (ranked next).  Each step waits on the event
     before it; the verdict is never restarted."""
-    from dkreason.live import wire
     from dkreason.live.change import Change
     from dkreason.monitor import Rerouted
     from dkreason.progress import Verdict
@@ -1432,15 +1454,6 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
     from .test_quality import TEN_HZ, declare
 
     declare(scenario, *TEN_HZ)
-
-    def send(topics: tuple[str, ...], tick: tuple[str, ...], tenths: range) -> None:
-        for n in tenths:
-            t = n * 10**8
-            for topic in topics:
-                node.publish(topic, {"id": 1, "alt": 50.0}, t, t)
-            for topic in tick:  # its clock goes on: nothing of it before t is missing
-                sessions[1].put(wire.key("platform1", "topic", topic), wire.encode({"clock": t}))
-
     subscribed: set[str] = set()
     events: list[Any] = []
     policy = StreamPolicy(best_source=best_source)
@@ -1454,13 +1467,11 @@ def test_a_platforms_topic_that_stops_is_set_aside_and_taken_back_when_it_return
             if isinstance(event, Change) and event.event == "subscribed":
                 subscribed.add(event.topic)
                 if subscribed == {"topic1", "topic2"}:
-                    for topic in sorted(subscribed):
-                        key = wire.key("platform1", "topic", topic)
-                        heard(sessions[1].declare_publisher(key)).undeclare()
-                    send(("topic1", "topic2"), (), range(1, 11))
-                    send(("topic2",), ("topic1",), range(11, 21))
+                    heard_all(sessions[1], subscribed)
+                    send(node, sessions[1], ("topic1", "topic2"), (), range(1, 11))
+                    send(node, sessions[1], ("topic2",), ("topic1",), range(11, 21))
             elif isinstance(event, Rerouted) and event.aside:
-                send(("topic1", "topic2"), (), range(21, 26))
+                send(node, sessions[1], ("topic1", "topic2"), (), range(21, 26))
             elif isinstance(event, Rerouted):
                 monitor.stop.set()
     moves = [e for e in events if isinstance(e, Rerouted)]
@@ -1510,7 +1521,6 @@ def test_a_best_topic_that_never_sends_is_set_aside_from_the_start_and_its_stand
     stream, topic1's silence passes three periods and it is set aside; topic2's newest
     sample feeds the altitude at once, so stopping right then still judges it (as a replay
     of the same data does)."""
-    from dkreason.live import wire
     from dkreason.live.change import Change
     from dkreason.monitor import Rerouted
     from dkreason.progress import Verdict
@@ -1532,15 +1542,8 @@ def test_a_best_topic_that_never_sends_is_set_aside_from_the_start_and_its_stand
             if isinstance(event, Change) and event.event == "subscribed":
                 subscribed.add(event.topic)
                 if subscribed == {"topic1", "topic2"}:
-                    for topic in sorted(subscribed):
-                        key = wire.key("platform1", "topic", topic)
-                        heard(sessions[1].declare_publisher(key)).undeclare()
-                    for n in range(1, 11):
-                        t = n * 10**8
-                        node.publish("topic2", {"id": 1, "alt": 50.0}, t, t)
-                        sessions[1].put(
-                            wire.key("platform1", "topic", "topic1"), wire.encode({"clock": t})
-                        )
+                    heard_all(sessions[1], subscribed)
+                    send(node, sessions[1], ("topic2",), ("topic1",), range(1, 11))
             elif isinstance(event, Rerouted):
                 monitor.stop.set()
     (move,) = [e for e in events if isinstance(e, Rerouted)]
