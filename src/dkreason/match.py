@@ -100,8 +100,6 @@ def match(
                 f"{what} filters on {c['Filter1']}",
                 Span(kb.platforms[platform].ontology.file),
             )
-    if not ranks:
-        return [Match(*a) for a in answers], rejected
     return [
         Match(q, p, t, k, objects, ids, _ranked(ranks, q, p, t))
         for q, p, t, k, objects, ids in answers

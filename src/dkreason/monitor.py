@@ -16,7 +16,7 @@ import itertools
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from operator import itemgetter
+from operator import attrgetter, itemgetter
 from typing import TYPE_CHECKING, Any, Protocol
 
 from .errors import DkError
@@ -242,7 +242,8 @@ class Monitor:
         return {t for f in self.plan.formulas for i in f.instances for t in terms(i.tree)}
 
     def _limits(self) -> set[tuple[FeatureKey, Fraction]]:
-        """The formulas' `fresh(X, d)`: a state is made when X's last sample grows too old."""
+        """The ages the formulas' truth turns at (`fresh(X, d)`, `age(X) <= d`): a state is made
+        when X's last sample grows that old."""
         return {x for f in self.plan.formulas for i in f.instances for x in fresh_limits(i.tree)}
 
     def _keep(self, time: int, values: dict[FeatureKey, Any], _: object) -> None:
@@ -500,7 +501,7 @@ class Monitor:
         if len(out) > 1 and all(e.time is not None for e in out):
             # in the order of their times: a message's checks come before the states it lets
             # the stream make, which may be earlier (a deadline's, a late sample's)
-            out.sort(key=_time)
+            out.sort(key=attrgetter("time"))
         return out
 
     def _moved(self, move: Move) -> None:
@@ -745,10 +746,6 @@ class MonitorRun:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _time(event: Event) -> Any:
-    return event.time
 
 
 def _streams(request: StreamRequest) -> dict[FeatureKey, tuple[str, ...]]:

@@ -76,9 +76,8 @@ def excluded_topics(kb: KnowledgeBase, replay: Replayer, q: int) -> list[str]:
             for topic in dict.fromkeys(str(row[2]) for row in carrying):
                 for w in topic_why_not(kb, replay, q, platform, topic):
                     if w.trace.negated:
-                        out[f"{stream_name(platform, topic)} ({_reason(kb, replay, w.trace)})"] = (
-                            None
-                        )
+                        why = _reason(kb, replay, w.trace)
+                        out[f"{stream_name(platform, topic)} ({why})"] = None
     return list(out)
 
 

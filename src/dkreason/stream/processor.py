@@ -166,9 +166,10 @@ class StreamProcessor:
         strings (their values are kept as strings; any other feature's value must be a number
         or boolean).  `terms`: the terms over samples (`("rate", Yaw[r1])`) the formulas read,
         each a value of the states (stream.terms).  `moved`: told when a topic declaring a
-        rate is set aside or taken back (quality.py; the caller matches again).  `limits`:
-        the formulas' `fresh(X, d)`, as (X, d): on every change, a state is made at the
-        instant X's newest sample grows older than d (`deadlines`)."""
+        rate is set aside or taken back (quality.py; the caller matches again).  `limits`: the
+        ages the formulas' truth turns at (`fresh(X, d)`, `age(X) <= d`), as (X, d): on every
+        change, a state is made at the instant X's newest sample grows older than d
+        (`deadlines`)."""
         self.texts = texts
         self.policy = policy
         self.source = source
@@ -210,8 +211,8 @@ class StreamProcessor:
         self.expiries: list[tuple[int, int, bool]] = []  # (time, feature, fixed?)
         self.due: list[int] = []
         self.queued: list[bool] = []
-        # `fresh(X, d)`: for each feature, the times after its newest sample at which one
-        # turns false (d, and 1 ns); and when (time, feature, that offset) as a heap, one
+        # `limits`: for each feature, the times after its newest sample at which an age
+        # bound turns (d, and 1 ns); and when (time, feature, that offset) as a heap, one
         # entry per feature and offset, rescheduled lazily (`_passed`)
         self.limits: dict[int, tuple[int, ...]] = {}
         self.deadlines: list[tuple[int, int, int]] = []
@@ -257,8 +258,8 @@ class StreamProcessor:
         terms: Iterable[tuple[str, FeatureKey]],
         limits: Iterable[tuple[FeatureKey, Fraction]] = (),
     ) -> None:
-        """The terms over samples the states carry from now on, and the `fresh(X, d)` whose
-        deadlines make states."""
+        """The terms over samples the states carry from now on, and the ages (`limits`)
+        whose deadlines make states."""
         self.terms = {term_key(op, k): (op, self.position[k]) for op, k in terms}
         offsets: dict[int, set[int]] = {}
         for k, d in limits:  # older than d: d and 1 ns past the sample, in whole ns
@@ -753,9 +754,9 @@ class StreamProcessor:
             self.quiet_until = min(self.quiet_until, valid + self.stale_after + self.delay)
 
     def _deadline(self, q: int, valid: int) -> None:
-        """Feature q's newest sample is valid at `valid`: each `fresh(X, d)` over it turns
-        false d later (the heap holds one entry per offset: a queued one is moved on when
-        it comes, `_passed`)."""
+        """Feature q's newest sample is valid at `valid`: each age bound d over it turns d
+        later (the heap holds one entry per offset: a queued one is moved on when it comes,
+        `_passed`)."""
         for offset in self.limits[q]:
             if (q, offset) not in self.timed:
                 self.timed.add((q, offset))
@@ -763,9 +764,9 @@ class StreamProcessor:
                 self.quiet_until = min(self.quiet_until, valid + offset + self.delay)
 
     def _passed(self, s: int, final: bool) -> list[FeatureKey]:
-        """The features a `fresh(X, d)` over which turns false at s: the newest sample valid
-        by then is d old (at the end, not past the data).  Each entry taken moves on to when
-        that sample, or the next one, grows too old."""
+        """The features an age bound d over which turns at s: the newest sample valid by then
+        is d old (at the end, not past the data).  Each entry taken moves on to when that
+        sample, or the next one, grows that old."""
         out: list[FeatureKey] = []
         deadlines = self.deadlines
         while deadlines and deadlines[0][0] == s:
@@ -903,9 +904,8 @@ class StreamProcessor:
             stale, expired = (
                 self._expired(s, final) if expiries and expiries[0][0] == s else _NO_EXPIRY
             )
-            passed = self._passed(s, final) if deadlines and deadlines[0][0] == s else stale
-            if passed is not stale:  # (the state is its readers' own, as for a stale value)
-                stale = [*stale, *passed]
+            if deadlines and deadlines[0][0] == s:  # its readers' own, as for a stale value
+                stale = [*stale, *self._passed(s, final)]
             opening = s == self.opening
             if not (sampled or stale or opening) or s <= self.made:
                 continue
