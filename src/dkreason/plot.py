@@ -19,7 +19,7 @@ from typing import Any
 
 from .model import FeatureKey
 from .monitor import WORDS, Event, MonitorRun
-from .parse.formula import Compare, Num, Ref, Temporal, children
+from .parse.formula import Compare, Num, Ref, Temporal, children, oriented
 from .plan import FormulaPlan
 from .progress import Verdict
 from .progress.state import key
@@ -134,15 +134,13 @@ def concerned(formula: FormulaPlan, verdict: Verdict) -> set[FeatureKey]:
 def thresholds(trees: Iterable[Any]) -> list[tuple[FeatureKey, str, float]]:
     """Each comparison of a feature with a constant (`Speed[car1] > 60`): the feature, the
     comparison as it reads with the feature on the left, and the constant; each once."""
-    flip = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
     found: dict[tuple[FeatureKey, str, float], None] = {}
 
     def walk(node: Any) -> None:
         if isinstance(node, Compare):
-            if isinstance(node.left, Ref) and isinstance(node.right, Num):
-                found[(key(node.left.feature), node.op, float(node.right.value))] = None
-            elif isinstance(node.right, Ref) and isinstance(node.left, Num):
-                found[(key(node.right.feature), flip[node.op], float(node.left.value))] = None
+            read = oriented(node, Ref)
+            if read is not None and isinstance(read[2], Num):
+                found[(key(read[0].feature), read[1], float(read[2].value))] = None
             return
         for child in children(node):
             walk(child)

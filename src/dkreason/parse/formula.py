@@ -136,6 +136,30 @@ class Compare:
     right: Expr
 
 
+MIRRORED = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
+"""Each comparison as it reads the other way round (`c < X` is `X > c`)."""
+
+
+def oriented(c: Compare, kind: type | tuple[type, ...]) -> tuple[Any, str, Expr] | None:
+    """The comparison read with a `kind` of term on its left (`60 < Speed[car1]` as
+    `Speed[car1] > 60`): (that term, op, the other side); None when neither side is one."""
+    if isinstance(c.left, kind):
+        return c.left, c.op, c.right
+    if isinstance(c.right, kind):
+        return c.right, MIRRORED[c.op], c.left
+    return None
+
+
+def age_bound(c: Compare) -> tuple[Sampled, str, Fraction] | None:
+    """`age(X) op d` with a number d ≥ 0, either way round (as read with the age on the
+    left): what a deadline can be made of; None for any other comparison."""
+    found = oriented(c, Sampled)
+    if found is None or found[0].op != "age" or not isinstance(found[2], Num):
+        return None
+    limit = Fraction(found[2].value)
+    return (found[0], found[1], limit) if limit >= 0 else None
+
+
 @dataclass(frozen=True, slots=True)
 class Not:
     arg: Formula
@@ -576,10 +600,8 @@ def undated_ages(formula: Formula) -> list[str]:
     todo: list[Any] = [formula]
     while todo:
         n = todo.pop()
-        if isinstance(n, Compare):
-            for age, bound in ((n.left, n.right), (n.right, n.left)):
-                if isinstance(age, Sampled) and isinstance(bound, Num):
-                    timed.add(id(age))
+        if isinstance(n, Compare) and (bound := age_bound(n)) is not None:
+            timed.add(id(bound[0]))
         if isinstance(n, Sampled) and n.op == "age" and id(n) not in timed:
             x = feature_text(n.arg.feature)
             out.append(

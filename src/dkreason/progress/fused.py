@@ -43,6 +43,7 @@ from ..parse.formula import (
     Temporal,
     Unary,
     children,
+    oriented,
     unparse,
 )
 from .compile import exact
@@ -289,18 +290,14 @@ class Group:
         self.members = [m for m in self.members if not m.done]
 
 
-_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}
-
-
 def threshold(f: Formula) -> tuple[FeatureKey, str, int | float] | None:
-    """(feature, op, c) when `f` is `X op c` (or `c op X`) for one feature X and a number c."""
-    if not isinstance(f, Compare) or f.op not in _FLIP:
+    """(feature, op, c) when `f` is `X op c` (or `c op X`) for one feature X and a number c
+    (an order: not == or !=)."""
+    if not isinstance(f, Compare) or f.op in ("==", "!="):
         return None
-    left, op, right = f.left, f.op, f.right
-    if not isinstance(left, Ref):
-        left, op, right = right, _FLIP[op], left
-    c = _constant(right)
-    return None if not isinstance(left, Ref) or c is None else (key(left.feature), op, c)
+    read = oriented(f, Ref)
+    c = None if read is None else _constant(read[2])
+    return None if read is None or c is None else (key(read[0].feature), read[1], c)
 
 
 _FOLD: dict[str, Callable[[Any, Any], Any]] = {

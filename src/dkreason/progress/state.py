@@ -34,6 +34,7 @@ from ..parse.formula import (
     Sampled,
     Str,
     Unary,
+    age_bound,
     children,
     unparse,
 )
@@ -108,20 +109,14 @@ _BEFORE = Fraction(1, NS)  # an age turns at c: past c less 1 ns
 
 
 def _age_limits(c: Compare) -> set[tuple[FeatureKey, Fraction]]:
-    """The ages `age(X) op constant` (either way round) turns at."""
-    for age, bound, op in ((c.left, c.right, c.op), (c.right, c.left, _FLIP[c.op])):
-        if isinstance(age, Sampled) and age.op == "age" and isinstance(bound, Num):
-            limit = Fraction(bound.value)
-            if limit < 0:
-                return set()
-            x = key(age.arg.feature)
-            turns = {"<=": (limit,), ">": (limit,), "<": (limit - _BEFORE,)}
-            turns[">="] = turns["<"]
-            return {(x, t) for t in turns.get(op, (limit, limit - _BEFORE)) if t >= 0}
-    return set()
-
-
-_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "==": "==", "!=": "!="}
+    """The ages `age(X) op d` (either way round) turns at."""
+    found = age_bound(c)
+    if found is None:
+        return set()
+    age, op, limit = found
+    turns = {"<=": (limit,), ">": (limit,), "<": (limit - _BEFORE,)}
+    turns[">="] = turns["<"]
+    return {(key(age.arg.feature), t) for t in turns.get(op, (limit, limit - _BEFORE)) if t >= 0}
 
 
 def base_features(f: Any) -> list[FeatureKey]:
